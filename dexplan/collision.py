@@ -1,0 +1,256 @@
+"""Collision world: hand links, the grasped object and static obstacles, with coal.
+
+The world is one Pinocchio ``GeometryModel`` (coal geometries) holding the
+hand's collision geometry, the object (attached to the universe, its placement
+set per query) and the obstacles. Collision pairs are fixed at construction:
+
+- hand-hand pairs, except links on the same or on adjacent joints and the
+  pairs named in ``Hand.collision_exclude``;
+- every hand geometry against the object and against every obstacle;
+- the object against every obstacle.
+
+Per query, the fingertip-object pair of each *contact* finger is switched off:
+that contact is the GSn constraint, not a collision. Its penetration is still
+measured (signed distance of the tip centre to the object surface minus the tip
+radius) and reported as a collision beyond :data:`CONTACT_PENETRATION_TOL`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.exceptions import InvalidInputError, ModelError
+from dexplan.hand import Hand
+from dexplan.objects import Shape
+from dexplan.typing import FloatArray, as_vector
+
+#: Penetration of a contact fingertip into the object tolerated (m).
+CONTACT_PENETRATION_TOL = 1e-3
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A static obstacle.
+
+    Attributes:
+        shape: geometry in its own frame.
+        pose_xyzquat: (7,) pose in the world frame, quaternion XYZW.
+        name: label used in reports.
+    """
+
+    shape: Shape
+    pose_xyzquat: tuple[float, ...]
+    name: str = "obstacle"
+
+
+@dataclass(frozen=True)
+class CollisionReport:
+    """Result of :meth:`CollisionWorld.check`.
+
+    Attributes:
+        free: no collision and no contact penetration beyond tolerance.
+        pair: names of the first colliding pair found, or None.
+        max_penetration: largest penetration of a contact fingertip (m, >= 0).
+    """
+
+    free: bool
+    pair: tuple[str, str] | None
+    max_penetration: float
+
+
+def pose_to_se3(pose_xyzquat: FloatArray) -> pin.SE3:
+    """SE3 of ``pose_xyzquat: (7,)`` (position, quaternion XYZW, normalised here)."""
+    q = np.asarray(pose_xyzquat[3:7], dtype=float)
+    n = float(np.linalg.norm(q))
+    if n == 0.0:
+        raise InvalidInputError("pose_xyzquat quaternion must be non-zero, got [0, 0, 0, 0]")
+    return pin.XYZQUATToSE3(np.concatenate([pose_xyzquat[:3], q / n]))
+
+
+class CollisionWorld:
+    """Hand, object and obstacles with fixed collision pairs.
+
+    Args:
+        hand: the hand; its collision geometry is copied.
+        obj: the object shape (object frame).
+        obstacles: static obstacles in the world frame.
+    """
+
+    def __init__(self, hand: Hand, obj: Shape, obstacles: Sequence[Obstacle] = ()) -> None:
+        self.hand = hand
+        self.obj = obj
+        self.obstacles = tuple(obstacles)
+        gm = pin.GeometryModel()
+        for go in hand.geom_model.geometryObjects:
+            gm.addGeometryObject(go.copy())
+        self._n_hand_geoms = gm.ngeoms
+        ident = pin.SE3.Identity()
+        self.object_geom = gm.addGeometryObject(
+            pin.GeometryObject("object", 0, 0, ident, obj.to_coal())
+        )
+        self.obstacle_geoms = [
+            gm.addGeometryObject(
+                pin.GeometryObject(
+                    f"{ob.name}_{k}",
+                    0,
+                    0,
+                    pose_to_se3(as_vector(ob.pose_xyzquat, f"obstacles[{k}].pose_xyzquat", 7)),
+                    ob.shape.to_coal(),
+                )
+            )
+            for k, ob in enumerate(self.obstacles)
+        ]
+        self.geom_model = gm
+        self._link_of = [hand.model.frames[go.parentFrame].name for go in gm.geometryObjects]
+
+        # Fingertip geometries: those hanging from the tip frame or, when the
+        # tip frame carries none, the last geometry on the tip's parent joint.
+        model = hand.model
+        self.tip_geoms: list[int] = []
+        self.finger_geoms: list[list[int]] = []
+        finger_joints = [
+            {model.frames[fid].parentJoint} | _ancestors(model, model.frames[fid].parentJoint)
+            for fid in hand.tip_frame_ids
+        ]
+        for i, fid in enumerate(hand.tip_frame_ids):
+            on_finger = [
+                g
+                for g in range(self._n_hand_geoms)
+                if gm.geometryObjects[g].parentJoint in finger_joints[i] - {0}
+            ]
+            tip = [g for g in on_finger if gm.geometryObjects[g].parentFrame == fid]
+            if not tip:
+                tip_joint = model.frames[fid].parentJoint
+                tip = [g for g in on_finger if gm.geometryObjects[g].parentJoint == tip_joint][-1:]
+            if not tip:
+                raise ModelError(f"fingertip frame {hand.fingertip_frames[i]!r} has no geometry")
+            self.tip_geoms.append(tip[0])
+            self.finger_geoms.append(on_finger)
+
+        excluded = {frozenset(p) for p in hand.collision_exclude}
+        self._pair_of: dict[tuple[int, int], int] = {}
+        n = gm.ngeoms
+        for a in range(n):
+            for b in range(a + 1, n):
+                if self._skip_pair(a, b, excluded):
+                    continue
+                gm.addCollisionPair(pin.CollisionPair(a, b))
+                self._pair_of[(a, b)] = len(gm.collisionPairs) - 1
+        self._tip_object_pairs = [self._pair_of[(g, self.object_geom)] for g in self.tip_geoms]
+        self.geom_data = pin.GeometryData(gm)
+        for req in self.geom_data.collisionRequests:
+            req.enable_contact = False
+
+    # -------------------------------------------------------------- internals
+    def _skip_pair(self, a: int, b: int, excluded: set[frozenset[str]]) -> bool:
+        nh = self._n_hand_geoms
+        if a >= nh and b >= nh:  # object vs obstacle only; obstacles never move
+            return a != self.object_geom
+        if a >= nh or b >= nh:
+            return False
+        ja = self.geom_model.geometryObjects[a].parentJoint
+        jb = self.geom_model.geometryObjects[b].parentJoint
+        parents = self.hand.model.parents
+        if ja == jb or parents[ja] == jb or parents[jb] == ja:
+            return True
+        return frozenset((self._link_of[a], self._link_of[b])) in excluded
+
+    def _place(self, q_hand: FloatArray, object_pose_xyzquat: FloatArray) -> None:
+        pin.updateGeometryPlacements(
+            self.hand.model, self.hand.data, self.geom_model, self.geom_data, q_hand
+        )
+        self.geom_data.oMg[self.object_geom] = pose_to_se3(object_pose_xyzquat)
+
+    def geometry_name(self, g: int) -> str:
+        """Readable name of geometry ``g`` (link name, ``object`` or obstacle name)."""
+        go = self.geom_model.geometryObjects[g]
+        return self._link_of[g] if g < self._n_hand_geoms else go.name
+
+    # ------------------------------------------------------------------ queries
+    def check(
+        self,
+        q_hand: FloatArray,
+        object_pose_xyzquat: FloatArray,
+        contact_fingers: Sequence[bool],
+        *,
+        first_only: bool = True,
+    ) -> CollisionReport:
+        """Check a configuration for collisions.
+
+        Args:
+            q_hand: (nq,) hand configuration.
+            object_pose_xyzquat: (7,) object pose in the world frame, XYZW.
+            contact_fingers: per finger, True when its tip is in contact with
+                the object (that pair is then measured, not collision-checked).
+            first_only: stop at the first colliding pair.
+
+        Returns:
+            A :class:`CollisionReport`.
+        """
+        self._place(q_hand, object_pose_xyzquat)
+        gd = self.geom_data
+        for i, pair in enumerate(self._tip_object_pairs):
+            if contact_fingers[i]:
+                gd.deactivateCollisionPair(pair)
+            else:
+                gd.activateCollisionPair(pair)
+        penetration = 0.0
+        if any(contact_fingers):
+            tips = self.hand.fingertip_positions(q_hand)[np.asarray(contact_fingers, dtype=bool)]
+            sd = self.object_signed_distance(tips, object_pose_xyzquat) - self.hand.fingertip_radius
+            penetration = max(0.0, float(-np.min(sd)))
+        pair_names = None
+        if pin.computeCollisions(self.geom_model, gd, first_only):
+            for k, res in enumerate(gd.collisionResults):
+                if res.isCollision():
+                    cp = self.geom_model.collisionPairs[k]
+                    pair_names = (self.geometry_name(cp.first), self.geometry_name(cp.second))
+                    break
+        free = pair_names is None and penetration <= CONTACT_PENETRATION_TOL
+        return CollisionReport(free, pair_names, penetration)
+
+    def is_free(
+        self,
+        q_hand: FloatArray,
+        object_pose_xyzquat: FloatArray,
+        contact_fingers: Sequence[bool],
+    ) -> bool:
+        """True when :meth:`check` finds no collision (stops at the first one)."""
+        return self.check(q_hand, object_pose_xyzquat, contact_fingers).free
+
+    def object_signed_distance(
+        self, p_world: FloatArray, object_pose_xyzquat: FloatArray
+    ) -> FloatArray:
+        """Signed distance of world points ``p_world: (N, 3)`` to the object surface."""
+        M = pose_to_se3(object_pose_xyzquat)
+        p_obj = (np.asarray(p_world) - M.translation) @ M.rotation
+        return np.atleast_1d(self.obj.signed_distance(p_obj))
+
+    def finger_object_distance(
+        self, q_hand: FloatArray, object_pose_xyzquat: FloatArray, finger: int
+    ) -> float:
+        """Minimum distance (m) between any geometry of ``finger`` and the object.
+
+        Negative values are penetration depths where coal can compute them.
+        """
+        if not 0 <= finger < self.hand.n_fingers:
+            raise InvalidInputError(f"finger must be in [0, {self.hand.n_fingers}), got {finger!r}")
+        self._place(q_hand, object_pose_xyzquat)
+        best = np.inf
+        for g in self.finger_geoms[finger]:
+            k = self._pair_of[(g, self.object_geom)]
+            res = pin.computeDistance(self.geom_model, self.geom_data, k)
+            best = min(best, res.min_distance)
+        return float(best)
+
+
+def _ancestors(model: pin.Model, jid: int) -> set[int]:
+    out = set()
+    while jid > 0:
+        jid = model.parents[jid]
+        out.add(jid)
+    return out

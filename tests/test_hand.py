@@ -1,0 +1,123 @@
+import numpy as np
+import pytest
+
+from dexplan.exceptions import DexplanError, InvalidInputError, ModelError
+from dexplan.hand import Hand
+
+
+@pytest.fixture(scope="module")
+def hand() -> Hand:
+    return Hand.builtin("paper")
+
+
+def test_paper_hand_structure(hand: Hand) -> None:
+    assert hand.n_fingers == 4
+    assert hand.nq == 12
+    for i, idx in enumerate(hand.finger_q_index):
+        assert list(idx) == [3 * i, 3 * i + 1, 3 * i + 2]
+    assert hand.joint_names[:3] == ("f0_abd", "f0_mcp", "f0_pip")
+    assert np.all(hand.lower < hand.upper)
+    assert hand.within_limits(hand.neutral)
+    # every link carries collision geometry
+    links = {hand.model.frames[g.parentFrame].name for g in hand.geom_model.geometryObjects}
+    for i in range(4):
+        for part in ("knuckle", "proximal", "distal", "tip"):
+            assert f"f{i}_{part}" in links
+    assert "palm" in links
+
+
+def test_jacobians_match_finite_differences(hand: Hand) -> None:
+    rng = np.random.default_rng(0)
+    eps = 1e-6
+    for _ in range(20):
+        q = rng.uniform(hand.lower, hand.upper)
+        p, jacs = hand.fingertip_jacobians(q)
+        np.testing.assert_allclose(p, hand.fingertip_positions(q), atol=1e-12)
+        for i, idx in enumerate(hand.finger_q_index):
+            fd = np.empty((3, len(idx)))
+            for k, j in enumerate(idx):
+                qp, qm = q.copy(), q.copy()
+                qp[j] += eps
+                qm[j] -= eps
+                fd[:, k] = (hand.fingertip_positions(qp)[i] - hand.fingertip_positions(qm)[i]) / (
+                    2 * eps
+                )
+            np.testing.assert_allclose(jacs[i], fd, atol=1e-8)
+            # other fingers' joints do not move this tip
+            others = np.setdiff1d(np.arange(hand.nq), idx)
+            qp = q.copy()
+            qp[others] += 0.1
+            np.testing.assert_allclose(hand.fingertip_positions(qp)[i], p[i], atol=1e-12)
+
+
+def test_ik_round_trip_on_reachable_targets(hand: Hand) -> None:
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        q = rng.uniform(hand.lower, hand.upper)
+        target = hand.fingertip_positions(q)
+        for i in range(hand.n_fingers):
+            res = hand.finger_ik(i, target[i])
+            assert res.success, (i, target[i], res)
+            q2 = hand.neutral.copy()
+            q2[hand.finger_q_index[i]] = res.q_finger
+            assert np.linalg.norm(hand.fingertip_positions(q2)[i] - target[i]) < 1e-6
+            assert hand.within_limits(q2)
+
+
+def test_ik_unreachable_fails_cleanly(hand: Hand) -> None:
+    far = np.array([0.0, 0.0, 1.0])
+    res = hand.finger_ik(0, far)
+    assert not res.success
+    assert res.residual > 0.5
+    q = hand.neutral.copy()
+    q[hand.finger_q_index[0]] = res.q_finger
+    assert hand.within_limits(q)
+    # deterministic
+    res2 = hand.finger_ik(0, far)
+    np.testing.assert_array_equal(res.q_finger, res2.q_finger)
+
+
+def test_ik_bad_inputs(hand: Hand) -> None:
+    with pytest.raises(InvalidInputError, match="finger"):
+        hand.finger_ik(7, [0, 0, 0.1])
+    with pytest.raises(InvalidInputError, match="p_target_world"):
+        hand.finger_ik(0, [0, np.nan, 0.1])
+    with pytest.raises(InvalidInputError, match="p_target_world"):
+        hand.finger_ik(0, [0, 0.1])
+    with pytest.raises(InvalidInputError, match="q_init"):
+        hand.finger_ik(0, [0, 0, 0.1], q_init=np.zeros(3))
+
+
+def test_bad_models_raise_typed_errors(hand: Hand, tmp_path) -> None:
+    with pytest.raises(ModelError, match="nope"):
+        Hand(hand.urdf_xml, ["f0_tip", "nope"], 0.012)
+    with pytest.raises(ModelError):
+        Hand("<robot name='x'><link name='a'/>", ["a", "b"], 0.012)
+    with pytest.raises(InvalidInputError, match="fingertip_radius"):
+        Hand(hand.urdf_xml, ["f0_tip", "f1_tip"], -1.0)
+    with pytest.raises(ModelError, match="not found"):
+        Hand.from_urdf_file(tmp_path / "missing.urdf", ["a", "b"], 0.01)
+    with pytest.raises(InvalidInputError, match="hand.builtin"):
+        Hand.builtin("shadow")
+    assert issubclass(ModelError, DexplanError)
+
+
+def test_load_from_file_with_subset_of_fingers(hand: Hand, tmp_path) -> None:
+    path = tmp_path / "h.urdf"
+    path.write_text(hand.urdf_xml)
+    h3 = Hand.from_urdf_file(path, ["f0_tip", "f1_tip", "f2_tip"], 0.01)
+    assert h3.n_fingers == 3
+    assert h3.nq == 12
+
+
+def test_damped_least_squares_path_without_closed_form() -> None:
+    h = Hand.builtin("paper")
+    assert all(s is not None for s in h._analytic_ik)  # the builtin hand gets closed-form IK
+    h._analytic_ik = [None] * h.n_fingers
+    rng = np.random.default_rng(2)
+    for _ in range(15):
+        q = rng.uniform(h.lower, h.upper)
+        target = h.fingertip_positions(q)
+        for i in range(h.n_fingers):
+            res = h.finger_ik(i, target[i])
+            assert res.success and res.residual < 1e-6, (i, res)
