@@ -16,7 +16,7 @@ import sys
 from collections.abc import Sequence
 from importlib import metadata
 
-from dexplan.exceptions import DexplanError
+from dexplan.exceptions import DexplanError, InvalidInputError
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -60,6 +60,106 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _err(msg: str) -> None:
+    sys.stderr.write(f"dexplan: {msg}\n")
+    sys.stderr.flush()
+
+
+def _load_scenario(arg: str | None):  # noqa: ANN202
+    from dexplan.scenario import default_scenario, load_scenario  # noqa: PLC0415
+
+    return default_scenario() if arg is None else load_scenario(arg)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """Plan a scenario; write the plan (and optionally roadmap and recording)."""
+    from pathlib import Path  # noqa: PLC0415
+
+    from dexplan.plan import build_plan_document, write_plan  # noqa: PLC0415
+    from dexplan.planning.context import build_hand  # noqa: PLC0415
+    from dexplan.planning.planner import plan  # noqa: PLC0415
+    from dexplan.planning.roadmap import Roadmap  # noqa: PLC0415
+
+    scenario = _load_scenario(args.scenario)
+    if args.time_limit is not None and not args.time_limit > 0:
+        raise InvalidInputError(f"--time-limit must be > 0, got {args.time_limit}")
+    if args.seed is not None and args.seed < 0:
+        raise InvalidInputError(f"--seed must be >= 0, got {args.seed}")
+    if args.planner is not None:
+        from dexplan.planning.ompl_adapter import check_planner  # noqa: PLC0415
+
+        check_planner(args.planner, scenario.planner.params)
+    if args.rrd is not None:
+        from dexplan.viz import require_rerun  # noqa: PLC0415
+
+        require_rerun()
+    out = Path(args.output)
+    if not out.resolve().parent.is_dir():
+        raise InvalidInputError(f"-o: folder does not exist: {str(out.resolve().parent)!r}")
+    roadmap = None
+    if args.load_roadmap is not None:
+        from dexplan.planning.context import build_context  # noqa: PLC0415
+        from dexplan.planning.roadmap import scenario_key  # noqa: PLC0415
+
+        key = scenario_key(build_context(scenario))
+        roadmap = Roadmap.load(args.load_roadmap, key)
+    _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
+    result = plan(
+        scenario,
+        planner=args.planner,
+        seed=args.seed,
+        time_limit=args.time_limit,
+        roadmap=roadmap,
+        progress=None if args.quiet else (lambda m: _err(m)),
+    )
+    st = result.stats
+    if args.save_roadmap is not None and result.roadmap is not None:
+        result.roadmap.save(args.save_roadmap)
+        _err(f"roadmap written to {args.save_roadmap}")
+    if not result.solved:
+        _err(f"no plan: {result.status}: {result.message}")
+        sys.stdout.write(f"status: {result.status}\ntime_s: {st.get('time_s', 0):.3f}\n")
+        return EXIT_FAILED
+    hand = build_hand(scenario)
+    doc = build_plan_document(scenario, hand, result, out.resolve().parent)
+    write_plan(out, doc)
+    if args.rrd is not None:
+        from dexplan.viz import record_plan  # noqa: PLC0415
+
+        record_plan(doc, args.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
+        _err(f"recording written to {args.rrd}")
+    sys.stdout.write(
+        f"status: solved\nplan: {out}\nplanner: {st['planner']}  seed: {st['seed']}\n"
+        f"time_s: {st['time_s']:.3f}  (GSn {st.get('gsn_time_s', 0):.3f}, "
+        f"reduction {st.get('reduction_time_s', 0):.3f}, verify {st.get('verify_time_s', 0):.3f})\n"
+        f"roadmap_nodes: {st.get('roadmap_nodes')}  graph_nodes: {st.get('graph_nodes')}  "
+        f"components: {st.get('components')}\n"
+        f"transfers: {st.get('transfers')}  regrasps: {st.get('regrasps')}  "
+        f"waypoints: {st.get('waypoints')}\n"
+    )
+    return EXIT_OK
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    """Verify a plan file from the file alone."""
+    from pathlib import Path  # noqa: PLC0415
+
+    from dexplan.plan import read_plan, verify_plan  # noqa: PLC0415
+
+    doc = read_plan(args.plan)
+    report = verify_plan(doc, Path(args.plan).resolve().parent)
+    for v in report.violations[: args.max_violations]:
+        sys.stdout.write(f"VIOLATION {v}\n")
+    if len(report.violations) > args.max_violations:
+        sys.stdout.write(f"... and {len(report.violations) - args.max_violations} more\n")
+    verdict = "OK" if report.ok else "FAILED"
+    sys.stdout.write(
+        f"{verdict}: {report.segments} segments, {report.waypoints} waypoints, "
+        f"{len(report.violations)} violations\n"
+    )
+    return EXIT_OK if report.ok else EXIT_FAILED
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``dexplan`` command."""
     parser = argparse.ArgumentParser(
@@ -74,6 +174,33 @@ def build_parser() -> argparse.ArgumentParser:
     p_info = sub.add_parser("info", help="show the builtin hand, object and dependency versions")
     p_info.add_argument("--hand", default="paper", help="builtin hand name (default: paper)")
     p_info.set_defaults(func=cmd_info)
+
+    p_plan = sub.add_parser(
+        "plan",
+        help="plan a scenario (default: the paper's sphere) and write plan.json",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_plan.add_argument("scenario", nargs="?", help="scenario TOML (default: paper_sphere)")
+    p_plan.add_argument("--planner", help="OMPL planner name (default: the scenario's)")
+    p_plan.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
+    p_plan.add_argument("--time-limit", type=float, help="seconds (default: the scenario's)")
+    p_plan.add_argument("-o", "--output", default="plan.json", help="plan file (plan.json)")
+    p_plan.add_argument("--save-roadmap", help="write the GSn roadmap to this .npz file")
+    p_plan.add_argument("--load-roadmap", help="answer the query on a saved roadmap")
+    p_plan.add_argument("--rrd", help="write a Rerun recording (needs the viz extra)")
+    p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p_plan.set_defaults(func=cmd_plan)
+
+    p_ver = sub.add_parser(
+        "verify",
+        help="check a plan file against every rule, from the file alone",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_ver.add_argument("plan", help="plan JSON file")
+    p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
+    p_ver.set_defaults(func=cmd_verify)
     return parser
 
 

@@ -141,9 +141,15 @@ class CollisionWorld:
                 gm.addCollisionPair(pin.CollisionPair(a, b))
                 self._pair_of[(a, b)] = len(gm.collisionPairs) - 1
         self._tip_object_pairs = [self._pair_of[(g, self.object_geom)] for g in self.tip_geoms]
+        self._finger_of_geom: dict[int, int] = {
+            g: i for i, geoms in enumerate(self.finger_geoms) for g in geoms
+        }
+        self._finger_of_name = {self.geometry_name(g): i for g, i in self._finger_of_geom.items()}
         self.geom_data = pin.GeometryData(gm)
         for req in self.geom_data.collisionRequests:
             req.enable_contact = False
+        # places the obstacles once (they never move)
+        pin.updateGeometryPlacements(hand.model, hand.data, gm, self.geom_data, hand.neutral)
 
     # -------------------------------------------------------------- internals
     def _skip_pair(self, a: int, b: int, excluded: set[frozenset[str]]) -> bool:
@@ -169,6 +175,10 @@ class CollisionWorld:
         """Readable name of geometry ``g`` (link name, ``object`` or obstacle name)."""
         go = self.geom_model.geometryObjects[g]
         return self._link_of[g] if g < self._n_hand_geoms else go.name
+
+    def finger_of(self, name: str) -> int | None:
+        """Finger owning the geometry called ``name`` (a link name), or None."""
+        return self._finger_of_name.get(name)
 
     # ------------------------------------------------------------------ queries
     def check(
@@ -221,6 +231,19 @@ class CollisionWorld:
     ) -> bool:
         """True when :meth:`check` finds no collision (stops at the first one)."""
         return self.check(q_hand, object_pose_xyzquat, contact_fingers).free
+
+    def object_collides(self, object_pose_xyzquat: FloatArray) -> bool:
+        """True when the object at ``object_pose_xyzquat`` touches an obstacle."""
+        if not self.obstacle_geoms:
+            return False
+        M = pose_to_se3(object_pose_xyzquat)
+        gd, gm = self.geom_data, self.geom_model
+        gd.oMg[self.object_geom] = M
+        for g in self.obstacle_geoms:
+            k = self._pair_of[(self.object_geom, g)]
+            if pin.computeCollision(gm, gd, k):
+                return True
+        return False
 
     def object_signed_distance(
         self, p_world: FloatArray, object_pose_xyzquat: FloatArray

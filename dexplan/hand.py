@@ -249,6 +249,33 @@ class Hand:
             if f.type == pin.FrameType.BODY
         }
 
+    def finger_ik_batch(
+        self, finger: int, p_targets_world: FloatArray, q_init: FloatArray | None = None
+    ) -> tuple[FloatArray, np.ndarray]:
+        """IK of one finger for many targets at once.
+
+        Args:
+            finger: finger index.
+            p_targets_world: (N, 3) fingertip-centre targets, world frame.
+            q_init: (nq,) hand configuration used as the start of iterative solves.
+
+        Returns:
+            ``q_finger: (N, m)`` within limits and ``ok: (N,)`` success flags.
+            Closed-form fingers are solved vectorized; others call
+            :meth:`finger_ik` per target.
+        """
+        targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
+        analytic = self._analytic_ik[finger]
+        if analytic is not None:
+            return analytic.solve_batch(targets)
+        m = len(self.finger_q_index[finger])
+        q_out = np.zeros((len(targets), m))
+        ok = np.zeros(len(targets), dtype=bool)
+        for k, t in enumerate(targets):
+            res = self.finger_ik(finger, t, q_init)
+            q_out[k], ok[k] = res.q_finger, res.success
+        return q_out, ok
+
     def _finger_tip(self, finger: int, q_hand: FloatArray) -> tuple[FloatArray, FloatArray]:
         fid = self.tip_frame_ids[finger]
         J = pin.computeFrameJacobian(self.model, self.data, q_hand, fid, pin.LOCAL_WORLD_ALIGNED)
@@ -412,6 +439,40 @@ class _PlanarFingerIK:
                     if d < best_d:
                         best, best_d = np.clip(sol, self.lo, self.hi), d
         return best
+
+
+    def solve_batch(self, targets: FloatArray) -> tuple[FloatArray, np.ndarray]:
+        """Vectorized :meth:`solve` without the nearest-solution preference.
+
+        Args:
+            targets: (N, 3) fingertip-centre targets, world frame.
+
+        Returns:
+            ``q: (N, 3)`` and ``ok: (N,)``; among the branches within limits
+            the first found is returned (abduction on the target's side first).
+        """
+        p = targets - self.o0
+        u = (p @ self.a0) * self.s
+        pe, pb = p @ self.e, p @ self.b
+        r = np.hypot(pe, pb)
+        base = np.arctan2(pb, pe)
+        l1, l2 = self.l1, self.l2
+        q_out = np.zeros((len(targets), 3))
+        ok = np.zeros(len(targets), dtype=bool)
+        for th0, w in ((base, r - self.k), (base - np.copysign(np.pi, base), -r - self.k)):
+            c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+            reach = np.abs(c2) <= 1.0
+            a2 = np.arccos(np.clip(c2, -1.0, 1.0))
+            for th2 in (a2, -a2):
+                th1 = np.arctan2(u, w) - np.arctan2(l2 * np.sin(th2), l1 + l2 * np.cos(th2))
+                th1 = (th1 + np.pi) % (2 * np.pi) - np.pi
+                sol = np.stack([th0, th1, th2], axis=1)
+                inside = reach & np.all(sol >= self.lo - 1e-12, axis=1)
+                inside &= np.all(sol <= self.hi + 1e-12, axis=1)
+                new = inside & ~ok
+                q_out[new] = sol[new]
+                ok |= new
+        return np.clip(q_out, self.lo, self.hi), ok
 
 
 def _allegro_hand() -> Hand:

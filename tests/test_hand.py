@@ -121,3 +121,23 @@ def test_damped_least_squares_path_without_closed_form() -> None:
         for i in range(h.n_fingers):
             res = h.finger_ik(i, target[i])
             assert res.success and res.residual < 1e-6, (i, res)
+
+
+def test_batch_ik_matches_forward_kinematics(hand: Hand) -> None:
+    rng = np.random.default_rng(3)
+    for i in range(hand.n_fingers):
+        idx = hand.finger_q_index[i]
+        qs = rng.uniform(hand.lower[idx], hand.upper[idx], size=(50, len(idx)))
+        targets = []
+        for qf in qs:
+            q = hand.neutral.copy()
+            q[idx] = qf
+            targets.append(hand.fingertip_positions(q)[i])
+        targets.append([0.0, 0.0, 1.0])  # unreachable
+        q_sol, ok = hand.finger_ik_batch(i, np.array(targets))
+        assert ok[:-1].all() and not ok[-1]
+        for qf, t in zip(q_sol[:-1], targets[:-1], strict=True):
+            q = hand.neutral.copy()
+            q[idx] = qf
+            assert np.linalg.norm(hand.fingertip_positions(q)[i] - t) < 1e-8
+            assert hand.within_limits(q)

@@ -42,8 +42,13 @@ from dexplan.typing import FloatArray, as_vector
 POSE_DIM = 7
 
 
-def _skew(v: FloatArray) -> FloatArray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Row-wise cross products of ``a, b: (k, 3)`` (np.cross is slow for small arrays)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
 
 
 class GraspSubspace:
@@ -92,6 +97,8 @@ class GraspSubspace:
         )
         # column blocks of each contact finger's joints in the ambient vector
         self._q_cols = [POSE_DIM + hand.finger_q_index[i] for i in self.contact_ids]
+        self._eye4 = np.eye(4)
+        self._ids = list(self.contact_ids)
         self._cache_key: bytes | None = None
         self._cache_f = np.zeros(self.co_dim)
         self._cache_J = np.zeros((self.co_dim, self.ambient_dim))
@@ -120,7 +127,7 @@ class GraspSubspace:
         R = quat_to_matrix(qh)
         p_all, jacs = self.hand.fingertip_jacobians(q)
         ids = self.contact_ids
-        v = p_all[list(ids)] - t  # (k, 3) world-frame offsets from object origin
+        v = p_all[self._ids] - t  # (k, 3) world-frame offsets from object origin
         p_obj = v @ R
         d, n_obj = self.obj.signed_distance_and_gradient(p_obj)
         n_world = n_obj @ R.T
@@ -130,30 +137,42 @@ class GraspSubspace:
         f[:-1] = np.atleast_1d(d) - self.hand.fingertip_radius
         f[-1] = norm * norm - 1.0
         u, w = qh[:3], qh[3]
-        proj = (np.eye(4) - np.outer(qh, qh)) / norm
+        # d(n_o . R^T v)/d(quat_hat), all contact rows at once, from
+        # R^T v = (w^2 - |u|^2) v + 2 u (u.v) - 2 w (u x v)
+        nv = np.einsum("ij,ij->i", n_obj, v)
+        n_x_v = _cross_rows(n_obj, v)
+        dq_hat = np.empty((len(ids), 4))
+        dq_hat[:, :3] = (
+            -2.0 * nv[:, None] * u
+            + 2.0 * (v @ u)[:, None] * n_obj
+            + 2.0 * (n_obj @ u)[:, None] * v
+            + 2.0 * w * n_x_v
+        )
+        dq_hat[:, 3] = 2.0 * w * nv + 2.0 * (n_x_v @ u)
+        proj = (self._eye4 - np.outer(qh, qh)) / norm
+        J[:-1, :3] = -n_world
+        J[:-1, 3:7] = dq_hat @ proj
         for row, i in enumerate(ids):
-            vi = v[row]
-            # d(R^T v)/d(quat_hat) for R^T v = (w^2-|u|^2) v + 2 u (u.v) - 2 w (u x v)
-            dvu = (
-                -2.0 * np.outer(vi, u)
-                + 2.0 * float(u @ vi) * np.eye(3)
-                + 2.0 * np.outer(u, vi)
-                + 2.0 * w * _skew(vi)
-            )
-            dvw = 2.0 * w * vi - 2.0 * np.cross(u, vi)
-            dq_hat = np.empty(4)
-            dq_hat[:3] = n_obj[row] @ dvu
-            dq_hat[3] = n_obj[row] @ dvw
-            J[row, :3] = -n_world[row]
-            J[row, 3:7] = dq_hat @ proj
             J[row, self._q_cols[row]] = n_world[row] @ jacs[i]
         J[-1, 3:7] = 2.0 * quat
         self._cache_key = key
 
     def function(self, x: FloatArray) -> FloatArray:
-        """Constraint value ``f(x): (k + 1,)``; zero on GSk."""
-        self._evaluate(x)
-        return self._cache_f.copy()
+        """Constraint value ``f(x): (k + 1,)``; zero on GSk.
+
+        Cheaper than :meth:`jacobian` (no Jacobians): OMPL evaluates f far
+        more often than J.
+        """
+        if x.tobytes() == self._cache_key:
+            return self._cache_f.copy()
+        t, quat = x[:3], x[3:7]
+        norm = float(np.sqrt(quat @ quat))
+        R = quat_to_matrix(quat / norm)
+        p = self.hand.fingertip_positions(x[POSE_DIM:])[self._ids]
+        f = np.empty(self.co_dim)
+        f[:-1] = self.obj.signed_distance((p - t) @ R) - self.hand.fingertip_radius
+        f[-1] = norm * norm - 1.0
+        return f
 
     def jacobian(self, x: FloatArray) -> FloatArray:
         """Constraint Jacobian ``J(x): (k + 1, 7 + nq)``."""

@@ -1,0 +1,495 @@
+"""Plan files (format ``dexplan-plan/1``): write, read and verify.
+
+A plan file is one self-contained JSON document: the hand (URDF text, joint
+names, fingertip frames and radius), the object, friction, obstacles, start,
+goal, the transfer/regrasp segments and statistics. It is written atomically
+(temporary file in the same folder, then rename), so a reader never sees half a
+plan.
+
+:func:`verify_plan` re-checks a plan from the file alone. It rebuilds the
+models (Pinocchio hand, object, coal world, force closure) but shares no code
+path with the planner: every rule of DESIGN.md is checked again and each
+violation names the segment, the waypoint and the rule.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dexplan.exceptions import DexplanError, PlanFileError
+from dexplan.planning.path import Segment, Waypoint
+
+FORMAT = "dexplan-plan/1"
+
+#: Verification tolerances (DESIGN.md).
+TIP_DISTANCE_TOL = 1e-3  # |fingertip distance to surface - r| (m)
+PENETRATION_TOL = 1e-3  # (m)
+MAX_STEP_M = 0.01  # object translation between waypoints (m)
+MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
+CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
+STILL_TOL = 1e-9  # "does not move" (m, rad)
+FC_MIN = 0.0  # force-closure quality must exceed this
+
+
+# ------------------------------------------------------------------ writing
+def waypoint_to_dict(w: Waypoint) -> dict[str, Any]:
+    """JSON form of a waypoint."""
+    return {
+        "object_pose_xyzquat": [float(v) for v in w.object_pose_xyzquat],
+        "q": [float(v) for v in w.q],
+        "contacts": [None if c is None else [float(v) for v in c] for c in w.contacts],
+    }
+
+
+def segment_to_dict(s: Segment) -> dict[str, Any]:
+    """JSON form of a segment."""
+    return {
+        "kind": s.kind,
+        "finger": s.finger,
+        "waypoints": [waypoint_to_dict(w) for w in s.waypoints],
+    }
+
+
+def segments_from_dicts(items: Sequence[Mapping[str, Any]]) -> tuple[Segment, ...]:
+    """Segments from their JSON form (shapes are checked by :func:`verify_plan`)."""
+    out = []
+    for s in items:
+        wps = tuple(
+            Waypoint(
+                np.asarray(w["object_pose_xyzquat"], dtype=float),
+                np.asarray(w["q"], dtype=float),
+                tuple(None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]),
+            )
+            for w in s["waypoints"]
+        )
+        out.append(Segment(s["kind"], s["finger"], wps))
+    return tuple(out)
+
+
+def write_plan(path: str | Path, doc: Mapping[str, Any]) -> None:
+    """Write a plan document as JSON, atomically.
+
+    Raises:
+        PlanFileError: the folder does not exist or is not writable.
+    """
+    path = Path(path)
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise PlanFileError(f"output folder does not exist: {str(folder)!r}")
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise PlanFileError(f"cannot write plan to {str(path)!r}: {exc}") from exc
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def read_plan(path: str | Path) -> dict[str, Any]:
+    """Read a plan file and check its format tag.
+
+    Raises:
+        PlanFileError: missing file, invalid JSON or wrong format.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise PlanFileError(f"plan file not found: {str(path)!r}")
+    try:
+        doc = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PlanFileError(f"{path}: not valid JSON: {exc}") from exc
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        raise PlanFileError(f"{path}: format must be {FORMAT!r}, got {got!r}")
+    return doc
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (mesh identity in plan files)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# ---------------------------------------------------------------- verifying
+@dataclass(frozen=True)
+class Violation:
+    """One broken rule: where (segment, waypoint; -1 for the whole plan) and what."""
+
+    segment: int
+    waypoint: int
+    rule: str
+    message: str
+
+    def __str__(self) -> str:
+        where = "plan" if self.segment < 0 else f"segment {self.segment}"
+        if self.waypoint >= 0:
+            where += f", waypoint {self.waypoint}"
+        return f"{where}: {self.rule}: {self.message}"
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Result of :func:`verify_plan`."""
+
+    violations: tuple[Violation, ...]
+    waypoints: int
+    segments: int
+
+    @property
+    def ok(self) -> bool:
+        """True when no rule is broken."""
+        return not self.violations
+
+
+class _Checker:
+    """Rebuilds the models from a plan document and checks every rule."""
+
+    def __init__(self, doc: Mapping[str, Any], base_dir: Path) -> None:
+        from dexplan.collision import CollisionWorld, Obstacle  # noqa: PLC0415
+        from dexplan.hand import Hand  # noqa: PLC0415
+        from dexplan.objects import shape_from_dict  # noqa: PLC0415
+
+        h = doc["hand"]
+        self.hand = Hand(
+            h["urdf_xml"],
+            h["fingertip_frames"],
+            h["fingertip_radius"],
+            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
+            name="plan hand",
+        )
+        if list(self.hand.joint_names) != list(h["joint_names"]):
+            raise PlanFileError(
+                f"hand.joint_names {h['joint_names']} do not match the URDF's "
+                f"{list(self.hand.joint_names)}"
+            )
+        self.obj = shape_from_dict(doc["object"], base_dir)
+        obstacles = [
+            Obstacle(
+                shape_from_dict({k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")},
+                                base_dir),
+                tuple(ob["pose_xyzquat"]),
+                ob.get("name", f"obstacle{k}"),
+            )
+            for k, ob in enumerate(doc.get("obstacles", []))
+        ]  # fmt: skip
+        self.world = CollisionWorld(self.hand, self.obj, obstacles)
+        self.mu = float(doc["mu"])
+        self.edges = int(doc.get("friction_edges", 8))
+        self.n = self.hand.n_fingers
+        self.violations: list[Violation] = []
+
+    def add(self, seg: int, wp: int, rule: str, message: str) -> None:
+        self.violations.append(Violation(seg, wp, rule, message))
+
+    # -- per waypoint ------------------------------------------------------
+    def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
+        from dexplan.grasp import force_closure_quality, min_subgrasp_quality  # noqa: PLC0415
+        from dexplan.pose import inverse_transform_points  # noqa: PLC0415
+
+        hand, obj = self.hand, self.obj
+        pose, q = w.object_pose_xyzquat, w.q
+        if pose.shape != (7,) or not np.all(np.isfinite(pose)):
+            self.add(si, wi, "object_pose", f"must be 7 finite numbers, got {pose.tolist()}")
+            return
+        if abs(float(np.linalg.norm(pose[3:])) - 1.0) > 1e-6:
+            self.add(si, wi, "object_pose", "quaternion is not unit length")
+            return
+        if q.shape != (hand.nq,) or not np.all(np.isfinite(q)):
+            self.add(si, wi, "q", f"must be {hand.nq} finite numbers, got {q.tolist()}")
+            return
+        if len(w.contacts) != self.n:
+            self.add(si, wi, "contacts", f"must list {self.n} fingers, got {len(w.contacts)}")
+            return
+        if not hand.within_limits(q, 1e-9):
+            bad = [hand.joint_names[j] for j in np.flatnonzero((q < hand.lower - 1e-9)
+                                                               | (q > hand.upper + 1e-9))]  # fmt: skip
+            self.add(si, wi, "joint_limits", f"joints outside limits: {bad}")
+        tips = inverse_transform_points(pose, hand.fingertip_positions(q))
+        mask = w.contact_mask()
+        r = hand.fingertip_radius
+        pts, nrm = [], []
+        for i, c in enumerate(w.contacts):
+            if c is None:
+                continue
+            c = np.asarray(c, dtype=float)
+            if c.shape != (3,) or not np.all(np.isfinite(c)):
+                self.add(si, wi, "contacts", f"finger {i}: contact must be 3 finite numbers")
+                return
+            d_tip = float(obj.signed_distance(tips[i])) - r
+            if abs(d_tip) > TIP_DISTANCE_TOL:
+                self.add(si, wi, "fingertip_distance",
+                         f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface")  # fmt: skip
+            d_c = float(obj.signed_distance(c))
+            if abs(d_c) > TIP_DISTANCE_TOL:
+                self.add(si, wi, "contact_on_surface",
+                         f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface")  # fmt: skip
+            p_s, n_s = obj.closest_point(c)
+            expected_tip = np.asarray(p_s).reshape(3) + r * np.asarray(n_s).reshape(3)
+            gap = float(np.linalg.norm(expected_tip - tips[i]))
+            if gap > TIP_DISTANCE_TOL:
+                self.add(si, wi, "contact_matches_fingertip",
+                         f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's")  # fmt: skip
+            pts.append(np.asarray(p_s).reshape(3))
+            nrm.append(-np.asarray(n_s).reshape(3))
+        rep = self.world.check(q, pose, mask, first_only=True)
+        if rep.pair is not None:
+            self.add(si, wi, "collision", f"{rep.pair[0]} touches {rep.pair[1]}")
+        if rep.max_penetration > PENETRATION_TOL:
+            self.add(si, wi, "penetration",
+                     f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object")  # fmt: skip
+        if len(pts) < 2:
+            self.add(si, wi, "force_closure", f"only {len(pts)} finger(s) hold the object")
+            return
+        P, N = np.array(pts), np.array(nrm)
+        ts = obj.characteristic_length
+        fc = force_closure_quality(P, N, self.mu, edges=self.edges, torque_scale=ts)
+        if fc <= FC_MIN:
+            self.add(si, wi, "force_closure", f"holding grasp is not force closure ({fc:.3g})")
+        elif subgrasps:
+            sub = min_subgrasp_quality(P, N, self.mu, edges=self.edges, torque_scale=ts)
+            if sub <= FC_MIN:
+                self.add(si, wi, "subgrasp_force_closure",
+                         f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})")  # fmt: skip
+
+    # -- per segment -------------------------------------------------------
+    def steps(self, si: int, seg: Segment) -> None:
+        from dexplan.pose import quat_angle  # noqa: PLC0415
+
+        for wi in range(1, len(seg.waypoints)):
+            a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
+            if a.q.shape != b.q.shape or a.object_pose_xyzquat.shape != (7,) != b.object_pose_xyzquat.shape:
+                continue
+            dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
+            da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
+            dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
+            if dp > MAX_STEP_M + 1e-12:
+                self.add(si, wi, "step", f"object moves {dp * 1e3:.2f} mm from the previous waypoint")
+            if da > MAX_STEP_RAD + 1e-12:
+                self.add(si, wi, "step", f"object turns {da:.4f} rad from the previous waypoint")
+            if dq > MAX_STEP_RAD + 1e-12:
+                self.add(si, wi, "step", f"a joint moves {dq:.4f} rad from the previous waypoint")
+
+    def transfer(self, si: int, seg: Segment) -> None:
+        first = seg.waypoints[0]
+        for wi, w in enumerate(seg.waypoints):
+            if w.contact_mask() != first.contact_mask():
+                self.add(si, wi, "transfer_contacts", "the set of contact fingers changes")
+                continue
+            for i, (c, c0) in enumerate(zip(w.contacts, first.contacts, strict=True)):
+                if c is None:
+                    continue
+                drift = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
+                if drift > CONTACT_DRIFT_TOL:
+                    self.add(si, wi, "transfer_contact_drift",
+                             f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame")  # fmt: skip
+
+    def regrasp(self, si: int, seg: Segment) -> None:
+        f = seg.finger
+        if not isinstance(f, int) or not 0 <= f < self.n:
+            self.add(si, -1, "regrasp_finger", f"finger must be in [0, {self.n}), got {f!r}")
+            return
+        wps = seg.waypoints
+        if len(wps) < 3:
+            self.add(si, -1, "regrasp_interior", "a regrasp needs at least one interior waypoint")
+        first = wps[0]
+        others = np.ones(self.hand.nq, dtype=bool)
+        others[self.hand.finger_q_index[f]] = False
+        for wi, w in enumerate(wps):
+            if w.q.shape != first.q.shape:
+                continue
+            dpose = float(np.max(np.abs(w.object_pose_xyzquat - first.object_pose_xyzquat)))
+            if dpose > STILL_TOL:
+                self.add(si, wi, "regrasp_object_still", f"the object moves ({dpose:.3g})")
+            moved = np.flatnonzero(np.abs(w.q - first.q)[others] > STILL_TOL)
+            if len(moved):
+                names = [self.hand.joint_names[j] for j in np.flatnonzero(others)[moved]]
+                self.add(si, wi, "regrasp_one_finger", f"joints of other fingers move: {names}")
+            for i in range(self.n):
+                if i == f:
+                    continue
+                c, c0 = w.contacts[i], first.contacts[i]
+                if (c is None) != (c0 is None) or (
+                    c is not None and np.linalg.norm(np.asarray(c) - np.asarray(c0)) > STILL_TOL
+                ):
+                    self.add(si, wi, "regrasp_one_finger", f"finger {i}'s contact changes")
+            interior = 0 < wi < len(wps) - 1
+            if interior:
+                if w.contacts[f] is not None:
+                    self.add(si, wi, "regrasp_free_finger",
+                             f"finger {f} must be free (contact null) at interior waypoints")  # fmt: skip
+                else:
+                    d = self.world.finger_object_distance(w.q, w.object_pose_xyzquat, f)
+                    if d <= 0.0:
+                        self.add(si, wi, "regrasp_clearance",
+                                 f"free finger {f} touches the object ({d * 1e3:.3f} mm)")  # fmt: skip
+        for wi in (0, len(wps) - 1):
+            if wps[wi].contacts[f] is None:
+                self.add(si, wi, "regrasp_endpoints", f"finger {f} must be in contact here")
+
+
+def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
+    """Check every rule of a ``dexplan-plan/1`` document.
+
+    Args:
+        doc: the parsed plan (see :func:`read_plan`).
+        base_dir: folder that relative mesh paths resolve against.
+
+    Returns:
+        A :class:`VerifyReport` listing every violation.
+
+    Raises:
+        PlanFileError: the document is structurally unusable (missing hand,
+            object or segments, unloadable models).
+    """
+    from dexplan.pose import quat_angle  # noqa: PLC0415
+
+    for key in ("hand", "object", "mu", "start", "goal", "segments"):
+        if key not in doc:
+            raise PlanFileError(f"plan is missing field {key!r}")
+    try:
+        chk = _Checker(doc, Path(base_dir))
+        segments = segments_from_dicts(doc["segments"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise PlanFileError(f"malformed plan: {type(exc).__name__}: {exc}") from exc
+    except DexplanError as exc:
+        if isinstance(exc, PlanFileError):
+            raise
+        raise PlanFileError(f"cannot rebuild the plan's models: {exc}") from exc
+
+    if not segments:
+        chk.add(-1, -1, "segments", "the plan has no segments")
+    total = 0
+    for si, seg in enumerate(segments):
+        if seg.kind not in ("transfer", "regrasp"):
+            chk.add(si, -1, "segment_kind", f"kind must be transfer or regrasp, got {seg.kind!r}")
+            continue
+        if not seg.waypoints:
+            chk.add(si, -1, "segment_waypoints", "segment has no waypoints")
+            continue
+        for wi, w in enumerate(seg.waypoints):
+            chk.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
+        total += len(seg.waypoints)
+        chk.steps(si, seg)
+        if seg.kind == "transfer":
+            chk.transfer(si, seg)
+        else:
+            chk.regrasp(si, seg)
+        if si > 0 and segments[si - 1].waypoints:
+            a, b = segments[si - 1].waypoints[-1], seg.waypoints[0]
+            same = (
+                a.q.shape == b.q.shape
+                and np.allclose(a.q, b.q, atol=STILL_TOL)
+                and np.allclose(a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL)
+            )
+            if not same:
+                chk.add(si, 0, "continuity", "does not start where the previous segment ends")
+
+    # start and goal
+    if segments and segments[0].waypoints:
+        w0 = segments[0].waypoints[0]
+        start = doc["start"]
+        sp = np.asarray(start.get("object_pose_xyzquat", []), dtype=float)
+        if sp.shape != (7,) or not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
+            chk.add(0, 0, "start", "first waypoint is not the start object pose")
+        if "q" in start and start["q"] is not None:
+            sq = np.asarray(start["q"], dtype=float)
+            if sq.shape != w0.q.shape or not np.allclose(sq, w0.q, atol=1e-9):
+                chk.add(0, 0, "start", "first waypoint is not the start configuration")
+        wl = segments[-1].waypoints[-1] if segments[-1].waypoints else w0
+        goal = doc["goal"]
+        gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+        dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
+        da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
+        if dp > float(goal.get("position_tol", 0.005)) + 1e-12:
+            chk.add(len(segments) - 1, len(segments[-1].waypoints) - 1, "goal",
+                    f"object ends {dp * 1e3:.2f} mm from the goal position")  # fmt: skip
+        if da > float(goal.get("angle_tol", 0.05)) + 1e-12:
+            chk.add(len(segments) - 1, len(segments[-1].waypoints) - 1, "goal",
+                    f"object ends {math.degrees(da):.2f} deg from the goal orientation")  # fmt: skip
+    return VerifyReport(tuple(chk.violations), total, len(segments))
+
+
+def _portable_shape(shape: Mapping[str, Any], base_dir: Path, out_dir: Path) -> dict[str, Any]:
+    """Shape dict with a mesh path relative to the plan's folder and its sha256."""
+    d = dict(shape)
+    if d.get("shape") == "mesh":
+        src = (base_dir / str(d["path"])).resolve()
+        try:
+            d["path"] = os.path.relpath(src, out_dir.resolve())
+        except ValueError:  # another drive
+            d["path"] = str(src)
+        d["sha256"] = file_sha256(src)
+    return d
+
+
+def build_plan_document(
+    scenario: Any, hand: Any, result: Any, out_dir: str | Path = "."
+) -> dict[str, Any]:
+    """The ``dexplan-plan/1`` document of a solved :class:`~dexplan.planning.planner.PlanResult`.
+
+    Args:
+        scenario: the :class:`~dexplan.scenario.Scenario` planned.
+        hand: the :class:`~dexplan.hand.Hand` used.
+        result: the planner's result (``segments``, ``start_q``, ``stats``).
+        out_dir: folder the plan will be written to (mesh paths are relative to it).
+    """
+    out_dir = Path(out_dir)
+    base = scenario.base_dir
+    g = scenario.goal
+    return {
+        "format": FORMAT,
+        "scenario": scenario.name,
+        "hand": {
+            "urdf_xml": hand.urdf_xml,
+            "joint_names": list(hand.joint_names),
+            "fingertip_frames": list(hand.fingertip_frames),
+            "fingertip_radius": hand.fingertip_radius,
+            "collision_exclude": [list(p) for p in hand.collision_exclude],
+        },
+        "object": _portable_shape(scenario.object, base, out_dir),
+        "mu": scenario.mu,
+        "friction_edges": scenario.friction_edges,
+        "obstacles": [_portable_shape(o, base, out_dir) for o in scenario.obstacles],
+        "start": {
+            "object_pose_xyzquat": [float(v) for v in result.start_pose],
+            "q": None if result.start_q is None else [float(v) for v in result.start_q],
+        },
+        "goal": {
+            "object_pose_xyzquat": [float(v) for v in g.object_pose_xyzquat],
+            "position_tol": g.position_tol,
+            "angle_tol": g.angle_tol,
+        },
+        "segments": [segment_to_dict(s) for s in result.segments],
+        "stats": _jsonable(result.stats),
+    }
+
+
+def _jsonable(value: Any) -> Any:
+    """Statistics as plain JSON values (NumPy scalars and arrays converted)."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

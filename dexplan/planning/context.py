@@ -1,0 +1,122 @@
+"""Everything the planner builds from a scenario, in one place.
+
+A :class:`PlanningContext` holds the models (hand, object, collision world),
+the grasp subspace GSn, its validity checker and sampler, and the transfer and
+regrasp local planners, all wired to one seeded random generator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dexplan.collision import CollisionWorld, Obstacle
+from dexplan.exceptions import DexplanError, ScenarioError
+from dexplan.hand import Hand
+from dexplan.objects import Shape, shape_from_dict
+from dexplan.planning.gsn import GraspSubspace
+from dexplan.planning.sampler import GraspSampler, SamplerSettings
+from dexplan.planning.transitions import TransitionSettings, Transitions
+from dexplan.planning.validity import GraspValidity, ValiditySettings
+from dexplan.scenario import Scenario
+
+
+@dataclass
+class PlanningContext:
+    """Models and GSn machinery of one scenario.
+
+    Attributes:
+        scenario: the scenario it was built from.
+        hand: the hand.
+        obj: the object shape.
+        world: collision world (hand, object, obstacles).
+        gsn: the grasp subspace GSn (all fingers in contact).
+        validity: GSn validity checker.
+        sampler: RLG-style sampler of valid GSn states.
+        transitions: transfer and regrasp local planners.
+        rng: the random generator all of them share.
+    """
+
+    scenario: Scenario
+    hand: Hand
+    obj: Shape
+    world: CollisionWorld
+    gsn: GraspSubspace
+    validity: GraspValidity
+    sampler: GraspSampler
+    transitions: Transitions
+    rng: np.random.Generator
+
+
+def build_hand(scenario: Scenario) -> Hand:
+    """The scenario's hand (builtin or URDF)."""
+    spec = scenario.hand
+    if spec.builtin is not None:
+        return Hand.builtin(spec.builtin)
+    assert spec.urdf is not None and spec.fingertip_radius is not None
+    return Hand.from_urdf_file(
+        spec.urdf,
+        spec.fingertip_frames,
+        spec.fingertip_radius,
+        collision_exclude=spec.collision_exclude,
+    )
+
+
+def build_obstacles(scenario: Scenario) -> list[Obstacle]:
+    """The scenario's obstacles."""
+    out = []
+    for ob in scenario.obstacles:
+        shape = {k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")}
+        out.append(
+            Obstacle(
+                shape_from_dict(shape, scenario.base_dir), tuple(ob["pose_xyzquat"]), ob["name"]
+            )
+        )
+    return out
+
+
+def build_context(
+    scenario: Scenario,
+    seed: int | None = None,
+    *,
+    transition_settings: TransitionSettings | None = None,
+    sampler_settings: SamplerSettings | None = None,
+) -> PlanningContext:
+    """Build hand, object, world, GSn, validity, sampler and local planners.
+
+    Args:
+        scenario: the problem.
+        seed: random seed (defaults to the scenario's planner seed).
+        transition_settings: local-planner settings.
+        sampler_settings: sampler settings.
+
+    Raises:
+        ScenarioError: the models cannot be built from the scenario.
+    """
+    try:
+        hand = build_hand(scenario)
+        obj = shape_from_dict(dict(scenario.object), scenario.base_dir)
+        world = CollisionWorld(hand, obj, build_obstacles(scenario))
+    except ScenarioError:
+        raise
+    except DexplanError as exc:
+        raise ScenarioError(f"scenario {scenario.name!r}: {exc}") from exc
+    rng = np.random.default_rng(scenario.planner.seed if seed is None else seed)
+    start_pos = scenario.start.object_pose_xyzquat[:3]
+    goal_pos = scenario.goal.object_pose_xyzquat[:3]
+    gsn = GraspSubspace(
+        hand,
+        obj,
+        workspace_center=0.5 * (start_pos + goal_pos),
+        workspace_half_extent=0.5 * np.abs(goal_pos - start_pos) + scenario.workspace_half_extent,
+    )
+    vset = ValiditySettings(
+        mu=scenario.mu, friction_edges=scenario.friction_edges, fc_margin=scenario.fc_margin
+    )
+    validity = GraspValidity(gsn, world, vset)
+    sampler = GraspSampler(gsn, validity, rng, sampler_settings)
+    transitions = Transitions(
+        hand, obj, world, vset, transition_settings or TransitionSettings(), rng
+    )
+    return PlanningContext(scenario, hand, obj, world, gsn, validity, sampler, transitions, rng)

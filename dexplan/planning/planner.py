@@ -1,0 +1,234 @@
+"""The manipulation planner: module 1 (GSn roadmap), module 2 (links), reduction.
+
+A query runs in three stages:
+
+1. **Module 1** (:mod:`dexplan.planning.roadmap`): an OMPL planner explores
+   GSn from the start state towards the goal region (single query), or a
+   loaded roadmap answers the query (multi query).
+2. **Module 2**: when start and goal are in different GSn components, the
+   components are linked by transfer-regrasp sequences (the same local
+   planners as the reduction).
+3. **Reduction and smoothing**: the object trajectory of the GSn path is
+   shortcut, reduced to transfer and regrasp segments (finger gaits), needless
+   regrasps are merged, and the result is checked by the plan verifier before
+   it is returned.
+
+"No plan" is a result with a status, not an exception.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dexplan.exceptions import InvalidInputError
+from dexplan.plan import build_plan_document, verify_plan
+from dexplan.planning.context import PlanningContext, build_context
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.path import Segment, count_kinds, object_path_length
+from dexplan.planning.reduction import grasp_from_state, reduce_object_path
+from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
+from dexplan.planning.smoothing import merge_regrasps, shortcut_object_path
+from dexplan.planning.transitions import densify_poses
+from dexplan.pose import quat_angle
+from dexplan.scenario import Scenario
+from dexplan.typing import FloatArray
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """Outcome of :func:`plan`.
+
+    Attributes:
+        status: ``solved``, ``no_start_grasp``, ``no_goal_grasp``, ``no_gsn_path``,
+            ``reduction_failed`` or ``invalid_plan``.
+        segments: transfer/regrasp segments (empty unless solved).
+        start_pose: (7,) start object pose. start_q: (nq,) start hand joints.
+        gsn_path: (K, 7 + nq) the GSn path the plan reduces (may be empty).
+        roadmap: the GSn roadmap built or used.
+        stats: figures for the plan file and benchmarks.
+        message: human-readable detail on failure.
+    """
+
+    status: str
+    segments: tuple[Segment, ...]
+    start_pose: FloatArray
+    start_q: FloatArray | None
+    gsn_path: FloatArray
+    roadmap: Roadmap | None
+    stats: dict[str, Any] = field(default_factory=dict)
+    message: str = ""
+
+    @property
+    def solved(self) -> bool:
+        """True when a verified plan was found."""
+        return self.status == "solved"
+
+
+def goal_reached(scenario: Scenario, pose: FloatArray) -> tuple[bool, float]:
+    """Whether an object pose is in the goal region, and a distance to it.
+
+    The distance is ``max(position error / position_tol, angle / angle_tol)``,
+    so the region is ``distance <= 1``; q and -q are the same orientation.
+    """
+    g = scenario.goal
+    dp = float(np.linalg.norm(pose[:3] - g.object_pose_xyzquat[:3]))
+    da = quat_angle(pose[3:7], g.object_pose_xyzquat[3:])
+    d = max(dp / g.position_tol, da / g.angle_tol)
+    return d <= 1.0, d
+
+
+def start_state(ctx: PlanningContext, attempts: int = 400) -> FloatArray | None:
+    """The start GSn state: the scenario's ``start.q`` (checked) or a sampled grasp.
+
+    Raises:
+        InvalidInputError: ``start.q`` has the wrong size or is not a valid grasp.
+    """
+    spec = ctx.scenario.start
+    pose = spec.object_pose_xyzquat
+    if spec.q is not None:
+        if spec.q.shape != (ctx.hand.nq,):
+            raise InvalidInputError(
+                f"start.q must have {ctx.hand.nq} entries, got {spec.q.shape[0]}"
+            )
+        x = ctx.gsn.join(pose, spec.q)
+        res = ctx.gsn.residual(x)
+        if res > 1e-3:
+            raise InvalidInputError(
+                f"start.q does not put every fingertip on the object (error {res:.4g} m)"
+            )
+        verdict = ctx.validity.check(x)
+        if not verdict.valid:
+            raise InvalidInputError(f"start.q is not a valid grasp: {verdict.reason}")
+        return x
+    for _ in range(max(1, attempts // ctx.sampler.settings.max_attempts)):
+        x = ctx.sampler.sample_at_pose(pose)
+        if x is not None:
+            return x
+    return None
+
+
+def plan(
+    scenario: Scenario,
+    *,
+    planner: str | None = None,
+    seed: int | None = None,
+    time_limit: float | None = None,
+    roadmap: Roadmap | None = None,
+    progress: Progress | None = None,
+) -> PlanResult:
+    """Plan a manipulation path for a scenario.
+
+    Args:
+        scenario: the problem.
+        planner: OMPL planner name (defaults to the scenario's).
+        seed: random seed (defaults to the scenario's).
+        time_limit: seconds for the whole query (defaults to the scenario's).
+        roadmap: a roadmap from an earlier run (multi-query); it is extended
+            only when it cannot answer.
+        progress: called with short progress messages.
+
+    Returns:
+        A :class:`PlanResult`; every solved plan has passed the verifier.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda _msg: None)
+    spec = scenario.planner
+    planner = planner or spec.name
+    seed = spec.seed if seed is None else seed
+    time_limit = spec.time_limit if time_limit is None else time_limit
+    ctx = build_context(scenario, seed)
+    stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
+    pose0 = scenario.start.object_pose_xyzquat
+
+    def result(status: str, message: str = "", **kw: Any) -> PlanResult:
+        stats["time_s"] = time.perf_counter() - t0
+        stats["sampler"] = ctx.sampler.stats.as_dict()
+        stats["validity"] = ctx.validity.stats.as_dict()
+        kw.setdefault("segments", ())
+        kw.setdefault("gsn_path", np.zeros((0, ctx.gsn.ambient_dim)))
+        kw.setdefault("roadmap", roadmap)
+        kw.setdefault("start_q", None)
+        return PlanResult(status, start_pose=pose0, stats=stats, message=message, **kw)
+
+    say("sampling a start grasp")
+    x_start = start_state(ctx)
+    if x_start is None:
+        return result("no_start_grasp", "no valid grasp found at the start pose")
+    q_start = x_start[POSE_DIM:]
+
+    query = GsnQuery(
+        start=x_start,
+        goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
+        goal_sampler=lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
+    )
+    deadline = t0 + time_limit
+    say(f"module 1: exploring GSn with {planner}")
+    if roadmap is None:
+        gsn = explore_gsn(ctx, query, planner, params=spec.params, space=spec.space,
+                          seed=seed, deadline=deadline)  # fmt: skip
+    else:
+        gsn = query_roadmap(ctx, roadmap, query, deadline=deadline)
+    stats.update(gsn.stats)
+    roadmap = gsn.roadmap
+    if gsn.path is None:
+        return result("no_gsn_path", gsn.message, roadmap=roadmap, start_q=q_start)
+
+    say(f"GSn path with {len(gsn.path)} states; reducing to transfers and regrasps")
+    t_red = time.perf_counter()
+    poses = gsn.path[:, :POSE_DIM]
+    settings = ctx.transitions.settings
+
+    def pose_ok(p: FloatArray) -> bool:
+        inside = np.all(p[:3] >= ctx.gsn.lower[:3]) and np.all(p[:3] <= ctx.gsn.upper[:3])
+        return bool(inside) and not ctx.world.object_collides(p)
+
+    short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
+    dense = densify_poses(short, settings.max_step_m, settings.max_step_rad)
+    grasp = grasp_from_state(ctx.transitions, pose0, q_start)
+    red = None
+    attempt = 0
+    while time.perf_counter() < deadline:
+        attempt += 1
+        red = reduce_object_path(ctx.transitions, dense, q_start, grasp)
+        if red.success:
+            break
+        say(f"reduction attempt {attempt} failed: {red.reason}")
+        if attempt == 2:  # the raw trajectory, in case the shortcut is the trouble
+            dense = densify_poses(poses, settings.max_step_m, settings.max_step_rad)
+    stats["reduction_attempts"] = attempt
+    stats["reduction_time_s"] = time.perf_counter() - t_red
+    stats["object_poses_shortcut"] = len(short)
+    if red is None or not red.success:
+        msg = red.reason if red is not None else "time limit reached before the reduction"
+        return result("reduction_failed", msg or "", roadmap=roadmap, gsn_path=gsn.path,
+                      start_q=q_start)  # fmt: skip
+    stats.update({f"local_{k}": v for k, v in red.stats.items()})
+    segments = merge_regrasps(ctx.transitions, list(red.segments))
+    stats.update(count_kinds(segments))
+    stats["graph_nodes"] = len(segments) + 1
+    stats["waypoints"] = sum(len(s.waypoints) for s in segments)
+    trans_m, rot_rad = object_path_length(segments)
+    stats["object_path_m"] = trans_m
+    stats["object_path_rad"] = rot_rad
+    solved = result(
+        "solved", segments=tuple(segments), roadmap=roadmap, gsn_path=gsn.path, start_q=q_start
+    )
+    # re-check the whole plan with the independent verifier, as OMPL checks
+    # simplified paths: a plan that fails it is never returned as solved
+    t_ver = time.perf_counter()
+    doc = build_plan_document(scenario, ctx.hand, solved, scenario.base_dir)
+    report = verify_plan(doc, scenario.base_dir)
+    stats["verify_time_s"] = time.perf_counter() - t_ver
+    if not report.ok:
+        detail = "; ".join(str(v) for v in report.violations[:5])
+        return result("invalid_plan", f"the reduced plan failed verification: {detail}",
+                      roadmap=roadmap, gsn_path=gsn.path, start_q=q_start)  # fmt: skip
+    stats["time_s"] = time.perf_counter() - t0
+    return solved

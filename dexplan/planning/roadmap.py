@@ -1,0 +1,388 @@
+"""GSn roadmaps: module 1 (explore GSn with OMPL) and module 2 (link components).
+
+Module 1 hands the GSn constraint, validity checker and RLG-style sampler to an
+OMPL planner (through :mod:`dexplan.planning.ompl_adapter`, the only module
+that imports OMPL) and keeps what it explored as a :class:`Roadmap`: vertices
+(ambient GSn states), edges and connected components.
+
+Module 2 links components that GSn paths cannot join, with transfer-regrasp
+sequences computed by the same local planners as the reduction: a link from
+vertex a to vertex b exists when the object can be carried from a's pose to
+b's pose by transfers and regrasps starting from a's grasp. Linked components
+are merged. Most of the paper's planning time went here; the attempts, links
+and time are counted.
+
+A roadmap can be saved (``.npz``) and loaded to answer later queries
+(multi-query mode): start and goal are linked into it the same way.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from dexplan.exceptions import PlanFileError
+from dexplan.planning import ompl_adapter
+from dexplan.planning.context import PlanningContext
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_object_path
+from dexplan.planning.transitions import densify_poses
+from dexplan.pose import quat_angle
+from dexplan.typing import FloatArray
+
+ROADMAP_FORMAT = "dexplan-roadmap/1"
+
+
+@dataclass(frozen=True)
+class GsnQuery:
+    """A GSn query: start state, goal test and goal-state sampler.
+
+    Attributes:
+        start: (7 + nq,) start state on GSn.
+        goal_test: maps a state to (in goal region, distance to it).
+        goal_sampler: returns a valid GSn state in the goal region, or None.
+    """
+
+    start: FloatArray
+    goal_test: Callable[[FloatArray], tuple[bool, float]]
+    goal_sampler: Callable[[], FloatArray | None]
+
+
+@dataclass
+class Roadmap:
+    """A GSn roadmap with module-2 links.
+
+    Attributes:
+        vertices: (N, 7 + nq) ambient GSn states.
+        edges: (E, 2) vertex index pairs joined by a GSn motion.
+        links: (L, 2) vertex index pairs joined by a transfer-regrasp sequence.
+        planner: name of the OMPL planner that built it.
+        scenario_key: hash of the models it belongs to (hand, object, obstacles, friction).
+    """
+
+    vertices: FloatArray
+    edges: np.ndarray
+    links: np.ndarray
+    planner: str
+    scenario_key: str
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices."""
+        return len(self.vertices)
+
+    def components(self, with_links: bool = True) -> tuple[int, np.ndarray]:
+        """Connected components: ``(count, labels (N,))``."""
+        pairs = [self.edges]
+        if with_links and len(self.links):
+            pairs.append(self.links)
+        e = np.vstack(pairs) if pairs else np.zeros((0, 2), dtype=int)
+        n = self.n_vertices
+        if n == 0:
+            return 0, np.zeros(0, dtype=int)
+        g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+        count, labels = connected_components(g, directed=False)
+        return int(count), labels
+
+    def add_vertex(self, x: FloatArray) -> int:
+        """Append a vertex; returns its index."""
+        self.vertices = np.vstack([self.vertices, x[None]])
+        return self.n_vertices - 1
+
+    def add_link(self, a: int, b: int) -> None:
+        """Record a module-2 link between vertices a and b."""
+        self.links = np.vstack([self.links, [[a, b]]]).astype(np.int64)
+
+    def shortest_path(self, source: int, targets: list[int]) -> list[int] | None:
+        """Vertex sequence from ``source`` to the nearest of ``targets`` (object-pose metric)."""
+        e = np.vstack([self.edges, self.links]) if len(self.links) else self.edges
+        if len(e) == 0 or not targets:
+            return None
+        w = np.array([pose_distance(self.vertices[a], self.vertices[b]) for a, b in e]) + 1e-9
+        n = self.n_vertices
+        g = coo_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
+                        np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n)).tocsr()  # fmt: skip
+        dist, pred = dijkstra(g, indices=source, return_predecessors=True)
+        best = min(targets, key=lambda t: dist[t])
+        if not np.isfinite(dist[best]):
+            return None
+        path = [best]
+        while path[-1] != source:
+            path.append(int(pred[path[-1]]))
+        return path[::-1]
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | Path) -> None:
+        """Write the roadmap to ``path`` (``.npz``), atomically."""
+        path = Path(path)
+        meta = json.dumps(
+            {"format": ROADMAP_FORMAT, "planner": self.planner, "scenario_key": self.scenario_key}
+        )
+        folder = path.resolve().parent
+        if not folder.is_dir():
+            raise PlanFileError(f"output folder does not exist: {str(folder)!r}")
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(
+                    fh, vertices=self.vertices, edges=self.edges, links=self.links,
+                    meta=np.array(meta),
+                )  # fmt: skip
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    @classmethod
+    def load(cls, path: str | Path, scenario_key: str | None = None) -> Roadmap:
+        """Read a roadmap file; with ``scenario_key``, refuse one built for other models.
+
+        Raises:
+            PlanFileError: missing or malformed file, or a different scenario.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise PlanFileError(f"roadmap file not found: {str(path)!r}")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"]))
+                rm = cls(
+                    np.array(data["vertices"], dtype=float),
+                    np.array(data["edges"], dtype=np.int64).reshape(-1, 2),
+                    np.array(data["links"], dtype=np.int64).reshape(-1, 2),
+                    str(meta["planner"]),
+                    str(meta["scenario_key"]),
+                )
+        except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
+            raise PlanFileError(f"{path}: not a dexplan roadmap: {exc}") from exc
+        if meta.get("format") != ROADMAP_FORMAT:
+            raise PlanFileError(f"{path}: format must be {ROADMAP_FORMAT!r}")
+        if scenario_key is not None and rm.scenario_key != scenario_key:
+            raise PlanFileError(
+                f"{path}: roadmap was built for other models (hand, object, obstacles or "
+                "friction differ)"
+            )
+        n = rm.n_vertices
+        for name, arr in (("edges", rm.edges), ("links", rm.links)):
+            if len(arr) and (arr.min() < 0 or arr.max() >= n):
+                raise PlanFileError(f"{path}: {name} refer to missing vertices")
+        return rm
+
+
+@dataclass(frozen=True)
+class GsnResult:
+    """Outcome of module 1 (+ module 2) for one query.
+
+    Attributes:
+        path: (K, 7 + nq) GSn states from start to goal, or None.
+        roadmap: the roadmap (with start and goal vertices added).
+        stats: planner and module-2 figures.
+        message: detail when there is no path.
+    """
+
+    path: FloatArray | None
+    roadmap: Roadmap
+    stats: dict[str, Any] = field(default_factory=dict)
+    message: str = ""
+
+
+def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
+    """Object-pose distance of two states: translation / length + rotation angle."""
+    return float(np.linalg.norm(a[:3] - b[:3])) / length + quat_angle(a[3:7], b[3:7])
+
+
+def scenario_key(ctx: PlanningContext) -> str:
+    """Hash of the models a roadmap depends on."""
+    s = ctx.scenario
+    payload = json.dumps(
+        {
+            "urdf": hashlib.sha256(ctx.hand.urdf_xml.encode()).hexdigest(),
+            "tips": list(ctx.hand.fingertip_frames),
+            "object": dict(s.object),
+            "obstacles": [dict(o) for o in s.obstacles],
+            "mu": s.mu,
+            "edges": s.friction_edges,
+            "fc_margin": s.fc_margin,
+        },
+        sort_keys=True,
+        default=str,
+    )
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.ConstraintSpec:
+    """The GSn constraint for OMPL, with coordinates scaled so steps mean something.
+
+    Positions are scaled by ``1 / (2 * characteristic length)``: an object move
+    of a fingertip-contact's worth of arc counts like a 0.05 rad rotation.
+    """
+    gsn = ctx.gsn
+    scale = np.ones(gsn.ambient_dim)
+    scale[:3] = 1.0 / (2.0 * ctx.obj.characteristic_length)
+    return ompl_adapter.ConstraintSpec(
+        ambient_dim=gsn.ambient_dim,
+        co_dim=gsn.co_dim,
+        function=gsn.function,
+        jacobian=gsn.jacobian,
+        lower=gsn.lower,
+        upper=gsn.upper,
+        tolerance=1e-5,
+        space=space,
+        scale=scale,
+    )
+
+
+def explore_gsn(
+    ctx: PlanningContext,
+    query: GsnQuery,
+    planner: str,
+    *,
+    params: Mapping[str, Any] | None = None,
+    space: str = "projected",
+    seed: int = 1,
+    deadline: float,
+) -> GsnResult:
+    """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
+
+    The OMPL planner gets up to 60% of the remaining time; if it finds no exact
+    solution, module 2 tries to link the start's component to goal states.
+    """
+    t0 = time.perf_counter()
+    budget = max(0.05, 0.6 * (deadline - t0))
+    problem = ompl_adapter.PlanningProblem(
+        constraint_spec(ctx, space),
+        ctx.validity.is_valid,
+        valid_sampler=ctx.sampler.sample,
+        planner=planner,
+        params=dict(params or {}),
+        seed=seed,
+    )
+    problem.set_start(query.start)
+    problem.set_goal(
+        ompl_adapter.GoalSpec(
+            is_satisfied=query.goal_test, sample=query.goal_sampler, threshold=1.0
+        )
+    )
+    res = problem.solve(budget)
+    data = res.planner_data
+    roadmap = Roadmap(
+        np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
+        np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),
+        np.zeros((0, 2), dtype=np.int64),
+        planner,
+        scenario_key(ctx),
+    )
+    n_comp, _ = roadmap.components()
+    stats: dict[str, Any] = {
+        "gsn_status": res.status,
+        "gsn_time_s": time.perf_counter() - t0,
+        "roadmap_nodes": roadmap.n_vertices,
+        "roadmap_edges": len(roadmap.edges),
+        "components": n_comp,
+        "module2_attempts": 0,
+        "module2_links": 0,
+        "module2_time_s": 0.0,
+    }
+    if res.solved and res.path is not None and len(res.path):
+        return GsnResult(np.asarray(res.path), roadmap, stats)
+    # module 2: link the start into goal-reaching components
+    starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
+    if not starts:
+        starts = [roadmap.add_vertex(query.start)]
+    link = link_query(ctx, roadmap, query, starts[0], deadline, stats)
+    return link
+
+
+def query_roadmap(
+    ctx: PlanningContext, roadmap: Roadmap, query: GsnQuery, *, deadline: float
+) -> GsnResult:
+    """Multi-query: answer a query on a loaded roadmap (linking start and goal into it)."""
+    stats: dict[str, Any] = {
+        "gsn_status": "roadmap",
+        "gsn_time_s": 0.0,
+        "roadmap_nodes": roadmap.n_vertices,
+        "roadmap_edges": len(roadmap.edges),
+        "components": roadmap.components()[0],
+        "module2_attempts": 0,
+        "module2_links": 0,
+        "module2_time_s": 0.0,
+    }
+    start = roadmap.add_vertex(query.start)
+    return link_query(ctx, roadmap, query, start, deadline, stats)
+
+
+def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:
+    """Module-2 link test: can transfers and regrasps carry the object from a to b's pose?"""
+    tr = ctx.transitions
+    s = tr.settings
+    dense = densify_poses(np.array([a[:POSE_DIM], b_pose]), s.max_step_m, s.max_step_rad)
+    grasp = grasp_from_state(tr, a[:POSE_DIM], a[POSE_DIM:])
+    red = reduce_object_path(tr, dense, a[POSE_DIM:], grasp, ReductionSettings(max_regrasps=40))
+    return red.success
+
+
+def link_query(
+    ctx: PlanningContext,
+    roadmap: Roadmap,
+    query: GsnQuery,
+    start: int,
+    deadline: float,
+    stats: dict[str, Any],
+    k_nearest: int = 4,
+) -> GsnResult:
+    """Module 2: join the start's component to the goal region with links, then search.
+
+    Goal vertices are the roadmap vertices in the goal region, plus sampled
+    goal states when there are none. Component pairs are tried nearest first
+    (object-pose distance); every successful link merges two components.
+    """
+    t0 = time.perf_counter()
+    goals = [i for i, x in enumerate(roadmap.vertices) if query.goal_test(x)[0]]
+    while not goals and time.perf_counter() < deadline:
+        g = query.goal_sampler()
+        if g is not None:
+            goals.append(roadmap.add_vertex(g))
+    path_ids = None
+    while time.perf_counter() < deadline:
+        path_ids = roadmap.shortest_path(start, goals) if goals else None
+        if path_ids is not None:
+            break
+        _, labels = roadmap.components()
+        src = np.flatnonzero(labels == labels[start])
+        dst = np.flatnonzero(labels != labels[start])
+        if len(dst) == 0 or not goals:
+            break
+        # nearest cross-component pairs first
+        d = np.array(
+            [[pose_distance(roadmap.vertices[a], roadmap.vertices[b]) for b in dst] for a in src]
+        )
+        order = np.argsort(d, axis=None)[: k_nearest * 4]
+        linked = False
+        for flat in order:
+            a, b = src[flat // len(dst)], dst[flat % len(dst)]
+            stats["module2_attempts"] += 1
+            if try_link(ctx, roadmap.vertices[a], roadmap.vertices[b][:POSE_DIM]):
+                roadmap.add_link(int(a), int(b))
+                stats["module2_links"] += 1
+                linked = True
+                break
+            if time.perf_counter() >= deadline:
+                break
+        if not linked:
+            break
+    stats["module2_time_s"] += time.perf_counter() - t0
+    stats["components_after_links"] = roadmap.components()[0]
+    if path_ids is None:
+        return GsnResult(None, roadmap, stats, "start and goal are not connected in GSn")
+    return GsnResult(roadmap.vertices[path_ids], roadmap, stats)

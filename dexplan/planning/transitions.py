@@ -1,0 +1,501 @@
+"""Transfer and regrasp local planners (paper, section IV).
+
+**Transfer**: contacts fixed in the object frame; the object follows a given
+pose sequence (straight line in position, slerp in orientation between
+samples); every finger follows by IK. A transfer moves the grasp rigidly, so
+force closure and fingertip spacing are constant along it and are checked
+where the grasp is made; joint limits (kept :attr:`TransitionSettings.joint_margin`
+away: joint steps blow up near full extension) and link collisions are checked
+at every waypoint. Waypoints are at most ``max_step_m`` / ``max_step_rad``
+apart in object position, object rotation and every joint.
+
+**Regrasp**: the object is still and the other n-1 fingers hold it (force
+closure is required of every (n-1) subgrasp of a valid grasp, so they can). The
+free finger lifts off along the surface normal (tilted if it must), moves in its
+own joint space (straight line, then batched random via points), and lands on
+the new contact along the new normal. Lift and landing are interpolated in
+task space so the fingertip leaves and meets the surface squarely.
+
+**Landing choice** decides whether finger gaits succeed (see MEASURED.md): among
+sampled contacts that the finger reaches, that keep the fingertips apart, and
+that keep every (n-1) subgrasp force closure, pick the one from which the
+finger can follow the rest of the object motion longest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dexplan.collision import CollisionWorld
+from dexplan.grasp import min_subgrasp_quality
+from dexplan.hand import Hand
+from dexplan.objects import Shape
+from dexplan.planning.path import Segment, Waypoint
+from dexplan.planning.validity import ValiditySettings
+from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.typing import FloatArray
+
+
+@dataclass(frozen=True)
+class TransitionSettings:
+    """Resolution and search settings of the local planners.
+
+    Attributes:
+        max_step_m: largest object translation or fingertip move between
+            waypoints (m); the plan verifier allows 1 cm.
+        max_step_rad: largest object rotation or joint change between
+            waypoints (rad); the verifier allows 0.05.
+        joint_margin: transfers stop this far (rad) from joint limits.
+        lift_height: fingertip clearance above the surface before moving (m).
+        landing_candidates: contacts sampled when choosing a landing.
+        via_points: random via points tried for a free-finger move.
+        tip_clearance: minimum gap between fingertip spheres (m).
+        follow_stride: pose stride when scoring how long a landing can be followed.
+    """
+
+    max_step_m: float = 0.008
+    max_step_rad: float = 0.04
+    joint_margin: float = 0.02
+    lift_height: float = 0.008
+    landing_candidates: int = 300
+    via_points: int = 96
+    tip_clearance: float = 0.004
+    follow_stride: int = 2
+
+
+@dataclass(frozen=True)
+class GraspContacts:
+    """Contacts of all n fingers, object frame.
+
+    Attributes:
+        points: (n, 3) contact points on the object surface.
+        normals_out: (n, 3) outward unit surface normals there.
+    """
+
+    points: FloatArray
+    normals_out: FloatArray
+
+    def replace(self, finger: int, point: FloatArray, normal_out: FloatArray) -> GraspContacts:
+        """Copy with finger ``finger`` moved to a new contact."""
+        p, n = self.points.copy(), self.normals_out.copy()
+        p[finger], n[finger] = point, normal_out
+        return GraspContacts(p, n)
+
+    def as_tuple(self) -> tuple[FloatArray, ...]:
+        """Contacts as a per-finger tuple (for waypoints)."""
+        return tuple(self.points[i].copy() for i in range(len(self.points)))
+
+
+@dataclass(frozen=True)
+class TransferResult:
+    """Outcome of :meth:`Transitions.transfer`.
+
+    Attributes:
+        waypoints: waypoints from the start pose to the last valid one.
+        reached: index in the pose sequence of the last pose reached.
+        blocking: finger that stopped the transfer (IK, joint limit or link
+            collision), or None when the end was reached or the object collided.
+        reason: why it stopped, or None when it reached the end.
+    """
+
+    waypoints: tuple[Waypoint, ...]
+    reached: int
+    blocking: int | None
+    reason: str | None
+
+
+def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> FloatArray:
+    """Insert poses so consecutive ones differ by at most the given steps.
+
+    Args:
+        poses: (P, 7) object poses, XYZW.
+
+    Returns:
+        (P', 7) poses, straight line in position and slerp in orientation
+        between the given ones.
+    """
+    out = [poses[0]]
+    for a, b in zip(poses[:-1], poses[1:], strict=True):
+        d = float(np.linalg.norm(b[:3] - a[:3]))
+        ang = quat_angle(a[3:], b[3:])
+        k = max(1, math.ceil(max(d / max_step_m, ang / max_step_rad)))
+        out.extend(interpolate_pose(a, b, j / k) for j in range(1, k + 1))
+    return np.array(out)
+
+
+class Transitions:
+    """Transfer and regrasp local planners for one hand, object and world.
+
+    Args:
+        hand: the hand.
+        obj: the object shape.
+        world: collision world of hand, object and obstacles.
+        validity: friction settings (force closure of landings).
+        settings: resolution and search settings.
+        rng: random generator for landing candidates and via points.
+    """
+
+    def __init__(
+        self,
+        hand: Hand,
+        obj: Shape,
+        world: CollisionWorld,
+        validity: ValiditySettings,
+        settings: TransitionSettings,
+        rng: np.random.Generator,
+    ) -> None:
+        self.hand = hand
+        self.obj = obj
+        self.world = world
+        self.validity = validity
+        self.settings = settings
+        self.rng = rng
+        self.all_contact = (True,) * hand.n_fingers
+        self._lo = hand.lower + settings.joint_margin
+        self._hi = hand.upper - settings.joint_margin
+        self._finger_of_joint = np.zeros(hand.nq, dtype=np.int64)
+        for i, idx in enumerate(hand.finger_q_index):
+            self._finger_of_joint[idx] = i
+        self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
+
+    # ------------------------------------------------------------------ helpers
+    def tip_targets(self, pose: FloatArray, grasp: GraspContacts) -> FloatArray:
+        """World fingertip centres ``(n, 3)`` of a grasp at an object pose."""
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        r = self.hand.fingertip_radius
+        return (grasp.points + r * grasp.normals_out) @ R.T + pose[:3]
+
+    def grasp_quality(self, grasp: GraspContacts) -> float:
+        """Minimum force-closure quality over the grasp and its (n-1) subgrasps."""
+        v = self.validity
+        return float(
+            min_subgrasp_quality(
+                grasp.points,
+                -grasp.normals_out,
+                v.mu,
+                edges=v.friction_edges,
+                torque_scale=self.obj.characteristic_length,
+            )
+        )
+
+    def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):  # noqa: ANN202
+        """IK of every finger at ``pose``: ``(q, blocking finger or None, reason)``."""
+        targets = self.tip_targets(pose, grasp)
+        q = q_prev.copy()
+        for i in range(self.hand.n_fingers):
+            idx = self.hand.finger_q_index[i]
+            res = self.hand.finger_ik(i, targets[i], q)
+            if not res.success:
+                return q, i, "ik"
+            if np.any(res.q_finger < self._lo[idx]) or np.any(res.q_finger > self._hi[idx]):
+                return q, i, "joint_limit"
+            q[idx] = res.q_finger
+        return q, None, None
+
+    def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:  # noqa: ANN001
+        """(collision-free, finger involved in the first collision or None)."""
+        rep = self.world.check(q, pose, mask)
+        if rep.free:
+            return True, None
+        if rep.pair is None:  # contact penetration: blame nobody in particular
+            return False, None
+        fingers = [self.world.finger_of(n) for n in rep.pair]
+        fingers = [f for f in fingers if f is not None]
+        return False, (fingers[0] if fingers else None)
+
+    # ----------------------------------------------------------------- transfer
+    def transfer(
+        self, poses: FloatArray, start: int, q_start: FloatArray, grasp: GraspContacts
+    ) -> TransferResult:
+        """Follow ``poses[start:]`` with a fixed grasp for as long as it stays valid.
+
+        Args:
+            poses: (P, 7) dense object trajectory (see :func:`densify_poses`).
+            start: index of the current pose in ``poses``.
+            q_start: (nq,) hand configuration at ``poses[start]``.
+            grasp: contacts held during the transfer.
+
+        Returns:
+            A :class:`TransferResult`; its waypoints start at ``poses[start]``.
+        """
+        self.stats["transfers"] += 1
+        contacts = grasp.as_tuple()
+        wps = [Waypoint(poses[start].copy(), q_start.copy(), contacts)]
+        q = q_start
+        for j in range(start + 1, len(poses)):
+            if self.world.object_collides(poses[j]):
+                return TransferResult(tuple(wps), j - 1, None, "object_collision")
+            steps = self._advance(poses[j - 1], poses[j], q, grasp, depth=0)
+            if isinstance(steps, tuple):
+                return TransferResult(tuple(wps), j - 1, steps[0], steps[1])
+            for pose_k, q_k in steps:
+                wps.append(Waypoint(pose_k, q_k, contacts))
+            q = steps[-1][1]
+        return TransferResult(tuple(wps), len(poses) - 1, None, None)
+
+    def _advance(self, pa, pb, q_a, grasp, depth):  # noqa: ANN001, ANN202
+        """Waypoints from pose ``pa`` (at ``q_a``) to ``pb``, subdividing big joint steps.
+
+        Returns a list of (pose, q) ending at ``pb``, or (blocking finger, reason).
+        """
+        q_b, blocking, reason = self._solve_all(pb, grasp, q_a)
+        if blocking is not None:
+            return (blocking, reason)
+        if np.max(np.abs(q_b - q_a)) > self.settings.max_step_rad:
+            if depth >= 4:
+                return (int(self._finger_of_joint[np.argmax(np.abs(q_b - q_a))]), "joint_jump")
+            mid = interpolate_pose(pa, pb, 0.5)
+            first = self._advance(pa, mid, q_a, grasp, depth + 1)
+            if isinstance(first, tuple):
+                return first
+            second = self._advance(mid, pb, first[-1][1], grasp, depth + 1)
+            if isinstance(second, tuple):
+                return second
+            return first + second
+        free, finger = self._collision_finger(q_b, pb, self.all_contact)
+        if not free:
+            return (finger, "collision")
+        return [(pb.copy(), q_b)]
+
+    # ------------------------------------------------------------------ landing
+    def follow_scores(
+        self, finger: int, candidates_tip_obj: FloatArray, future_poses: FloatArray
+    ) -> FloatArray:
+        """How many consecutive future poses the finger can follow from each candidate.
+
+        Args:
+            finger: the finger to regrasp.
+            candidates_tip_obj: (C, 3) fingertip centres (contact + r * normal), object frame.
+            future_poses: (P, 7) the rest of the object trajectory (first = now).
+
+        Returns:
+            (C,) counts of consecutive poses, from the first, where the finger's
+            IK succeeds with the joint margin.
+        """
+        stride = max(1, self.settings.follow_stride)
+        poses = future_poses[::stride]
+        C, P = len(candidates_tip_obj), len(poses)
+        targets = np.empty((P, C, 3))
+        for k, pose in enumerate(poses):
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            targets[k] = candidates_tip_obj @ R.T + pose[:3]
+        q, ok = self.hand.finger_ik_batch(finger, targets.reshape(-1, 3))
+        idx = self.hand.finger_q_index[finger]
+        ok &= np.all(q >= self._lo[idx], axis=1) & np.all(q <= self._hi[idx], axis=1)
+        ok = ok.reshape(P, C)
+        # consecutive successes from the first pose
+        follow = np.cumprod(ok, axis=0).sum(axis=0)
+        return follow * stride
+
+    def landing_candidates(
+        self,
+        finger: int,
+        pose: FloatArray,
+        q: FloatArray,
+        grasp: GraspContacts,
+        future_poses: FloatArray,
+        hint: tuple[FloatArray, FloatArray] | None = None,
+    ) -> list[tuple[FloatArray, FloatArray, int]]:
+        """Landing contacts for ``finger``, best first: ``(point, normal_out, score)``.
+
+        Filters: reachable now (with joint margin), fingertips apart, every
+        (n-1) subgrasp of the new grasp force closure. Sorted by
+        :meth:`follow_scores`, ties by force-closure quality.
+        """
+        s = self.settings
+        pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
+        if hint is not None:
+            pts = np.vstack([hint[0][None], pts])
+            nrm = np.vstack([hint[1][None], nrm])
+        r = self.hand.fingertip_radius
+        tip_obj = pts + r * nrm
+        others = [i for i in range(self.hand.n_fingers) if i != finger]
+        other_tips = grasp.points[others] + r * grasp.normals_out[others]
+        apart = np.all(
+            np.linalg.norm(tip_obj[:, None, :] - other_tips[None], axis=2)
+            >= 2 * r + s.tip_clearance,
+            axis=1,
+        )
+        # a landing next to the current contact gains nothing
+        moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
+        keep = np.flatnonzero(apart & moved)
+        if len(keep) == 0:
+            return []
+        scores = self.follow_scores(finger, tip_obj[keep], future_poses)
+        reach = scores > 0
+        keep, scores = keep[reach], scores[reach]
+        order = np.lexsort((self.rng.random(len(keep)), -scores))
+        out = []
+        for k in order:
+            c = keep[k]
+            self.stats["landing_checks"] += 1
+            new = grasp.replace(finger, pts[c], nrm[c])
+            if self.grasp_quality(new) <= self.validity.fc_margin:
+                continue
+            out.append((pts[c], nrm[c], int(scores[k])))
+            if len(out) >= 8:
+                break
+        return out
+
+    # ------------------------------------------------------------------ regrasp
+    def regrasp(
+        self,
+        pose: FloatArray,
+        q: FloatArray,
+        grasp: GraspContacts,
+        finger: int,
+        new_point: FloatArray,
+        new_normal_out: FloatArray,
+    ) -> Segment | None:
+        """Plan a regrasp of ``finger`` to a new contact; None when no motion is found.
+
+        The waypoints: lift along the (possibly tilted) normal, a free move in
+        the finger's joint space, landing along the new normal.
+        """
+        self.stats["regrasp_attempts"] += 1
+        hand = self.hand
+        new_grasp = grasp.replace(finger, new_point, new_normal_out)
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        free_mask = tuple(i != finger for i in range(hand.n_fingers))
+
+        tip_now = self.tip_targets(pose, grasp)[finger]
+        n_now = R @ grasp.normals_out[finger]
+        tip_new = self.tip_targets(pose, new_grasp)[finger]
+        n_new = R @ new_normal_out
+
+        lift = self._straight_tip_move(finger, q, tip_now, n_now, pose, free_mask)
+        if lift is None:
+            return None
+        land = self._straight_tip_move(finger, q, tip_new, n_new, pose, free_mask)
+        if land is None:
+            return None
+        land = land[::-1]  # approach: from above the new contact down onto it
+        # the landing configuration must be a valid full grasp
+        q_land = land[-1]
+        if not self.world.check(q_land, pose, self.all_contact).free:
+            return None
+        transit = self._joint_move(finger, lift[-1], land[0], pose, free_mask)
+        if transit is None:
+            return None
+        qs = lift + transit[1:] + land[1:]
+        qs[0] = q.copy()  # exactly where the previous segment ended
+        old_c, new_c = grasp.as_tuple(), new_grasp.as_tuple()
+        free_c = tuple(None if i == finger else old_c[i] for i in range(hand.n_fingers))
+        wps = [Waypoint(pose.copy(), qs[0], old_c)]
+        wps += [Waypoint(pose.copy(), qk, free_c) for qk in qs[1:-1]]
+        wps.append(Waypoint(pose.copy(), qs[-1], new_c))
+        self.stats["regrasps"] += 1
+        return Segment("regrasp", finger, tuple(wps))
+
+    def _straight_tip_move(
+        self,
+        finger: int,
+        q: FloatArray,
+        tip: FloatArray,
+        normal: FloatArray,
+        pose: FloatArray,
+        free_mask: tuple[bool, ...],
+    ) -> list[FloatArray] | None:
+        """Configurations moving the tip from ``tip`` off the surface by ``lift_height``.
+
+        The direction is the outward normal, or that normal tilted up to 60
+        degrees when the finger cannot move straight out. The first entry is
+        the configuration at ``tip`` (on the surface).
+        """
+        hand, s = self.hand, self.settings
+        idx = hand.finger_q_index[finger]
+        res0 = hand.finger_ik(finger, tip, q)
+        if not res0.success:
+            return None
+        q0 = q.copy()
+        q0[idx] = res0.q_finger
+        n_steps = max(2, math.ceil(s.lift_height / s.max_step_m))
+        for direction in self._lift_directions(normal):
+            qs = [q0]
+            ok = True
+            for k in range(1, n_steps + 1):
+                target = tip + direction * (s.lift_height * k / n_steps)
+                res = hand.finger_ik(finger, target, qs[-1])
+                if not res.success:
+                    ok = False
+                    break
+                qk = qs[-1].copy()
+                qk[idx] = res.q_finger
+                sub = self._subdivide(qs[-1], qk)
+                if sub is None or not all(
+                    self.world.is_free(qi, pose, free_mask) for qi in sub[1:]
+                ):
+                    ok = False
+                    break
+                qs.extend(sub[1:])
+            if ok:
+                return qs
+        return None
+
+    def _lift_directions(self, normal: FloatArray) -> list[FloatArray]:
+        """The normal, then normals tilted by 30 and 60 degrees in 6 azimuths."""
+        n = normal / np.linalg.norm(normal)
+        a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        t1 = np.cross(n, a)
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(n, t1)
+        dirs = [n]
+        for tilt in (math.radians(30), math.radians(60)):
+            for k in range(6):
+                phi = 2 * math.pi * k / 6
+                d = math.cos(tilt) * n + math.sin(tilt) * (math.cos(phi) * t1 + math.sin(phi) * t2)
+                dirs.append(d)
+        return dirs
+
+    def _subdivide(self, qa: FloatArray, qb: FloatArray) -> list[FloatArray] | None:
+        """Joint-space straight line from qa to qb in steps <= max_step_rad (incl. ends)."""
+        d = float(np.max(np.abs(qb - qa)))
+        k = max(1, math.ceil(d / self.settings.max_step_rad))
+        if k > 200:
+            return None
+        return [qa + (qb - qa) * (j / k) for j in range(k + 1)]
+
+    def _segment_free(self, qa, qb, pose, free_mask) -> list[FloatArray] | None:  # noqa: ANN001
+        sub = self._subdivide(qa, qb)
+        if sub is None:
+            return None
+        for qi in sub[1:]:
+            if not self.world.is_free(qi, pose, free_mask):
+                return None
+        return sub
+
+    def _joint_move(
+        self,
+        finger: int,
+        qa: FloatArray,
+        qb: FloatArray,
+        pose: FloatArray,
+        free_mask: tuple[bool, ...],
+    ) -> list[FloatArray] | None:
+        """Collision-free joint-space move of one finger: straight, else via points."""
+        direct = self._segment_free(qa, qb, pose, free_mask)
+        if direct is not None:
+            return direct
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        vias = self.rng.uniform(
+            hand.lower[idx], hand.upper[idx], size=(self.settings.via_points, len(idx))
+        )
+        # shortest detours first
+        cost = np.linalg.norm(vias - qa[idx], axis=1) + np.linalg.norm(vias - qb[idx], axis=1)
+        for k in np.argsort(cost):
+            qv = qa.copy()
+            qv[idx] = vias[k]
+            if not self.world.is_free(qv, pose, free_mask):
+                continue
+            first = self._segment_free(qa, qv, pose, free_mask)
+            if first is None:
+                continue
+            second = self._segment_free(qv, qb, pose, free_mask)
+            if second is None:
+                continue
+            return first + second[1:]
+        return None

@@ -1,0 +1,133 @@
+"""Validity of grasp-subspace states: joint limits, collisions, force closure.
+
+Checks run cheapest first and stop at the first failure:
+
+1. joint limits (and the object centre inside its workspace box);
+2. collisions (coal): hand links, object, obstacles; contact fingertips may
+   touch the object but not sink into it by more than 1 mm;
+3. force closure: the minimum quality over the full grasp and every
+   (k-1)-finger subgrasp must exceed a margin, so that any finger may let go
+   (the paper's GSn validity). For a regrasp (k = n-1 holding fingers) the
+   holding grasp itself must be force closure.
+
+Rejections are counted by reason, for the planner's statistics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dexplan.collision import CollisionWorld
+from dexplan.grasp import force_closure_quality, min_subgrasp_quality
+from dexplan.planning.gsn import POSE_DIM, GraspSubspace
+from dexplan.typing import FloatArray, as_positive
+
+REASONS: tuple[str, ...] = ("bounds", "joint_limits", "collision", "force_closure")
+
+
+@dataclass(frozen=True)
+class ValiditySettings:
+    """Settings of the validity checker.
+
+    Attributes:
+        mu: Coulomb friction coefficient (>= 0).
+        friction_edges: edges of the linearized friction cone.
+        fc_margin: minimum force-closure quality (see ``dexplan.grasp``) of
+            every (k-1)-finger subgrasp.
+        subgrasps: require force closure of every (k-1) subgrasp (GSn
+            validity); False checks the k-finger grasp only.
+    """
+
+    mu: float = 0.8
+    friction_edges: int = 8
+    fc_margin: float = 0.005
+    subgrasps: bool = True
+
+    def __post_init__(self) -> None:
+        as_positive(self.mu, "contact.mu", allow_zero=True)
+        as_positive(self.fc_margin, "fc_margin", allow_zero=True)
+
+
+@dataclass
+class ValidityStats:
+    """Counters of checked states and rejections by reason."""
+
+    checked: int = 0
+    valid: int = 0
+    rejected: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain-dict view for statistics output."""
+        return {"checked": self.checked, "valid": self.valid, "rejected": dict(self.rejected)}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Outcome of one validity check: ``reason`` is None when valid."""
+
+    valid: bool
+    reason: str | None
+    fc_quality: float = float("nan")
+
+
+class GraspValidity:
+    """Validity checker for states of a :class:`GraspSubspace`.
+
+    Args:
+        gsn: the grasp subspace (its contact fingers hold the object).
+        world: the collision world of the same hand and object.
+        settings: friction and force-closure settings.
+    """
+
+    def __init__(
+        self, gsn: GraspSubspace, world: CollisionWorld, settings: ValiditySettings
+    ) -> None:
+        self.gsn = gsn
+        self.world = world
+        self.settings = settings
+        self.stats = ValidityStats()
+        self.torque_scale = gsn.obj.characteristic_length
+
+    def grasp_quality(self, p_obj: FloatArray, n_in_obj: FloatArray) -> float:
+        """Force-closure quality of contacts ``p_obj, n_in_obj: (k, 3)`` (object frame).
+
+        With ``settings.subgrasps`` it is the minimum over the grasp and its
+        (k-1)-contact subgrasps.
+        """
+        s = self.settings
+        fn = min_subgrasp_quality if s.subgrasps else force_closure_quality
+        return float(
+            fn(p_obj, n_in_obj, s.mu, edges=s.friction_edges, torque_scale=self.torque_scale)
+        )
+
+    def check(self, x: FloatArray) -> Verdict:
+        """Check ambient state ``x: (7 + nq,)``, cheapest test first."""
+        gsn = self.gsn
+        self.stats.checked += 1
+        verdict = self._check(x, gsn)
+        if verdict.valid:
+            self.stats.valid += 1
+        else:
+            self.stats.rejected[verdict.reason] += 1  # type: ignore[index]
+        return verdict
+
+    def _check(self, x: FloatArray, gsn: GraspSubspace) -> Verdict:
+        pos = x[:3]
+        if np.any(pos < gsn.lower[:3]) or np.any(pos > gsn.upper[:3]):
+            return Verdict(False, "bounds")
+        q = x[POSE_DIM:]
+        if not gsn.hand.within_limits(q):
+            return Verdict(False, "joint_limits")
+        if not self.world.is_free(q, x[:POSE_DIM], gsn.contact_fingers):
+            return Verdict(False, "collision")
+        p, n = gsn.contacts(x)
+        quality = self.grasp_quality(p, n)
+        if quality <= self.settings.fc_margin:
+            return Verdict(False, "force_closure", quality)
+        return Verdict(True, None, quality)
+
+    def is_valid(self, x: FloatArray) -> bool:
+        """True when ``x`` passes every check."""
+        return self.check(x).valid
