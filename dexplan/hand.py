@@ -240,6 +240,12 @@ class Hand:
             jacs.append(J[:3, self.finger_q_index[i]])
         return p, jacs
 
+    def joint_origin(self, q_index: int, q_hand: FloatArray) -> FloatArray:
+        """World position ``(3,)`` of the joint whose value is ``q_hand[q_index]``."""
+        jid = next(j for j in range(1, self.model.njoints) if self.model.idx_qs[j] == q_index)
+        pin.forwardKinematics(self.model, self.data, q_hand)
+        return self.data.oMi[jid].translation.copy()
+
     def frame_placements(self, q_hand: FloatArray) -> dict[str, pin.SE3]:
         """World placement of every body frame (link) at ``q_hand``."""
         pin.framesForwardKinematics(self.model, self.data, q_hand)

@@ -240,6 +240,23 @@ def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.Constraint
         tolerance=1e-5,
         space=space,
         scale=scale,
+        delta=0.05,
+    )
+
+
+def orientation_projection() -> ompl_adapter.ProjectionSpec:
+    """KPIECE grid projection: the object's orientation (canonical quaternion x, y, z).
+
+    Reorientation is what the task is about, so cells split the rotation group;
+    0.1 per cell is about 11 degrees.
+    """
+
+    def project(x: FloatArray) -> FloatArray:
+        q = x[3:7]
+        return -q[:3] if q[3] < 0 else q[:3]
+
+    return ompl_adapter.ProjectionSpec(
+        3, project, cell_sizes=np.full(3, 0.1), lower=-np.ones(3), upper=np.ones(3)
     )
 
 
@@ -263,19 +280,21 @@ def explore_gsn(
     problem = ompl_adapter.PlanningProblem(
         constraint_spec(ctx, space),
         ctx.validity.is_valid,
-        valid_sampler=ctx.sampler.sample,
         planner=planner,
         params=dict(params or {}),
+        valid_sampler=ctx.sampler.sample,
+        check_sampled_states=False,  # the sampler returns checked states
+        projection=orientation_projection(),
         seed=seed,
     )
     problem.set_start(query.start)
     problem.set_goal(
         ompl_adapter.GoalSpec(
-            is_satisfied=query.goal_test, sample=query.goal_sampler, threshold=1.0
+            distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler
         )
     )
     res = problem.solve(budget)
-    data = res.planner_data
+    data = problem.planner_data()
     roadmap = Roadmap(
         np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
         np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),

@@ -106,13 +106,9 @@ class GraspSampler:
         rng = np.random.default_rng(finger)
         q = np.tile(hand.neutral, (400, 1))
         q[:, idx] = rng.uniform(hand.lower[idx], hand.upper[idx], size=(400, len(idx)))
-        q[:4, idx] = [hand.lower[idx], hand.upper[idx], 0.5 * (hand.lower + hand.upper)[idx], 0]
+        q[0, idx], q[1, idx] = hand.lower[idx], hand.upper[idx]
         tips = np.array([hand.fingertip_positions(qi)[finger] for qi in q])
-        import pinocchio as pin  # noqa: PLC0415 - only for the joint origin
-
-        jid = next(j for j in range(1, hand.model.njoints) if hand.model.idx_qs[j] == idx[0])
-        pin.forwardKinematics(hand.model, hand.data, hand.neutral)
-        centre = hand.data.oMi[jid].translation.copy()
+        centre = hand.joint_origin(int(idx[0]), hand.neutral)
         d = np.linalg.norm(tips - centre, axis=1)
         return centre, float(d.min()) * 0.9, float(d.max()) * 1.02
 
