@@ -255,6 +255,10 @@ class Hand:
             if f.type == pin.FrameType.BODY
         }
 
+    def has_closed_form_ik(self, finger: int) -> bool:
+        """True when ``finger`` is solved in closed form (see :meth:`finger_ik`)."""
+        return self._analytic_ik[finger] is not None
+
     def finger_ik_batch(
         self, finger: int, p_targets_world: FloatArray, q_init: FloatArray | None = None
     ) -> tuple[FloatArray, np.ndarray]:

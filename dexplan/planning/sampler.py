@@ -38,11 +38,16 @@ class SamplerSettings:
         candidates: surface points drawn per finger and attempt.
         max_attempts: attempts per :meth:`GraspSampler.sample` call before None.
         tip_clearance: minimum gap between two fingertip spheres (m).
+        min_facing: minimum cosine between a candidate's outward normal and
+            the direction to the finger's base (links stay clear of the object).
+        balance_pool: reachable candidates compared for normal balance.
     """
 
-    candidates: int = 24
+    candidates: int = 48
     max_attempts: int = 50
     tip_clearance: float = 0.004
+    min_facing: float = -0.3
+    balance_pool: int = 6
 
 
 @dataclass
@@ -141,7 +146,10 @@ class GraspSampler:
         try:
             for _ in range(self.settings.max_attempts):
                 self.stats.attempts += 1
-                x = self.grasp_at(self.sample_pose() if pose is None else pose)
+                pose_k = self.sample_pose() if pose is None else pose
+                if self.validity.world.object_collides(pose_k):
+                    continue
+                x = self.grasp_at(pose_k)
                 if x is not None and self.validity.is_valid(x):
                     self.stats.valid += 1
                     return x
@@ -163,24 +171,45 @@ class GraspSampler:
         r = hand.fingertip_radius
         q = rng.uniform(hand.lower, hand.upper)
         placed: list[FloatArray] = []
+        n_sum = np.zeros(3)
         order = list(gsn.contact_ids)
         rng.shuffle(order)
         for i in order:
             pts, n_out = gsn.obj.sample_surface(s.candidates, rng)
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             centre, dmin, dmax = self._reach[i]
-            d = np.linalg.norm(tips - centre, axis=1)
+            to_base = centre - tips
+            d = np.linalg.norm(to_base, axis=1)
             ok = (d >= dmin) & (d <= dmax)
+            # the finger comes from outside: the surface must face its base
+            ok &= np.einsum("ij,ij->i", n_out @ R.T, to_base) > s.min_facing * d
             for other in placed:
                 ok &= np.linalg.norm(tips - other, axis=1) >= 2 * r + s.tip_clearance
             found = False
-            for c in np.flatnonzero(ok):
-                res = hand.finger_ik(i, tips[c], q)
-                if res.success:
-                    q[hand.finger_q_index[i]] = res.q_finger
-                    placed.append(tips[c])
+            cand = np.flatnonzero(ok)
+            rng.shuffle(cand)
+            if hand.has_closed_form_ik(i) and len(cand):
+                # one vectorized solve for every candidate
+                q_sol, solved = hand.finger_ik_batch(i, tips[cand])
+                hits = np.flatnonzero(solved)[: s.balance_pool]
+                if len(hits):
+                    # among a few reachable ones, the contact whose normal best
+                    # balances those placed so far: force closure needs spread normals
+                    n_w = n_out[cand[hits]] @ R.T
+                    best = hits[int(np.argmin(np.linalg.norm(n_sum + n_w, axis=1)))]
+                    q[hand.finger_q_index[i]] = q_sol[best]
+                    placed.append(tips[cand[best]])
+                    n_sum += n_out[cand[best]] @ R.T
                     found = True
-                    break
+            else:
+                for c in cand:
+                    res = hand.finger_ik(i, tips[c], q)
+                    if res.success:
+                        q[hand.finger_q_index[i]] = res.q_finger
+                        placed.append(tips[c])
+                        n_sum += n_out[c] @ R.T
+                        found = True
+                        break
             if not found:
                 self.stats.ik_failures += 1
                 return None

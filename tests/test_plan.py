@@ -1,0 +1,141 @@
+"""Plans from the planner pass the verifier; tampered plans are rejected."""
+
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dexplan.exceptions import PlanFileError
+from dexplan.plan import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.planning.context import build_hand
+from dexplan.planning.planner import plan
+from dexplan.scenario import default_scenario
+
+
+@pytest.fixture(scope="module")
+def solved():
+    scenario = default_scenario()
+    result = plan(scenario, time_limit=60.0)
+    assert result.solved, (result.status, result.message)
+    doc = build_plan_document(scenario, build_hand(scenario), result)
+    return scenario, result, doc
+
+
+def _rules(doc) -> set[str]:
+    return {v.rule for v in verify_plan(doc).violations}
+
+
+def _first(doc, kind: str):
+    for si, s in enumerate(doc["segments"]):
+        if s["kind"] == kind:
+            return si, s
+    raise AssertionError(f"no {kind} segment")
+
+
+def test_planner_plan_passes_verify(solved) -> None:
+    _, result, doc = solved
+    report = verify_plan(doc)
+    assert report.ok, [str(v) for v in report.violations[:5]]
+    assert report.waypoints == sum(len(s["waypoints"]) for s in doc["segments"])
+    assert result.stats["regrasps"] >= 1  # 180 degrees needs finger gaits
+    kinds = [s["kind"] for s in doc["segments"]]
+    assert "transfer" in kinds and "regrasp" in kinds
+
+
+def test_plan_file_round_trip_atomic(solved, tmp_path: Path) -> None:
+    _, _, doc = solved
+    path = tmp_path / "p.json"
+    write_plan(path, doc)
+    assert read_plan(path) == json.loads(json.dumps(doc))
+    assert [p.name for p in tmp_path.iterdir()] == ["p.json"]  # no temp file left
+    with pytest.raises(PlanFileError, match="not found"):
+        read_plan(tmp_path / "missing.json")
+    (tmp_path / "bad.json").write_text("{")
+    with pytest.raises(PlanFileError, match="JSON"):
+        read_plan(tmp_path / "bad.json")
+    (tmp_path / "other.json").write_text('{"format": "x"}')
+    with pytest.raises(PlanFileError, match="format"):
+        read_plan(tmp_path / "other.json")
+
+
+def test_rejects_moved_waypoint(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    si, seg = _first(doc, "transfer")
+    seg["waypoints"][1]["object_pose_xyzquat"][0] += 0.003
+    assert {"fingertip_distance", "contact_matches_fingertip"} & _rules(doc)
+
+
+def test_rejects_contact_off_surface(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    _, seg = _first(doc, "transfer")
+    c = seg["waypoints"][0]["contacts"][0]
+    seg["waypoints"][0]["contacts"][0] = [1.2 * v for v in c]
+    assert "contact_on_surface" in _rules(doc)
+
+
+def test_rejects_two_fingers_moving_in_regrasp(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    _, seg = _first(doc, "regrasp")
+    other = (seg["finger"] + 1) % 4
+    j = 3 * other
+    for w in seg["waypoints"][1:-1]:
+        w["q"][j] += 0.01
+    assert "regrasp_one_finger" in _rules(doc)
+
+
+def test_rejects_object_moving_in_regrasp(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    _, seg = _first(doc, "regrasp")
+    seg["waypoints"][1]["object_pose_xyzquat"][2] += 0.002
+    assert "regrasp_object_still" in _rules(doc)
+
+
+def test_rejects_non_force_closure_holding_grasp(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    doc["mu"] = 0.0  # frictionless point contacts: never force closure with 4 fingers
+    assert "force_closure" in _rules(doc)
+
+
+def test_rejects_jump_between_waypoints(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    _, seg = _first(doc, "transfer")
+    del seg["waypoints"][1:6]
+    assert "step" in _rules(doc)
+
+
+def test_rejects_missing_goal_and_broken_continuity(solved) -> None:
+    doc = copy.deepcopy(solved[2])
+    doc["goal"]["object_pose_xyzquat"] = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0]
+    assert "goal" in _rules(doc)
+    doc = copy.deepcopy(solved[2])
+    del doc["segments"][1]["waypoints"][0]
+    assert "continuity" in _rules(doc)
+
+
+def test_same_seed_same_plan(solved) -> None:
+    scenario, result, doc = solved
+    again = plan(scenario, time_limit=60.0)
+    assert again.solved
+    doc2 = build_plan_document(scenario, build_hand(scenario), again)
+    assert doc2["segments"] == doc["segments"]
+
+
+def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
+    from dexplan.planning.context import build_context
+    from dexplan.planning.roadmap import Roadmap, scenario_key
+
+    scenario, result, _ = solved
+    path = tmp_path / "rm.npz"
+    result.roadmap.save(path)
+    key = scenario_key(build_context(scenario))
+    loaded = Roadmap.load(path, key)
+    np.testing.assert_array_equal(loaded.vertices, result.roadmap.vertices)
+    np.testing.assert_array_equal(loaded.edges, result.roadmap.edges)
+    answer = plan(scenario, roadmap=loaded, time_limit=60.0)
+    assert answer.solved, (answer.status, answer.message)
+    doc = build_plan_document(scenario, build_hand(scenario), answer)
+    assert verify_plan(doc).ok
+    with pytest.raises(PlanFileError, match="other models"):
+        Roadmap.load(path, "0" * 16)
