@@ -1,0 +1,77 @@
+"""Module 1: GSn paths from OMPL planners on the paper scenario; module 2 links."""
+
+import time
+
+import numpy as np
+import pytest
+
+from dexplan.planning.context import build_context
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.planner import goal_reached, start_state
+from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, try_link
+from dexplan.pose import quat_angle
+from dexplan.scenario import default_scenario
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return default_scenario()
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("planner", ["PRM", "RRTConnect", "KPIECE1"])
+def test_gsn_path_to_yaw_180_every_state_valid(scenario, planner: str) -> None:
+    ctx = build_context(scenario, seed=2)
+    x0 = start_state(ctx)
+    assert x0 is not None
+    query = GsnQuery(
+        x0,
+        lambda x: goal_reached(scenario, x[:POSE_DIM]),
+        lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
+    )
+    res = explore_gsn(ctx, query, planner, seed=2, deadline=time.perf_counter() + 60.0)
+    assert res.path is not None, res.message
+    path = res.path
+    np.testing.assert_allclose(path[0], x0, atol=1e-9)
+    assert goal_reached(scenario, path[-1][:POSE_DIM])[0]
+    for x in path:
+        assert ctx.gsn.residual(x) < 1e-4
+        assert ctx.validity.check(x).valid
+    # the object really turns about 180 degrees
+    assert quat_angle(path[0][3:7], path[-1][3:7]) > np.pi - 0.06
+    assert res.stats["roadmap_nodes"] >= 2
+    assert res.roadmap.n_vertices == res.stats["roadmap_nodes"]
+
+
+def test_sampler_states_are_valid_and_on_gsn(scenario) -> None:
+    ctx = build_context(scenario, seed=4)
+    for _ in range(20):
+        x = ctx.sampler.sample()
+        assert x is not None
+        assert ctx.gsn.residual(x) < 1e-6
+        assert ctx.validity.check(x).valid
+    st = ctx.sampler.stats
+    assert st.valid == 20 and 0 < st.valid_fraction <= 1
+    assert sum(ctx.validity.stats.rejected.values()) + ctx.validity.stats.valid == (
+        ctx.validity.stats.checked
+    )
+
+
+def test_roadmap_components_and_links() -> None:
+    v = np.zeros((5, 19))
+    v[:, 6] = 1.0
+    rm = Roadmap(v, np.array([[0, 1], [2, 3]]), np.zeros((0, 2), dtype=np.int64), "PRM", "k")
+    n, labels = rm.components()
+    assert n == 3 and labels[0] == labels[1] and labels[2] == labels[3] != labels[0]
+    assert rm.shortest_path(0, [3]) is None
+    rm.add_link(1, 2)
+    assert rm.components()[0] == 2
+    assert rm.shortest_path(0, [3]) == [0, 1, 2, 3]
+
+
+def test_module2_link_turns_the_object(scenario) -> None:
+    ctx = build_context(scenario, seed=5)
+    x0 = start_state(ctx)
+    target = scenario.start.object_pose_xyzquat.copy()
+    target[3:] = [0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)]  # 45 degrees about z
+    assert try_link(ctx, x0, target)
