@@ -21,11 +21,13 @@ from dexplan.exceptions import DexplanError, InvalidInputError
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
 
 EPILOG = """exit codes:
   0  success
   1  no plan found within the time limit, or the plan fails verification
   2  bad input (malformed scenario or plan, unknown planner, missing file)
+  3  internal error (a bug: please report it with the output of --debug)
 """
 
 
@@ -38,8 +40,8 @@ def _version(dist: str) -> str:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """Print the builtin hand, the default object and dependency versions."""
-    from dexplan.hand import Hand  # noqa: PLC0415 - keep `--help` fast
-    from dexplan.objects import Sphere  # noqa: PLC0415
+    from dexplan.hand import Hand
+    from dexplan.objects import Sphere
 
     hand = Hand.builtin(args.hand)
     out = sys.stdout
@@ -65,32 +67,31 @@ def _err(msg: str) -> None:
     sys.stderr.flush()
 
 
-def _load_scenario(arg: str | None):  # noqa: ANN202
-    from dexplan.scenario import default_scenario, load_scenario  # noqa: PLC0415
+def _load_scenario(arg: str | None):
+    from dexplan.scenario import default_scenario, load_scenario
 
     return default_scenario() if arg is None else load_scenario(arg)
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """Plan a scenario; write the plan (and optionally roadmap and recording)."""
-    from pathlib import Path  # noqa: PLC0415
+    from pathlib import Path
 
-    from dexplan.plan import build_plan_document, write_plan  # noqa: PLC0415
-    from dexplan.planning.context import build_hand  # noqa: PLC0415
-    from dexplan.planning.planner import plan  # noqa: PLC0415
-    from dexplan.planning.roadmap import Roadmap  # noqa: PLC0415
+    from dexplan.plan import build_plan_document, write_plan
+    from dexplan.planning.context import build_hand
+    from dexplan.planning.planner import plan
+    from dexplan.planning.roadmap import Roadmap
 
     scenario = _load_scenario(args.scenario)
     if args.time_limit is not None and not args.time_limit > 0:
         raise InvalidInputError(f"--time-limit must be > 0, got {args.time_limit}")
     if args.seed is not None and args.seed < 0:
         raise InvalidInputError(f"--seed must be >= 0, got {args.seed}")
-    if args.planner is not None:
-        from dexplan.planning.ompl_adapter import check_planner  # noqa: PLC0415
+    from dexplan.planning.ompl_adapter import check_planner
 
-        check_planner(args.planner, scenario.planner.params)
+    check_planner(args.planner or scenario.planner.name, scenario.planner.params)
     if args.rrd is not None:
-        from dexplan.viz import require_rerun  # noqa: PLC0415
+        from dexplan.viz import require_rerun
 
         require_rerun()
     out = Path(args.output)
@@ -98,8 +99,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"-o: folder does not exist: {str(out.resolve().parent)!r}")
     roadmap = None
     if args.load_roadmap is not None:
-        from dexplan.planning.context import build_context  # noqa: PLC0415
-        from dexplan.planning.roadmap import scenario_key  # noqa: PLC0415
+        from dexplan.planning.context import build_context
+        from dexplan.planning.roadmap import scenario_key
 
         key = scenario_key(build_context(scenario))
         roadmap = Roadmap.load(args.load_roadmap, key)
@@ -124,7 +125,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     doc = build_plan_document(scenario, hand, result, out.resolve().parent)
     write_plan(out, doc)
     if args.rrd is not None:
-        from dexplan.viz import record_plan  # noqa: PLC0415
+        from dexplan.viz import record_plan
 
         record_plan(doc, args.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
         _err(f"recording written to {args.rrd}")
@@ -142,9 +143,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """Verify a plan file from the file alone."""
-    from pathlib import Path  # noqa: PLC0415
+    from pathlib import Path
 
-    from dexplan.plan import read_plan, verify_plan  # noqa: PLC0415
+    from dexplan.plan import read_plan, verify_plan
 
     doc = read_plan(args.plan)
     report = verify_plan(doc, Path(args.plan).resolve().parent)
@@ -169,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=_version("dexplan"))
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p_info = sub.add_parser("info", help="show the builtin hand, object and dependency versions")
@@ -213,9 +215,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     except DexplanError as exc:
         sys.stderr.write(f"dexplan: error: {exc}\n")
         code = EXIT_BAD_INPUT
+    except OSError as exc:  # unreadable or unwritable files
+        sys.stderr.write(f"dexplan: error: {exc}\n")
+        code = EXIT_BAD_INPUT
     except KeyboardInterrupt:
         sys.stderr.write("dexplan: interrupted\n")
         code = 130
+    except Exception as exc:  # a bug: say so plainly, traceback only on request
+        if args.debug:
+            raise
+        sys.stderr.write(
+            f"dexplan: internal error: {type(exc).__name__}: {exc} (rerun with --debug)\n"
+        )
+        code = EXIT_INTERNAL
     sys.stdout.flush()
     sys.stderr.flush()
     # nanobind (ompl) reports "leaked instances" at interpreter exit; users

@@ -307,7 +307,8 @@ class Hand:
         Fingers of the "abduction + planar two-link" kind (as on the builtin
         paper hand) are solved in closed form first (checked against
         Pinocchio's FK when the hand is loaded); others, and targets the closed
-        form cannot reach within limits, use Levenberg-Marquardt steps ``dq = J^T (J J^T + lambda I)^-1 e`` with
+        form cannot reach within limits, use Levenberg-Marquardt steps
+        ``dq = J^T (J J^T + lambda I)^-1 e`` with
         ``lambda = |e|^2 + 1e-9`` (damping vanishes near a solution, so the
         convergence is quadratic there, and stays bounded at singularities),
         clipped to the joint limits. When a run stalls, it restarts from the
@@ -380,7 +381,7 @@ class _PlanarFingerIK:
     :meth:`detect` verifies the solver against FK before it is used.
     """
 
-    def __init__(self, o0, a0, e, k, l1, l2, s, lo, hi) -> None:  # noqa: ANN001
+    def __init__(self, o0, a0, e, k, l1, l2, s, lo, hi) -> None:
         self.o0, self.a0, self.e = o0, a0, e
         self.b = np.cross(a0, e)
         self.k, self.l1, self.l2, self.s = k, l1, l2, s
@@ -450,7 +451,6 @@ class _PlanarFingerIK:
                         best, best_d = np.clip(sol, self.lo, self.hi), d
         return best
 
-
     def solve_batch(self, targets: FloatArray) -> tuple[FloatArray, np.ndarray]:
         """Vectorized :meth:`solve` without the nearest-solution preference.
 
@@ -488,7 +488,7 @@ class _PlanarFingerIK:
 def _allegro_hand() -> Hand:
     """The Allegro right hand from ``example-robot-data`` (``allegro`` extra)."""
     try:
-        import example_robot_data as erd  # noqa: PLC0415 - optional dependency
+        import example_robot_data as erd
     except ImportError as exc:
         raise DependencyError(
             "hand 'allegro' needs example-robot-data: pip install 'dexplan[allegro]'"
@@ -496,6 +496,4 @@ def _allegro_hand() -> Hand:
     models_dir = Path(erd.getModelPath("allegro_hand_description/urdf/allegro_right_hand.urdf"))
     urdf = models_dir / "allegro_hand_description" / "urdf" / "allegro_right_hand.urdf"
     tips = ("link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip")
-    return Hand.from_urdf_file(
-        urdf, tips, 0.012, name="allegro", package_dirs=[str(models_dir)]
-    )
+    return Hand.from_urdf_file(urdf, tips, 0.012, name="allegro", package_dirs=[str(models_dir)])

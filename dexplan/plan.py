@@ -161,9 +161,9 @@ class _Checker:
     """Rebuilds the models from a plan document and checks every rule."""
 
     def __init__(self, doc: Mapping[str, Any], base_dir: Path) -> None:
-        from dexplan.collision import CollisionWorld, Obstacle  # noqa: PLC0415
-        from dexplan.hand import Hand  # noqa: PLC0415
-        from dexplan.objects import shape_from_dict  # noqa: PLC0415
+        from dexplan.collision import CollisionWorld, Obstacle
+        from dexplan.hand import Hand
+        from dexplan.objects import shape_from_dict
 
         h = doc["hand"]
         self.hand = Hand(
@@ -181,13 +181,14 @@ class _Checker:
         self.obj = shape_from_dict(doc["object"], base_dir)
         obstacles = [
             Obstacle(
-                shape_from_dict({k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")},
-                                base_dir),
+                shape_from_dict(
+                    {k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")}, base_dir
+                ),
                 tuple(ob["pose_xyzquat"]),
                 ob.get("name", f"obstacle{k}"),
             )
             for k, ob in enumerate(doc.get("obstacles", []))
-        ]  # fmt: skip
+        ]
         self.world = CollisionWorld(self.hand, self.obj, obstacles)
         self.mu = float(doc["mu"])
         self.edges = int(doc.get("friction_edges", 8))
@@ -199,8 +200,8 @@ class _Checker:
 
     # -- per waypoint ------------------------------------------------------
     def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
-        from dexplan.grasp import force_closure_quality, min_subgrasp_quality  # noqa: PLC0415
-        from dexplan.pose import inverse_transform_points  # noqa: PLC0415
+        from dexplan.grasp import force_closure_quality, min_subgrasp_quality
+        from dexplan.pose import inverse_transform_points
 
         hand, obj = self.hand, self.obj
         pose, q = w.object_pose_xyzquat, w.q
@@ -217,8 +218,10 @@ class _Checker:
             self.add(si, wi, "contacts", f"must list {self.n} fingers, got {len(w.contacts)}")
             return
         if not hand.within_limits(q, 1e-9):
-            bad = [hand.joint_names[j] for j in np.flatnonzero((q < hand.lower - 1e-9)
-                                                               | (q > hand.upper + 1e-9))]  # fmt: skip
+            bad = [
+                hand.joint_names[j]
+                for j in np.flatnonzero((q < hand.lower - 1e-9) | (q > hand.upper + 1e-9))
+            ]
             self.add(si, wi, "joint_limits", f"joints outside limits: {bad}")
         tips = inverse_transform_points(pose, hand.fingertip_positions(q))
         mask = w.contact_mask()
@@ -233,26 +236,42 @@ class _Checker:
                 return
             d_tip = float(obj.signed_distance(tips[i])) - r
             if abs(d_tip) > TIP_DISTANCE_TOL:
-                self.add(si, wi, "fingertip_distance",
-                         f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface")  # fmt: skip
+                self.add(
+                    si,
+                    wi,
+                    "fingertip_distance",
+                    f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface",
+                )
             d_c = float(obj.signed_distance(c))
             if abs(d_c) > TIP_DISTANCE_TOL:
-                self.add(si, wi, "contact_on_surface",
-                         f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface")  # fmt: skip
+                self.add(
+                    si,
+                    wi,
+                    "contact_on_surface",
+                    f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface",
+                )
             p_s, n_s = obj.closest_point(c)
             expected_tip = np.asarray(p_s).reshape(3) + r * np.asarray(n_s).reshape(3)
             gap = float(np.linalg.norm(expected_tip - tips[i]))
             if gap > TIP_DISTANCE_TOL:
-                self.add(si, wi, "contact_matches_fingertip",
-                         f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's")  # fmt: skip
+                self.add(
+                    si,
+                    wi,
+                    "contact_matches_fingertip",
+                    f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's",
+                )
             pts.append(np.asarray(p_s).reshape(3))
             nrm.append(-np.asarray(n_s).reshape(3))
         rep = self.world.check(q, pose, mask, first_only=True)
         if rep.pair is not None:
             self.add(si, wi, "collision", f"{rep.pair[0]} touches {rep.pair[1]}")
         if rep.max_penetration > PENETRATION_TOL:
-            self.add(si, wi, "penetration",
-                     f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object")  # fmt: skip
+            self.add(
+                si,
+                wi,
+                "penetration",
+                f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object",
+            )
         if len(pts) < 2:
             self.add(si, wi, "force_closure", f"only {len(pts)} finger(s) hold the object")
             return
@@ -264,22 +283,31 @@ class _Checker:
         elif subgrasps:
             sub = min_subgrasp_quality(P, N, self.mu, edges=self.edges, torque_scale=ts)
             if sub <= FC_MIN:
-                self.add(si, wi, "subgrasp_force_closure",
-                         f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})")  # fmt: skip
+                self.add(
+                    si,
+                    wi,
+                    "subgrasp_force_closure",
+                    f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})",
+                )
 
     # -- per segment -------------------------------------------------------
     def steps(self, si: int, seg: Segment) -> None:
-        from dexplan.pose import quat_angle  # noqa: PLC0415
+        from dexplan.pose import quat_angle
 
         for wi in range(1, len(seg.waypoints)):
             a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
-            if a.q.shape != b.q.shape or a.object_pose_xyzquat.shape != (7,) != b.object_pose_xyzquat.shape:
+            if (
+                a.q.shape != b.q.shape
+                or a.object_pose_xyzquat.shape != (7,) != b.object_pose_xyzquat.shape
+            ):
                 continue
             dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
             da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
             dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
             if dp > MAX_STEP_M + 1e-12:
-                self.add(si, wi, "step", f"object moves {dp * 1e3:.2f} mm from the previous waypoint")
+                self.add(
+                    si, wi, "step", f"object moves {dp * 1e3:.2f} mm from the previous waypoint"
+                )
             if da > MAX_STEP_RAD + 1e-12:
                 self.add(si, wi, "step", f"object turns {da:.4f} rad from the previous waypoint")
             if dq > MAX_STEP_RAD + 1e-12:
@@ -296,8 +324,12 @@ class _Checker:
                     continue
                 drift = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
                 if drift > CONTACT_DRIFT_TOL:
-                    self.add(si, wi, "transfer_contact_drift",
-                             f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame")  # fmt: skip
+                    self.add(
+                        si,
+                        wi,
+                        "transfer_contact_drift",
+                        f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame",
+                    )
 
     def regrasp(self, si: int, seg: Segment) -> None:
         f = seg.finger
@@ -331,13 +363,21 @@ class _Checker:
             interior = 0 < wi < len(wps) - 1
             if interior:
                 if w.contacts[f] is not None:
-                    self.add(si, wi, "regrasp_free_finger",
-                             f"finger {f} must be free (contact null) at interior waypoints")  # fmt: skip
+                    self.add(
+                        si,
+                        wi,
+                        "regrasp_free_finger",
+                        f"finger {f} must be free (contact null) at interior waypoints",
+                    )
                 else:
                     d = self.world.finger_object_distance(w.q, w.object_pose_xyzquat, f)
                     if d <= 0.0:
-                        self.add(si, wi, "regrasp_clearance",
-                                 f"free finger {f} touches the object ({d * 1e3:.3f} mm)")  # fmt: skip
+                        self.add(
+                            si,
+                            wi,
+                            "regrasp_clearance",
+                            f"free finger {f} touches the object ({d * 1e3:.3f} mm)",
+                        )
         for wi in (0, len(wps) - 1):
             if wps[wi].contacts[f] is None:
                 self.add(si, wi, "regrasp_endpoints", f"finger {f} must be in contact here")
@@ -357,7 +397,7 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         PlanFileError: the document is structurally unusable (missing hand,
             object or segments, unloadable models).
     """
-    from dexplan.pose import quat_angle  # noqa: PLC0415
+    from dexplan.pose import quat_angle
 
     for key in ("hand", "object", "mu", "start", "goal", "segments"):
         if key not in doc:
@@ -417,11 +457,19 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
         da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
         if dp > float(goal.get("position_tol", 0.005)) + 1e-12:
-            chk.add(len(segments) - 1, len(segments[-1].waypoints) - 1, "goal",
-                    f"object ends {dp * 1e3:.2f} mm from the goal position")  # fmt: skip
+            chk.add(
+                len(segments) - 1,
+                len(segments[-1].waypoints) - 1,
+                "goal",
+                f"object ends {dp * 1e3:.2f} mm from the goal position",
+            )
         if da > float(goal.get("angle_tol", 0.05)) + 1e-12:
-            chk.add(len(segments) - 1, len(segments[-1].waypoints) - 1, "goal",
-                    f"object ends {math.degrees(da):.2f} deg from the goal orientation")  # fmt: skip
+            chk.add(
+                len(segments) - 1,
+                len(segments[-1].waypoints) - 1,
+                "goal",
+                f"object ends {math.degrees(da):.2f} deg from the goal orientation",
+            )
     return VerifyReport(tuple(chk.violations), total, len(segments))
 
 

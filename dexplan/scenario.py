@@ -115,13 +115,19 @@ def _only(table: Mapping[str, Any], prefix: str, allowed: set[str]) -> None:
     extra = sorted(set(table) - allowed)
     if extra:
         raise ScenarioError(
-            f"unknown field {prefix}.{extra[0]} (= {table[extra[0]]!r}); "
-            f"allowed: {sorted(allowed)}"
+            f"unknown field {prefix}.{extra[0]} (= {table[extra[0]]!r}); allowed: {sorted(allowed)}"
         )
 
 
-def _number(table: Mapping[str, Any], key: str, prefix: str, default: Any = None, *,
-            lo: float | None = None, lo_open: bool = False) -> float:  # fmt: skip
+def _number(
+    table: Mapping[str, Any],
+    key: str,
+    prefix: str,
+    default: Any = None,
+    *,
+    lo: float | None = None,
+    lo_open: bool = False,
+) -> float:
     if key not in table:
         if default is None:
             raise ScenarioError(f"missing field {prefix}.{key}")
@@ -163,7 +169,7 @@ def _pose(table: Mapping[str, Any], key: str, prefix: str) -> FloatArray:
 
 
 def _shape_fields(table: Mapping[str, Any], prefix: str, base_dir: Path) -> dict[str, Any]:
-    from dexplan.objects import shape_from_dict  # noqa: PLC0415 - heavy import
+    from dexplan.objects import shape_from_dict
 
     shape = dict(table)
     shape.pop("pose_xyzquat", None)
@@ -185,16 +191,16 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     _only(
         doc,
         "scenario",
-        {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner",
-         "workspace"},
-    )  # fmt: skip
+        {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner", "workspace"},
+    )
     scen_name = doc.get("name", name)
     if not isinstance(scen_name, str):
         raise ScenarioError(f"name must be a string, got {scen_name!r}")
 
     h = _table(doc, "hand", required=False) or {"builtin": "paper"}
-    _only(h, "hand", {"builtin", "urdf", "fingertip_frames", "fingertip_radius",
-                      "collision_exclude"})  # fmt: skip
+    _only(
+        h, "hand", {"builtin", "urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"}
+    )
     if "urdf" in h:
         frames = h.get("fingertip_frames")
         if not isinstance(frames, list) or not all(isinstance(f, str) for f in frames):
@@ -204,8 +210,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
             raise ScenarioError(f"hand.urdf file not found: {str(urdf)!r}")
         excl = h.get("collision_exclude", [])
         if not isinstance(excl, list) or not all(
-            isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p)
-            for p in excl
+            isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p) for p in excl
         ):
             raise ScenarioError(
                 f"hand.collision_exclude must be a list of [link, link] pairs, got {excl!r}"

@@ -53,7 +53,8 @@ def main() -> None:
     )
     v = ctx.validity.stats
     print(f"validity: {v.checked} checked, {v.valid} valid, rejected {v.rejected}")
-    print(f"mean validity check: {np.nan if not v.checked else args.seconds / v.checked * 1e6:.0f} us (upper bound)")
+    per_check = args.seconds / v.checked * 1e6 if v.checked else np.nan
+    print(f"sampling time per validity check: {per_check:.0f} us (upper bound of one check)")
 
 
 if __name__ == "__main__":

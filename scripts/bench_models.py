@@ -19,9 +19,9 @@ from collections.abc import Callable
 
 import numpy as np
 import trimesh
+from dexplan.grasp import force_closure_quality, min_subgrasp_quality
 
 from dexplan.collision import CollisionWorld
-from dexplan.grasp import force_closure_quality, min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Mesh, Sphere
 from dexplan.planning.gsn import GraspSubspace
@@ -91,7 +91,10 @@ def main() -> None:
     pts, nrm = gsn.contacts(x)
     ts = sphere.characteristic_length
     rows.append(
-        ("FC quality, 4 contacts", bench(lambda: force_closure_quality(pts, nrm, 0.8, torque_scale=ts), 500))
+        (
+            "FC quality, 4 contacts",
+            bench(lambda: force_closure_quality(pts, nrm, 0.8, torque_scale=ts), 500),
+        )
     )
     rows.append(
         (

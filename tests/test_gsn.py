@@ -35,7 +35,7 @@ def test_jacobian_matches_finite_differences(paper_hand: Hand, obj) -> None:
     gsn = _gsn(paper_hand, obj, [True, True, False, True])
     for _ in range(15):
         quat = random_quaternion(rng) * rng.uniform(0.9, 1.1)  # off the unit sphere too
-        pose = np.concatenate([[0, 0, 0.1] + rng.uniform(-0.02, 0.02, 3), quat])
+        pose = np.concatenate([np.array([0, 0, 0.1]) + rng.uniform(-0.02, 0.02, 3), quat])
         q = rng.uniform(paper_hand.lower, paper_hand.upper)
         x = gsn.join(pose, q)
         J = gsn.jacobian(x)

@@ -97,7 +97,7 @@ def test_bad_models_raise_typed_errors(hand: Hand, tmp_path) -> None:
         Hand(hand.urdf_xml, ["f0_tip", "f1_tip"], -1.0)
     with pytest.raises(ModelError, match="not found"):
         Hand.from_urdf_file(tmp_path / "missing.urdf", ["a", "b"], 0.01)
-    with pytest.raises(InvalidInputError, match="hand.builtin"):
+    with pytest.raises(InvalidInputError, match=r"hand\.builtin"):
         Hand.builtin("shadow")
     assert issubclass(ModelError, DexplanError)
 

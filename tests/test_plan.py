@@ -62,7 +62,7 @@ def test_plan_file_round_trip_atomic(solved, tmp_path: Path) -> None:
 
 def test_rejects_moved_waypoint(solved) -> None:
     doc = copy.deepcopy(solved[2])
-    si, seg = _first(doc, "transfer")
+    _, seg = _first(doc, "transfer")
     seg["waypoints"][1]["object_pose_xyzquat"][0] += 0.003
     assert {"fingertip_distance", "contact_matches_fingertip"} & _rules(doc)
 
@@ -115,7 +115,7 @@ def test_rejects_missing_goal_and_broken_continuity(solved) -> None:
 
 
 def test_same_seed_same_plan(solved) -> None:
-    scenario, result, doc = solved
+    scenario, _, doc = solved
     again = plan(scenario, time_limit=60.0)
     assert again.solved
     doc2 = build_plan_document(scenario, build_hand(scenario), again)

@@ -87,5 +87,5 @@ def test_missing_and_malformed_files(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="start"):
         load_scenario(_write(tmp_path, GOOD.split("[start]")[0]))
     mesh = GOOD.replace('shape = "sphere"\nradius = 0.04', 'shape = "mesh"\npath = "missing.obj"')
-    with pytest.raises(ScenarioError, match="missing.obj"):
+    with pytest.raises(ScenarioError, match=r"missing\.obj"):
         load_scenario(_write(tmp_path, mesh))

@@ -17,7 +17,7 @@ from dexplan.hand import Hand
 from dexplan.objects import Shape, shape_from_dict
 from dexplan.planning.gsn import GraspSubspace
 from dexplan.planning.sampler import GraspSampler, SamplerSettings
-from dexplan.planning.transitions import TransitionSettings, Transitions
+from dexplan.planning.transitions import Transitions, TransitionSettings
 from dexplan.planning.validity import GraspValidity, ValiditySettings
 from dexplan.scenario import Scenario
 

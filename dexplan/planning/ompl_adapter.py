@@ -369,6 +369,26 @@ def _set_planner_param(planner: Any, planner_name: str, name: str, value: object
         )
 
 
+def check_planner(name: str, params: Mapping[str, object] | None = None) -> None:
+    """Fail fast on an unknown planner or parameter, before any planning work.
+
+    The planner is built on a throwaway 2-D space and given ``params``, so the
+    same checks as :class:`PlanningProblem` apply.
+
+    Raises:
+        PlannerError: unknown or unsupported planner, unknown parameter, bad value.
+    """
+    _check_planner_name(name)
+    space = ob.RealVectorStateSpace(2)
+    bounds = ob.RealVectorBounds(2)
+    bounds.setLow(-1.0)
+    bounds.setHigh(1.0)
+    space.setBounds(bounds)
+    planner = PLANNERS[name](ob.SpaceInformation(space))
+    for key, value in (params or {}).items():
+        _set_planner_param(planner, name, str(key), value)
+
+
 # --------------------------------------------------------------------------- specs
 
 

@@ -68,7 +68,7 @@ def count_kinds(segments: list[Segment] | tuple[Segment, ...]) -> dict[str, int]
 
 def object_path_length(segments: list[Segment] | tuple[Segment, ...]) -> tuple[float, float]:
     """Total object translation (m) and rotation (rad) over the transfers."""
-    from dexplan.pose import quat_angle  # noqa: PLC0415 - avoid a cycle at import
+    from dexplan.pose import quat_angle
 
     trans, rot = 0.0, 0.0
     for s in segments:

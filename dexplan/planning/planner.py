@@ -29,6 +29,7 @@ from dexplan.exceptions import InvalidInputError
 from dexplan.plan import build_plan_document, verify_plan
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.ompl_adapter import check_planner
 from dexplan.planning.path import Segment, count_kinds, object_path_length
 from dexplan.planning.reduction import grasp_from_state, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
@@ -143,6 +144,8 @@ def plan(
     planner = planner or spec.name
     seed = spec.seed if seed is None else seed
     time_limit = spec.time_limit if time_limit is None else time_limit
+    if roadmap is None:
+        check_planner(planner, spec.params)  # bad names fail before any work
     ctx = build_context(scenario, seed)
     stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
     pose0 = scenario.start.object_pose_xyzquat
@@ -171,8 +174,9 @@ def plan(
     deadline = t0 + time_limit
     say(f"module 1: exploring GSn with {planner}")
     if roadmap is None:
-        gsn = explore_gsn(ctx, query, planner, params=spec.params, space=spec.space,
-                          seed=seed, deadline=deadline)  # fmt: skip
+        gsn = explore_gsn(
+            ctx, query, planner, params=spec.params, space=spec.space, seed=seed, deadline=deadline
+        )
     else:
         gsn = query_roadmap(ctx, roadmap, query, deadline=deadline)
     stats.update(gsn.stats)
@@ -207,8 +211,9 @@ def plan(
     stats["object_poses_shortcut"] = len(short)
     if red is None or not red.success:
         msg = red.reason if red is not None else "time limit reached before the reduction"
-        return result("reduction_failed", msg or "", roadmap=roadmap, gsn_path=gsn.path,
-                      start_q=q_start)  # fmt: skip
+        return result(
+            "reduction_failed", msg or "", roadmap=roadmap, gsn_path=gsn.path, start_q=q_start
+        )
     stats.update({f"local_{k}": v for k, v in red.stats.items()})
     segments = merge_regrasps(ctx.transitions, list(red.segments))
     stats.update(count_kinds(segments))
@@ -228,7 +233,12 @@ def plan(
     stats["verify_time_s"] = time.perf_counter() - t_ver
     if not report.ok:
         detail = "; ".join(str(v) for v in report.violations[:5])
-        return result("invalid_plan", f"the reduced plan failed verification: {detail}",
-                      roadmap=roadmap, gsn_path=gsn.path, start_q=q_start)  # fmt: skip
+        return result(
+            "invalid_plan",
+            f"the reduced plan failed verification: {detail}",
+            roadmap=roadmap,
+            gsn_path=gsn.path,
+            start_q=q_start,
+        )
     stats["time_s"] = time.perf_counter() - t0
     return solved

@@ -168,7 +168,7 @@ def _stats(trans: Transitions, regrasps: int) -> dict[str, int]:
 
 def grasp_from_state(trans: Transitions, pose: FloatArray, q: FloatArray) -> GraspContacts:
     """Contacts (object frame) of the fingertips of ``q`` at an object pose."""
-    from dexplan.pose import inverse_transform_points  # noqa: PLC0415
+    from dexplan.pose import inverse_transform_points
 
     tips = inverse_transform_points(pose, trans.hand.fingertip_positions(q))
     pts, n_out = trans.obj.closest_point(tips)

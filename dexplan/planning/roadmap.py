@@ -111,8 +111,13 @@ class Roadmap:
             return None
         w = np.array([pose_distance(self.vertices[a], self.vertices[b]) for a, b in e]) + 1e-9
         n = self.n_vertices
-        g = coo_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
-                        np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n)).tocsr()  # fmt: skip
+        g = coo_matrix(
+            (
+                np.concatenate([w, w]),
+                (np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])),
+            ),
+            shape=(n, n),
+        ).tocsr()
         dist, pred = dijkstra(g, indices=source, return_predecessors=True)
         best = min(targets, key=lambda t: dist[t])
         if not np.isfinite(dist[best]):
@@ -136,9 +141,12 @@ class Roadmap:
         try:
             with os.fdopen(fd, "wb") as fh:
                 np.savez_compressed(
-                    fh, vertices=self.vertices, edges=self.edges, links=self.links,
+                    fh,
+                    vertices=self.vertices,
+                    edges=self.edges,
+                    links=self.links,
                     meta=np.array(meta),
-                )  # fmt: skip
+                )
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

@@ -22,9 +22,12 @@ from dexplan.typing import FloatArray
 
 
 def _straight_ok(
-    a: FloatArray, b: FloatArray, pose_ok: Callable[[FloatArray], bool], step_m: float,
+    a: FloatArray,
+    b: FloatArray,
+    pose_ok: Callable[[FloatArray], bool],
+    step_m: float,
     step_rad: float,
-) -> bool:  # fmt: skip
+) -> bool:
     dense = densify_poses(np.array([a, b]), step_m, step_rad)
     return all(pose_ok(p) for p in dense[1:])
 
@@ -89,7 +92,7 @@ def merge_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]
 
 
 def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | None:
-    from dexplan.planning.reduction import grasp_from_state  # noqa: PLC0415
+    from dexplan.planning.reduction import grasp_from_state
 
     f = a.finger
     assert f is not None

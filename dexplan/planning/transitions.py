@@ -24,6 +24,7 @@ finger can follow the rest of the object motion longest.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -112,13 +113,15 @@ def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> 
 
     Args:
         poses: (P, 7) object poses, XYZW.
+        max_step_m: largest translation between consecutive poses (m).
+        max_step_rad: largest rotation between consecutive poses (rad).
 
     Returns:
         (P', 7) poses, straight line in position and slerp in orientation
         between the given ones.
     """
     out = [poses[0]]
-    for a, b in zip(poses[:-1], poses[1:], strict=True):
+    for a, b in itertools.pairwise(poses):
         d = float(np.linalg.norm(b[:3] - a[:3]))
         ang = quat_angle(a[3:], b[3:])
         k = max(1, math.ceil(max(d / max_step_m, ang / max_step_rad)))
@@ -181,7 +184,7 @@ class Transitions:
             )
         )
 
-    def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):  # noqa: ANN202
+    def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):
         """IK of every finger at ``pose``: ``(q, blocking finger or None, reason)``."""
         targets = self.tip_targets(pose, grasp)
         q = q_prev.copy()
@@ -195,7 +198,7 @@ class Transitions:
             q[idx] = res.q_finger
         return q, None, None
 
-    def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:  # noqa: ANN001
+    def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:
         """(collision-free, finger involved in the first collision or None)."""
         rep = self.world.check(q, pose, mask)
         if rep.free:
@@ -236,7 +239,7 @@ class Transitions:
             q = steps[-1][1]
         return TransferResult(tuple(wps), len(poses) - 1, None, None)
 
-    def _advance(self, pa, pb, q_a, grasp, depth):  # noqa: ANN001, ANN202
+    def _advance(self, pa, pb, q_a, grasp, depth):
         """Waypoints from pose ``pa`` (at ``q_a``) to ``pb``, subdividing big joint steps.
 
         Returns a list of (pose, q) ending at ``pb``, or (blocking finger, reason).
@@ -458,7 +461,7 @@ class Transitions:
             return None
         return [qa + (qb - qa) * (j / k) for j in range(k + 1)]
 
-    def _segment_free(self, qa, qb, pose, free_mask) -> list[FloatArray] | None:  # noqa: ANN001
+    def _segment_free(self, qa, qb, pose, free_mask) -> list[FloatArray] | None:
         sub = self._subdivide(qa, qb)
         if sub is None:
             return None
