@@ -161,6 +161,20 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return EXIT_OK if report.ok else EXIT_FAILED
 
 
+def cmd_show(args: argparse.Namespace) -> int:
+    """Open (or with --save, write) a Rerun recording of a plan or roadmap."""
+    from dexplan import viz
+
+    viz.require_rerun()
+    if args.save is not None:
+        out = viz.write_recording(args.source, args.save, roadmap=args.roadmap, plan=args.plan)
+        sys.stdout.write(f"recording written to {out}\n")
+        return EXIT_OK
+    out = viz.show(args.source, roadmap=args.roadmap, plan=args.plan)
+    sys.stdout.write(f"opened {out} in the Rerun viewer\n")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``dexplan`` command."""
     parser = argparse.ArgumentParser(
@@ -203,6 +217,18 @@ def build_parser() -> argparse.ArgumentParser:
     p_ver.add_argument("plan", help="plan JSON file")
     p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
     p_ver.set_defaults(func=cmd_verify)
+
+    p_show = sub.add_parser(
+        "show",
+        help="open a plan (.json), roadmap (.npz) or recording (.rrd) in the Rerun viewer",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_show.add_argument("source", help="plan .json, roadmap .npz or recording .rrd")
+    p_show.add_argument("--save", help="write the recording to this .rrd instead of opening it")
+    p_show.add_argument("--roadmap", help="a roadmap .npz to show with a plan")
+    p_show.add_argument("--plan", help="a plan .json giving hand and object for a roadmap")
+    p_show.set_defaults(func=cmd_show)
     return parser
 
 

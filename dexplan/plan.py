@@ -18,7 +18,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError, PlanFileError
+from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError
+from dexplan.files import atomic_output
 from dexplan.planning.path import Segment, Waypoint
 
 FORMAT = "dexplan-plan/1"
@@ -82,24 +82,16 @@ def write_plan(path: str | Path, doc: Mapping[str, Any]) -> None:
     Raises:
         PlanFileError: the folder does not exist or is not writable.
     """
-    path = Path(path)
-    folder = path.resolve().parent
-    if not folder.is_dir():
-        raise PlanFileError(f"output folder does not exist: {str(folder)!r}")
     text = json.dumps(doc, indent=1, allow_nan=False)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise PlanFileError(f"cannot write plan to {str(path)!r}: {exc}") from exc
-    try:
-        with os.fdopen(fd, "w") as fh:
+        with atomic_output(path, "plan") as tmp, open(tmp, "w") as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except InvalidInputError as exc:
+        raise PlanFileError(str(exc)) from exc
+    except OSError as exc:
+        raise PlanFileError(f"cannot write plan to {str(path)!r}: {exc}") from exc
 
 
 def read_plan(path: str | Path) -> dict[str, Any]:

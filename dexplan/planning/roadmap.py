@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -33,6 +31,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from dexplan.exceptions import PlanFileError
+from dexplan.files import atomic_output
 from dexplan.planning import ompl_adapter
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn import POSE_DIM
@@ -134,23 +133,14 @@ class Roadmap:
         meta = json.dumps(
             {"format": ROADMAP_FORMAT, "planner": self.planner, "scenario_key": self.scenario_key}
         )
-        folder = path.resolve().parent
-        if not folder.is_dir():
-            raise PlanFileError(f"output folder does not exist: {str(folder)!r}")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(
-                    fh,
-                    vertices=self.vertices,
-                    edges=self.edges,
-                    links=self.links,
-                    meta=np.array(meta),
-                )
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_output(path, "roadmap") as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(
+                fh,
+                vertices=self.vertices,
+                edges=self.edges,
+                links=self.links,
+                meta=np.array(meta),
+            )
 
     @classmethod
     def load(cls, path: str | Path, scenario_key: str | None = None) -> Roadmap:

@@ -1,0 +1,43 @@
+"""Atomic file output: a reader never sees a half-written plan, roadmap or recording.
+
+Output goes to a temporary file in the destination folder, which is renamed
+over the destination only once it is complete; on any error the temporary file
+is removed and the destination is left as it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from dexplan.exceptions import InvalidInputError
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | Path, what: str = "output") -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; rename it to ``path`` on success.
+
+    Args:
+        path: destination file.
+        what: what is written, for the error message.
+
+    Raises:
+        InvalidInputError: the destination folder does not exist.
+    """
+    path = Path(path)
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise InvalidInputError(f"{what} folder does not exist: {str(folder)!r}")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
