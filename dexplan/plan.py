@@ -269,11 +269,14 @@ class _Checker:
             return
         P, N = np.array(pts), np.array(nrm)
         ts = obj.characteristic_length
-        fc = force_closure_quality(P, N, self.mu, edges=self.edges, torque_scale=ts)
+        # the rules are signs: certified lower bounds above 0 settle them
+        fc = force_closure_quality(P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN)
         if fc <= FC_MIN:
             self.add(si, wi, "force_closure", f"holding grasp is not force closure ({fc:.3g})")
         elif subgrasps:
-            sub = min_subgrasp_quality(P, N, self.mu, edges=self.edges, torque_scale=ts)
+            sub = min_subgrasp_quality(
+                P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN
+            )
             if sub <= FC_MIN:
                 self.add(
                     si,

@@ -181,6 +181,7 @@ class Transitions:
                 v.mu,
                 edges=v.friction_edges,
                 torque_scale=self.obj.characteristic_length,
+                margin=v.fc_margin,
             )
         )
 

@@ -97,9 +97,17 @@ class GraspValidity:
         (k-1)-contact subgrasps.
         """
         s = self.settings
-        fn = min_subgrasp_quality if s.subgrasps else force_closure_quality
-        return float(
-            fn(p_obj, n_in_obj, s.mu, edges=s.friction_edges, torque_scale=self.torque_scale)
+        if s.subgrasps:
+            return min_subgrasp_quality(
+                p_obj,
+                n_in_obj,
+                s.mu,
+                edges=s.friction_edges,
+                torque_scale=self.torque_scale,
+                margin=s.fc_margin,
+            )
+        return force_closure_quality(
+            p_obj, n_in_obj, s.mu, edges=s.friction_edges, torque_scale=self.torque_scale
         )
 
     def check(self, x: FloatArray) -> Verdict:
