@@ -238,7 +238,7 @@ def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.Constraint
         tolerance=1e-5,
         space=space,
         scale=scale,
-        delta=0.05,
+        delta=0.15,
     )
 
 

@@ -189,8 +189,13 @@ class GraspSampler:
             cand = np.flatnonzero(ok)
             rng.shuffle(cand)
             if hand.has_closed_form_ik(i) and len(cand):
-                # one vectorized solve for every candidate
-                q_sol, solved = hand.finger_ik_batch(i, tips[cand])
+                # vectorized solves, a chunk of candidates at a time
+                for lo in range(0, len(cand), 16):
+                    chunk = cand[lo : lo + 16]
+                    q_sol, solved = hand.finger_ik_batch(i, tips[chunk])
+                    if solved.any():
+                        cand = chunk
+                        break
                 hits = np.flatnonzero(solved)[: s.balance_pool]
                 if len(hits):
                     # among a few reachable ones, the contact whose normal best
