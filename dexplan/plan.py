@@ -186,6 +186,7 @@ class _Checker:
         self.edges = int(doc.get("friction_edges", 8))
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
+        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[float, float]] = {}
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
         self.violations.append(Violation(seg, wp, rule, message))
@@ -269,21 +270,32 @@ class _Checker:
             return
         P, N = np.array(pts), np.array(nrm)
         ts = obj.characteristic_length
-        # the rules are signs: certified lower bounds above 0 settle them
-        fc = force_closure_quality(P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN)
-        if fc <= FC_MIN:
-            self.add(si, wi, "force_closure", f"holding grasp is not force closure ({fc:.3g})")
-        elif subgrasps:
-            sub = min_subgrasp_quality(
+        # The rules are signs: certified lower bounds above 0 settle them. The
+        # same contacts give the same answer, and along a transfer or a regrasp
+        # the holding contacts repeat: remember answers by exact contact values.
+        key = (P.tobytes(), N.tobytes(), subgrasps)
+        if key not in self._fc_memo:
+            fc = force_closure_quality(
                 P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN
             )
-            if sub <= FC_MIN:
-                self.add(
-                    si,
-                    wi,
-                    "subgrasp_force_closure",
-                    f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})",
+            sub = (
+                min_subgrasp_quality(
+                    P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN
                 )
+                if subgrasps and fc > FC_MIN
+                else np.inf
+            )
+            self._fc_memo[key] = (fc, sub)
+        fc, sub = self._fc_memo[key]
+        if fc <= FC_MIN:
+            self.add(si, wi, "force_closure", f"holding grasp is not force closure ({fc:.3g})")
+        elif subgrasps and sub <= FC_MIN:
+            self.add(
+                si,
+                wi,
+                "subgrasp_force_closure",
+                f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})",
+            )
 
     # -- per segment -------------------------------------------------------
     def steps(self, si: int, seg: Segment) -> None:
