@@ -270,11 +270,13 @@ def explore_gsn(
 ) -> GsnResult:
     """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
 
-    The OMPL planner gets up to 60% of the remaining time; if it finds no exact
-    solution, module 2 tries to link the start's component to goal states.
+    The paper's single-query scheme: the OMPL planner grows its roadmap in
+    rounds (0.25 s, then doubling); after each round without an exact
+    solution, module 2 tries a few transfer-regrasp links between the start's
+    component and the goal region's, and the query stops as soon as they are
+    connected.
     """
     t0 = time.perf_counter()
-    budget = max(0.05, 0.6 * (deadline - t0))
     problem = ompl_adapter.PlanningProblem(
         constraint_spec(ctx, space),
         ctx.validity.is_valid,
@@ -291,34 +293,42 @@ def explore_gsn(
             distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler
         )
     )
-    res = problem.solve(budget)
-    data = problem.planner_data()
-    roadmap = Roadmap(
-        np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
-        np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),
-        np.zeros((0, 2), dtype=np.int64),
-        planner,
-        scenario_key(ctx),
-    )
-    n_comp, _ = roadmap.components()
-    stats: dict[str, Any] = {
-        "gsn_status": res.status,
-        "gsn_time_s": time.perf_counter() - t0,
-        "roadmap_nodes": roadmap.n_vertices,
-        "roadmap_edges": len(roadmap.edges),
-        "components": n_comp,
-        "module2_attempts": 0,
-        "module2_links": 0,
-        "module2_time_s": 0.0,
-    }
-    if res.solved and res.path is not None and len(res.path):
-        return GsnResult(np.asarray(res.path), roadmap, stats)
-    # module 2: link the start into goal-reaching components
-    starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
-    if not starts:
-        starts = [roadmap.add_vertex(query.start)]
-    link = link_query(ctx, roadmap, query, starts[0], deadline, stats)
-    return link
+    key = scenario_key(ctx)
+    stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
+    round_time, rounds = 0.25, 0
+    while True:
+        rounds += 1
+        now = time.perf_counter()
+        res = problem.solve(max(0.05, min(round_time, deadline - now)))
+        data = problem.planner_data()
+        roadmap = Roadmap(
+            np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
+            np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),
+            np.zeros((0, 2), dtype=np.int64),
+            planner,
+            key,
+        )
+        stats.update(
+            {
+                "gsn_status": res.status,
+                "gsn_rounds": rounds,
+                "gsn_time_s": time.perf_counter() - t0,
+                "roadmap_nodes": roadmap.n_vertices,
+                "roadmap_edges": len(roadmap.edges),
+                "components": roadmap.components()[0],
+            }
+        )
+        if res.solved and res.path is not None and len(res.path):
+            return GsnResult(np.asarray(res.path), roadmap, stats)
+        # module 2: a few links from the start's component towards the goal region
+        starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
+        start = starts[0] if starts else roadmap.add_vertex(query.start)
+        link_deadline = min(deadline, time.perf_counter() + round_time)
+        linked = link_query(ctx, roadmap, query, start, link_deadline, stats, max_attempts=4)
+        stats["gsn_time_s"] = time.perf_counter() - t0
+        if linked.path is not None or time.perf_counter() >= deadline - 0.05:
+            return linked
+        round_time *= 2.0
 
 
 def query_roadmap(
@@ -339,6 +349,13 @@ def query_roadmap(
     return link_query(ctx, roadmap, query, start, deadline, stats)
 
 
+def object_move_free(ctx: PlanningContext, a: FloatArray, b: FloatArray) -> bool:
+    """True when the object alone can move straight from a's pose to b's (no obstacle)."""
+    s = ctx.transitions.settings
+    dense = densify_poses(np.array([a[:POSE_DIM], b[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
+    return not any(ctx.world.object_collides(p) for p in dense)
+
+
 def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:
     """Module-2 link test: can transfers and regrasps carry the object from a to b's pose?"""
     tr = ctx.transitions
@@ -356,7 +373,7 @@ def link_query(
     start: int,
     deadline: float,
     stats: dict[str, Any],
-    k_nearest: int = 4,
+    max_attempts: int | None = None,
 ) -> GsnResult:
     """Module 2: join the start's component to the goal region with links, then search.
 
@@ -371,6 +388,7 @@ def link_query(
         if g is not None:
             goals.append(roadmap.add_vertex(g))
     path_ids = None
+    attempts = 0
     while time.perf_counter() < deadline:
         path_ids = roadmap.shortest_path(start, goals) if goals else None
         if path_ids is not None:
@@ -380,14 +398,25 @@ def link_query(
         dst = np.flatnonzero(labels != labels[start])
         if len(dst) == 0 or not goals:
             break
-        # nearest cross-component pairs first
+        # Pairs ranked by link length plus how far the far end still is from
+        # the goal: links straight into a goal component come first, links
+        # into other components (merged on the way, as in the paper) next.
+        goal_v = roadmap.vertices[goals[0]]
+        to_goal = np.array([pose_distance(roadmap.vertices[b], goal_v) for b in dst])
+        to_goal[np.isin(labels[dst], labels[goals])] = 0.0
         d = np.array(
             [[pose_distance(roadmap.vertices[a], roadmap.vertices[b]) for b in dst] for a in src]
         )
-        order = np.argsort(d, axis=None)[: k_nearest * 4]
+        d = d + to_goal[None, :]
+        order = np.argsort(d, axis=None)[:64]
         linked = False
         for flat in order:
+            if max_attempts is not None and attempts >= max_attempts:
+                break
             a, b = src[flat // len(dst)], dst[flat % len(dst)]
+            if not object_move_free(ctx, roadmap.vertices[a], roadmap.vertices[b]):
+                continue  # the object alone cannot make this move
+            attempts += 1
             stats["module2_attempts"] += 1
             if try_link(ctx, roadmap.vertices[a], roadmap.vertices[b][:POSE_DIM]):
                 roadmap.add_link(int(a), int(b))
