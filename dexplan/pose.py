@@ -86,7 +86,8 @@ def interpolate_pose(a_xyzquat: FloatArray, b_xyzquat: FloatArray, s: float) -> 
     """Straight line in position, slerp in orientation (the paper's transfer motion)."""
     out = np.empty(7)
     out[:3] = (1 - s) * a_xyzquat[:3] + s * b_xyzquat[:3]
-    out[3:] = slerp(a_xyzquat[3:], b_xyzquat[3:], s)
+    q = slerp(a_xyzquat[3:], b_xyzquat[3:], s)
+    out[3:] = q / np.linalg.norm(q)
     return out
 
 

@@ -35,7 +35,7 @@ class PlanningContext:
         validity: GSn validity checker.
         sampler: RLG-style sampler of valid GSn states.
         transitions: transfer and regrasp local planners.
-        rng: the random generator all of them share.
+        rng: the sampler's random generator (the local planners have their own).
     """
 
     scenario: Scenario
@@ -102,7 +102,11 @@ def build_context(
         raise
     except DexplanError as exc:
         raise ScenarioError(f"scenario {scenario.name!r}: {exc}") from exc
-    rng = np.random.default_rng(scenario.planner.seed if seed is None else seed)
+    seed = scenario.planner.seed if seed is None else seed
+    # Separate streams: how many samples OMPL draws (which can vary with PRM's
+    # threads and the clock) never changes the local planners' choices.
+    rng = np.random.default_rng([seed, 0])
+    rng_local = np.random.default_rng([seed, 1])
     start_pos = scenario.start.object_pose_xyzquat[:3]
     goal_pos = scenario.goal.object_pose_xyzquat[:3]
     gsn = GraspSubspace(
@@ -117,6 +121,6 @@ def build_context(
     validity = GraspValidity(gsn, world, vset)
     sampler = GraspSampler(gsn, validity, rng, sampler_settings)
     transitions = Transitions(
-        hand, obj, world, vset, transition_settings or TransitionSettings(), rng
+        hand, obj, world, vset, transition_settings or TransitionSettings(), rng_local
     )
     return PlanningContext(scenario, hand, obj, world, gsn, validity, sampler, transitions, rng)

@@ -186,7 +186,9 @@ def plan(
 
     say(f"GSn path with {len(gsn.path)} states; reducing to transfers and regrasps")
     t_red = time.perf_counter()
-    poses = gsn.path[:, :POSE_DIM]
+    poses = gsn.path[:, :POSE_DIM].copy()
+    # projected states meet |quat| = 1 to the projection tolerance only
+    poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
     settings = ctx.transitions.settings
 
     def pose_ok(p: FloatArray) -> bool:
