@@ -29,7 +29,9 @@ def test_gsn_path_to_yaw_180_every_state_valid(scenario, planner: str) -> None:
         lambda x: goal_reached(scenario, x[:POSE_DIM]),
         lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
     )
-    res = explore_gsn(ctx, query, planner, seed=2, deadline=time.perf_counter() + 60.0)
+    res = explore_gsn(
+        ctx, query, planner, seed=2, deadline=time.perf_counter() + 60.0, module2=False
+    )
     assert res.path is not None, res.message
     path = res.path
     np.testing.assert_allclose(path[0], x0, atol=1e-9)
@@ -41,6 +43,7 @@ def test_gsn_path_to_yaw_180_every_state_valid(scenario, planner: str) -> None:
     assert quat_angle(path[0][3:7], path[-1][3:7]) > np.pi - 0.06
     assert res.stats["roadmap_nodes"] >= 2
     assert res.roadmap.n_vertices == res.stats["roadmap_nodes"]
+    assert res.stats["module2_attempts"] == 0  # module 1 alone
 
 
 def test_sampler_states_are_valid_and_on_gsn(scenario) -> None:

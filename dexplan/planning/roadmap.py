@@ -267,6 +267,7 @@ def explore_gsn(
     space: str = "projected",
     seed: int = 1,
     deadline: float,
+    module2: bool = True,
 ) -> GsnResult:
     """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
 
@@ -274,7 +275,8 @@ def explore_gsn(
     rounds (0.25 s, then doubling); after each round without an exact
     solution, module 2 tries a few transfer-regrasp links between the start's
     component and the goal region's, and the query stops as soon as they are
-    connected.
+    connected. With ``module2=False`` the OMPL planner alone runs until the
+    deadline (a pure GSn path or none).
     """
     t0 = time.perf_counter()
     problem = ompl_adapter.PlanningProblem(
@@ -320,6 +322,11 @@ def explore_gsn(
         )
         if res.solved and res.path is not None and len(res.path):
             return GsnResult(np.asarray(res.path), roadmap, stats)
+        if not module2:
+            if time.perf_counter() >= deadline - 0.05:
+                return GsnResult(None, roadmap, stats, "no GSn path within the time limit")
+            round_time *= 2.0
+            continue
         # module 2: a few links from the start's component towards the goal region
         starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
         start = starts[0] if starts else roadmap.add_vertex(query.start)
