@@ -15,6 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 from importlib import metadata
+from typing import Any
 
 from dexplan.exceptions import DexplanError, InvalidInputError
 
@@ -161,6 +162,73 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return EXIT_OK if report.ok else EXIT_FAILED
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Benchmark planners on scenarios: SQLite (Planner Arena), CSV, plots, summary."""
+    from dexplan.bench import BenchProgress, format_summary, run_benchmark
+
+    bar: Any = None
+    tqdm: Any = None
+    if not args.quiet:
+        try:
+            from tqdm import tqdm
+        except ImportError:  # plain progress lines instead of a bar
+            tqdm = None
+
+    def progress(p: BenchProgress) -> None:
+        nonlocal bar
+        if args.quiet:
+            return
+        if p.record is None:
+            if p.skipped:
+                _err(f"resuming: {p.skipped} runs already in the database, {p.total} to do")
+            if tqdm is not None:
+                bar = tqdm(total=p.total, file=sys.stderr, unit="run", dynamic_ncols=True)
+            return
+        r = p.record
+        t = r.get("time")
+        what = f"{r['scenario']} {r['planner']} seed {r['seed']}: {r['status_name']}" + (
+            f" {t:.2f}s" if t is not None else ""
+        )
+        if bar is not None:
+            bar.set_postfix_str(what, refresh=False)
+            bar.update(1)
+        else:
+            _err(f"[{p.done}/{p.total}] {what}")
+
+    planners = args.planners
+    baseline = None if args.baseline.lower() == "none" else args.baseline
+    try:
+        result = run_benchmark(
+            args.scenarios,
+            planners,
+            args.seeds,
+            args.time_limit,
+            out_dir=args.output,
+            first_seed=args.first_seed,
+            jobs=args.jobs,
+            ray_address=args.ray,
+            baseline=baseline,
+            plots=not args.no_plots,
+            save_plans=args.save_plans,
+            start_method=args.start_method,
+            run_timeout=args.run_timeout,
+            progress=progress,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    sys.stdout.write(format_summary(result.summary, baseline) + "\n")
+    sys.stdout.write(
+        f"runs: {result.new_runs} new, {result.skipped} resumed ({result.backend} backend)\n"
+        f"database: {result.database}  (Planner Arena: upload it at plannerarena.org, or "
+        f"pip install plannerarena && DATABASE={result.database} plannerarena)\n"
+        f"csv: {result.csv}  summary: {result.summary_csv}\n"
+    )
+    for path in result.plots:
+        sys.stdout.write(f"plot: {path}\n")
+    return EXIT_OK
+
+
 def cmd_show(args: argparse.Namespace) -> int:
     """Open (or with --save, write) a Rerun recording of a plan or roadmap."""
     from dexplan import viz
@@ -217,6 +285,57 @@ def build_parser() -> argparse.ArgumentParser:
     p_ver.add_argument("plan", help="plan JSON file")
     p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
     p_ver.set_defaults(func=cmd_verify)
+
+    p_bench = sub.add_parser(
+        "bench",
+        help="benchmark planners: Planner Arena SQLite, CSV, plots, summary table",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_bench.add_argument(
+        "scenarios", nargs="+", metavar="SCENARIO", help="scenario TOML files or builtin names"
+    )
+    p_bench.add_argument(
+        "--planners",
+        default="PRM,RRTConnect,KPIECE1",
+        help="comma-separated OMPL planner names (default: PRM,RRTConnect,KPIECE1)",
+    )
+    p_bench.add_argument("--seeds", type=int, default=10, help="seeds per planner (10)")
+    p_bench.add_argument("--first-seed", type=int, default=1, help="first seed (1)")
+    p_bench.add_argument(
+        "--time-limit", type=float, help="seconds per run (default: each scenario's)"
+    )
+    p_bench.add_argument(
+        "-j", "--jobs", type=int, help="parallel runs (default: CPU cores, or the Ray cluster's)"
+    )
+    p_bench.add_argument(
+        "-o", "--output", default="bench_results", help="output folder (bench_results)"
+    )
+    p_bench.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run on this Ray cluster ('local' starts one in-process; needs the ray extra)",
+    )
+    p_bench.add_argument(
+        "--baseline",
+        default="PRM",
+        help="planner the figures are compared with, added if missing ('none': no ratios)",
+    )
+    p_bench.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p_bench.add_argument("--save-plans", action="store_true", help="write plans to OUTPUT/plans")
+    p_bench.add_argument(
+        "--start-method",
+        choices=("forkserver", "spawn"),
+        default="forkserver",
+        help="worker processes of the local pool (forkserver)",
+    )
+    p_bench.add_argument(
+        "--run-timeout",
+        type=float,
+        help="hard wall-clock seconds per run before it is killed (default: max(3 T, T + 120))",
+    )
+    p_bench.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p_bench.set_defaults(func=cmd_bench)
 
     p_show = sub.add_parser(
         "show",

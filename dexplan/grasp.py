@@ -232,7 +232,7 @@ def _lower_bound(pinv: FloatArray, lam0: FloatArray) -> float:
     return float(1.0 / np.sqrt(np.max(np.einsum("ij,ij->j", lam, lam))))
 
 
-def _quality(W: FloatArray, margin: float | None) -> float:
+def _quality(W: FloatArray, margin: float | None, solve: bool = True) -> float:
     U, S, Vt = np.linalg.svd(W, full_matrices=False)
     if S[-1] <= RANK_TOL * max(1.0, S[0]):
         return 0.0
@@ -255,7 +255,7 @@ def _quality(W: FloatArray, margin: float | None) -> float:
         return lb
     # a second certificate: per axis, the better of two feasible points
     lb = max(lb, _nnls_lower_bound(W))
-    if lb > margin:
+    if lb > margin or not solve:
         return lb
     # near the margin: solve, with an iteration cap; an axis the cap leaves
     # unsolved keeps the certified bound (<= margin): the decision is "no"
@@ -318,6 +318,7 @@ def min_subgrasp_quality(
     edges: int = 8,
     torque_scale: float | None = None,
     margin: float | None = None,
+    solve: bool = True,
 ) -> float:
     """Minimum quality over a grasp and all its (k-1)-contact subgrasps.
 
@@ -337,6 +338,9 @@ def min_subgrasp_quality(
             is not solved exactly: the bound is used (so the result is exact
             when it is <= margin, and a certified lower bound > margin
             otherwise). Validity checks only need that decision.
+        solve: with a margin, False never calls OSQP: only the certified
+            bounds decide, so a "no" may be a false negative (for choosing
+            among many candidates, where a cheap conservative filter is best).
 
     Returns:
         The minimum quality (0 when some subgrasp is not force closure).
@@ -349,7 +353,7 @@ def min_subgrasp_quality(
     k = len(p)
     best = math.inf
     for i in range(k):
-        q = _quality(np.delete(W_all, np.s_[i * e : (i + 1) * e], axis=1), margin)
+        q = _quality(np.delete(W_all, np.s_[i * e : (i + 1) * e], axis=1), margin, solve)
         best = min(best, q)
         if best == 0.0:
             break

@@ -255,6 +255,28 @@ class Hand:
             if f.type == pin.FrameType.BODY
         }
 
+    def finger_ik_fast(
+        self, finger: int, p_target_world: FloatArray, q_hand: FloatArray
+    ) -> FloatArray | None:
+        """:meth:`finger_ik` for inner loops: no input checks, None on failure.
+
+        Closed-form fingers skip the FK confirmation (the solver was checked
+        against FK when the hand was loaded); others run :meth:`finger_ik`.
+
+        Args:
+            finger: finger index.
+            p_target_world: (3,) fingertip-centre target, world frame.
+            q_hand: (nq,) configuration whose finger values break branch ties.
+
+        Returns:
+            ``q_finger: (m,)`` within limits, or None.
+        """
+        analytic = self._analytic_ik[finger]
+        if analytic is not None:
+            return analytic.solve(p_target_world, q_hand[self.finger_q_index[finger]])
+        res = self.finger_ik(finger, p_target_world, q_hand)
+        return res.q_finger if res.success else None
+
     def has_closed_form_ik(self, finger: int) -> bool:
         """True when ``finger`` is solved in closed form (see :meth:`finger_ik`)."""
         return self._analytic_ik[finger] is not None

@@ -182,6 +182,7 @@ class Transitions:
                 edges=v.friction_edges,
                 torque_scale=self.obj.characteristic_length,
                 margin=v.fc_margin,
+                solve=False,  # landings are plentiful: certified ones only
             )
         )
 
@@ -191,12 +192,12 @@ class Transitions:
         q = q_prev.copy()
         for i in range(self.hand.n_fingers):
             idx = self.hand.finger_q_index[i]
-            res = self.hand.finger_ik(i, targets[i], q)
-            if not res.success:
+            q_f = self.hand.finger_ik_fast(i, targets[i], q)
+            if q_f is None:
                 return q, i, "ik"
-            if np.any(res.q_finger < self._lo[idx]) or np.any(res.q_finger > self._hi[idx]):
+            if np.any(q_f < self._lo[idx]) or np.any(q_f > self._hi[idx]):
                 return q, i, "joint_limit"
-            q[idx] = res.q_finger
+            q[idx] = q_f
         return q, None, None
 
     def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:
@@ -411,23 +412,23 @@ class Transitions:
         """
         hand, s = self.hand, self.settings
         idx = hand.finger_q_index[finger]
-        res0 = hand.finger_ik(finger, tip, q)
-        if not res0.success:
+        q_f = hand.finger_ik_fast(finger, tip, q)
+        if q_f is None:
             return None
         q0 = q.copy()
-        q0[idx] = res0.q_finger
+        q0[idx] = q_f
         n_steps = max(2, math.ceil(s.lift_height / s.max_step_m))
         for direction in self._lift_directions(normal):
             qs = [q0]
             ok = True
             for k in range(1, n_steps + 1):
                 target = tip + direction * (s.lift_height * k / n_steps)
-                res = hand.finger_ik(finger, target, qs[-1])
-                if not res.success:
+                q_f = hand.finger_ik_fast(finger, target, qs[-1])
+                if q_f is None:
                     ok = False
                     break
                 qk = qs[-1].copy()
-                qk[idx] = res.q_finger
+                qk[idx] = q_f
                 sub = self._subdivide(qs[-1], qk)
                 if sub is None or not all(
                     self.world.is_free(qi, pose, free_mask) for qi in sub[1:]
