@@ -1,5 +1,6 @@
 """Module 1: GSn paths from OMPL planners on the paper scenario; module 2 links."""
 
+import itertools
 import time
 
 import numpy as np
@@ -78,3 +79,24 @@ def test_module2_link_turns_the_object(scenario) -> None:
     target = scenario.start.object_pose_xyzquat.copy()
     target[3:] = [0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)]  # 45 degrees about z
     assert try_link(ctx, x0, target)
+
+
+def test_gsn_state_space_properties(scenario) -> None:
+    """In the spirit of OMPL's StateSpaceTest, on GSn itself."""
+    from dexplan.planning import ompl_adapter
+    from dexplan.planning.roadmap import constraint_spec
+
+    ctx = build_context(scenario, seed=6)
+    problem = ompl_adapter.PlanningProblem(
+        constraint_spec(ctx, "projected"), ctx.validity.is_valid, planner="PRM"
+    )
+    xs = [ctx.sampler.sample() for _ in range(8)]
+    for a, b in itertools.pairwise(xs):
+        assert ctx.gsn.residual(a) < 1e-6
+        assert problem.distance(a, a) == 0.0
+        assert problem.distance(a, b) == pytest.approx(problem.distance(b, a), rel=1e-12)
+        assert problem.distance(a, b) > 0.0
+        for t in (0.25, 0.5, 0.75):
+            m = problem.interpolate(a, b, t)
+            assert ctx.gsn.residual(m) < 1e-4  # interpolated states stay on GSn
+        np.testing.assert_allclose(problem.round_trip(a), a, atol=1e-12)

@@ -1646,6 +1646,31 @@ class PlanningProblem:
         self._raise_callback_error()
         return ok
 
+    def distance(self, a: object, b: object) -> float:
+        """OMPL's state-space distance of two ambient ``(n,)`` states (planning units)."""
+        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
+        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
+        return float(self._css.distance(self._alloc(ya), self._alloc(yb)))
+
+    def interpolate(self, a: object, b: object, t: float) -> FloatArray:
+        """OMPL's geodesic interpolation from ``a`` (t = 0) to ``b`` (t = 1), ambient."""
+        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
+        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
+        out = self._alloc(ya)
+        self._css.interpolate(self._alloc(ya), self._alloc(yb), float(t), out)
+        self._raise_callback_error()
+        return self._frame.state_x(out)
+
+    def round_trip(self, x: object) -> FloatArray:
+        """A state written into an OMPL state of this space and read back, ambient.
+
+        (The binding's ``serialize`` takes a raw capsule and ``copyFromReals`` a
+        ``std::vector`` that Python lists do not convert to, so this is the
+        state I/O the binding offers.)
+        """
+        y = self._frame.to_y(as_vector(x, "x", self._spec.ambient_dim))
+        return self._frame.state_x(self._alloc(y))
+
     def valid_sampler_count(self) -> int:
         """Return how many Python valid-state samplers OMPL allocated (diagnostics)."""
         return len(self._samplers)
