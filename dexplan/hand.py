@@ -491,18 +491,24 @@ class _PlanarFingerIK:
         l1, l2 = self.l1, self.l2
         q_out = np.zeros((len(targets), 3))
         ok = np.zeros(len(targets), dtype=bool)
+        lo, hi = self.lo - 1e-12, self.hi + 1e-12
+        # elbow signs the third joint's limits allow at all (pruned for speed)
+        signs = [sg for sg in (1.0, -1.0) if sg * hi[2] >= 0.0 or sg * lo[2] >= 0.0]
         for th0, w in ((base, r - self.k), (base - np.copysign(np.pi, base), -r - self.k)):
+            cand = (th0 >= lo[0]) & (th0 <= hi[0]) & ~ok
+            if not cand.any():
+                continue
             c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-            reach = np.abs(c2) <= 1.0
+            cand &= np.abs(c2) <= 1.0
             a2 = np.arccos(np.clip(c2, -1.0, 1.0))
-            for th2 in (a2, -a2):
+            for sg in signs:
+                th2 = sg * a2
                 th1 = np.arctan2(u, w) - np.arctan2(l2 * np.sin(th2), l1 + l2 * np.cos(th2))
                 th1 = (th1 + np.pi) % (2 * np.pi) - np.pi
-                sol = np.stack([th0, th1, th2], axis=1)
-                inside = reach & np.all(sol >= self.lo - 1e-12, axis=1)
-                inside &= np.all(sol <= self.hi + 1e-12, axis=1)
-                new = inside & ~ok
-                q_out[new] = sol[new]
+                new = cand & ~ok & (th1 >= lo[1]) & (th1 <= hi[1]) & (th2 >= lo[2]) & (th2 <= hi[2])
+                q_out[new, 0] = th0[new]
+                q_out[new, 1] = th1[new]
+                q_out[new, 2] = th2[new]
                 ok |= new
         return np.clip(q_out, self.lo, self.hi), ok
 
