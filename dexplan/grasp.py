@@ -107,14 +107,25 @@ def friction_cone_edges(normals_in: FloatArray, mu: float, edges: int = 8) -> Fl
     _, n, mu, edges = _check(
         np.zeros_like(np.asarray(normals_in, dtype=float)), normals_in, mu, edges
     )
+    return _cone_edges(n, mu, edges)
+
+
+_UNIT_CIRCLE: dict[int, tuple[FloatArray, FloatArray]] = {}
+
+
+def _cone_edges(n: FloatArray, mu: float, edges: int) -> FloatArray:
+    """:func:`friction_cone_edges` for checked unit normals ``n: (k, 3)``."""
+    if edges not in _UNIT_CIRCLE:
+        ang = 2.0 * np.pi * np.arange(edges) / edges
+        _UNIT_CIRCLE[edges] = (np.cos(ang)[None, :, None], np.sin(ang)[None, :, None])
+    cos, sin = _UNIT_CIRCLE[edges]
     # tangent basis from the normal alone (Duff et al.'s branchless basis)
     sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
     a = -1.0 / (sign + n[:, 2])
     b = n[:, 0] * n[:, 1] * a
     t1 = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=1)
     t2 = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
-    ang = 2.0 * np.pi * np.arange(edges) / edges
-    tang = np.cos(ang)[None, :, None] * t1[:, None, :] + np.sin(ang)[None, :, None] * t2[:, None, :]
+    tang = cos * t1[:, None, :] + sin * t2[:, None, :]
     return (n[:, None, :] + mu * tang) / math.sqrt(1.0 + mu * mu)
 
 
@@ -131,10 +142,19 @@ def contact_wrenches(
     object-frame origin (1 if all contacts are at the origin).
     """
     p, n, mu, edges = _check(points, normals_in, mu, edges)
-    ts = _torque_scale(p, torque_scale)
-    f = friction_cone_edges(n, mu, edges)  # (k, e, 3)
-    tau = np.cross(np.broadcast_to(p[:, None, :], f.shape), f) / ts
-    return np.concatenate([f, tau], axis=2).reshape(-1, 6)
+    return _wrenches(p, n, mu, edges, _torque_scale(p, torque_scale))
+
+
+def _wrenches(p: FloatArray, n: FloatArray, mu: float, edges: int, ts: float) -> FloatArray:
+    """:func:`contact_wrenches` for checked inputs (no validation: inner loops)."""
+    f = _cone_edges(n, mu, edges)  # (k, e, 3)
+    w = np.empty((*f.shape[:2], 6))
+    w[..., :3] = f
+    px, py, pz = (p[:, i, None] for i in range(3))
+    w[..., 3] = (py * f[..., 2] - pz * f[..., 1]) / ts
+    w[..., 4] = (pz * f[..., 0] - px * f[..., 2]) / ts
+    w[..., 5] = (px * f[..., 1] - py * f[..., 0]) / ts
+    return w.reshape(-1, 6)
 
 
 def _torque_scale(p: FloatArray, torque_scale: float | None) -> float:
@@ -349,12 +369,41 @@ def min_subgrasp_quality(
     if len(p) < 2:
         raise InvalidInputError(f"min_subgrasp_quality needs >= 2 contacts, got {len(p)}")
     ts = _torque_scale(p, torque_scale)
-    W_all = contact_wrenches(p, n, mu_f, e, ts).T  # (6, k * e)
+    W_all = _wrenches(p, n, mu_f, e, ts).T  # (6, k * e)
     k = len(p)
+    subs = [np.delete(W_all, np.s_[i * e : (i + 1) * e], axis=1) for i in range(k)]
+    if margin is not None and k >= 3:
+        # the common case in validity checks, batched: one stacked SVD for all
+        # subgrasps, and the first certificate for each
+        certified = _batched_screen(np.stack(subs), margin)
+        if certified is not None:
+            return certified
     best = math.inf
-    for i in range(k):
-        q = _quality(np.delete(W_all, np.s_[i * e : (i + 1) * e], axis=1), margin, solve)
-        best = min(best, q)
+    for W in subs:
+        best = min(best, _quality(W, margin, solve))
         if best == 0.0:
             break
     return float(best)
+
+
+def _batched_screen(Ws: FloatArray, margin: float) -> float | None:
+    """Minimum certified bound over stacked subgrasps ``Ws: (k, 6, m)`` if all clear ``margin``.
+
+    Returns None when some subgrasp is rank deficient, has no positive null
+    combination, or is not certified above the margin: the caller then runs
+    the per-subgrasp path, which settles those cases.
+    """
+    U, S, Vt = np.linalg.svd(Ws, full_matrices=False)
+    if np.any(S[:, -1] <= RANK_TOL * np.maximum(1.0, S[:, 0])):
+        return None
+    pinv = np.swapaxes(Vt, 1, 2) / S[:, None, :] @ np.swapaxes(U, 1, 2)  # (k, m, 6)
+    best = math.inf
+    for W, P in zip(Ws, pinv, strict=True):
+        lam0 = _positive_null(W)
+        if lam0 is None:
+            return None
+        lb = _lower_bound(P, lam0)
+        if lb <= margin:
+            return None
+        best = min(best, lb)
+    return best
