@@ -19,9 +19,9 @@ from collections.abc import Callable
 
 import numpy as np
 import trimesh
-from dexplan.grasp import force_closure_quality, min_subgrasp_quality
 
 from dexplan.collision import CollisionWorld
+from dexplan.grasp import force_closure_quality, min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Mesh, Sphere
 from dexplan.planning.gsn import GraspSubspace
