@@ -189,6 +189,14 @@ def plan(
     poses = gsn.path[:, :POSE_DIM].copy()
     # projected states meet |quat| = 1 to the projection tolerance only
     poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
+    # End on the goal pose itself rather than on whichever goal-region state
+    # the planner happened to sample: the plan then depends on OMPL's
+    # (thread- and clock-dependent) search only through the object trajectory.
+    goal = scenario.goal.object_pose_xyzquat.copy()
+    if goal_reached(scenario, poses[-1])[0]:
+        if float(np.dot(goal[3:], poses[-1][3:])) < 0.0:
+            goal[3:] = -goal[3:]
+        poses = np.vstack([poses[:-1], goal[None]])
     settings = ctx.transitions.settings
 
     def pose_ok(p: FloatArray) -> bool:
@@ -198,6 +206,9 @@ def plan(
     short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
     dense = densify_poses(short, settings.max_step_m, settings.max_step_rad)
     grasp = grasp_from_state(ctx.transitions, pose0, q_start)
+    # a fresh stream: module-2 link attempts (as many as the clock allowed)
+    # must not change the reduction's choices
+    ctx.transitions.rng = np.random.default_rng([seed, 2])
     red = None
     attempt = 0
     while time.perf_counter() < deadline:
