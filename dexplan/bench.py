@@ -1301,7 +1301,9 @@ def plot_results(
     ax.set_ylim(0, 118)
     ax.set_ylabel("success rate (%)")
     ax.set_title("solved runs (plans that passed the verifier)")
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(
+        fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=max(1, len(scenarios))
+    )
     ax.grid(axis="y", alpha=0.3)
     save(fig, PLOT_NAMES[1])
 

@@ -57,29 +57,43 @@ decrease: ``Q`` is monotone under adding contacts (with ``L`` fixed).
 Computation
 -----------
 If ``G`` has full rank 6, ``f = G^+ d + f_int`` with ``f_int`` in the null space of ``G``
-(internal forces), ``G^+ d`` orthogonal to it, so ``phi(d)^2 = |G^+ d|^2 + |z*|^2`` with
-``z* = argmin{|z| : B z <= b(d)}``, ``B = A Pi`` (``A`` the stacked outward facet normals
-of the pyramids, ``Pi = I - G^+ G`` the projector onto the internal forces) and
-``b(d) = -A G^+ d``: a least-distance program, strongly convex with ``P = I``. Per
-call:
+(internal forces) and ``G^+ d`` orthogonal to it, so ``phi(d)^2 = |G^+ d|^2 + |z*|^2``
+with ``z* = argmin{|z| : B z <= b(d)}``, ``B = A Pi`` (``A`` the block-diagonal outward
+facet normals of the pyramids, ``Pi = I - G^+ G`` the projector onto the internal
+forces, rows scaled to unit length) and ``b(d) = -A G^+ d``: a least-distance program,
+strongly convex (``P = I``), one per (grasp, direction) "pair". The optimum lies in the
+range of ``Pi``, so no null-space basis is needed. Per call:
 
-1. Screens (exact sign): fewer than 3 contacts (7 when ``mu = 0``) or ``rank G < 6``
-   gives 0; then the least-distance program ``min |z| s.t. B z <= -1`` (rows of ``B``
-   normalized), solved exactly by Lawson-Hanson NNLS, is feasible iff a strictly
-   interior internal force exists, i.e. iff the grasp is FC. Its solution ``z0`` is the
-   best-centred internal force and is reused below.
-2. Certified bounds for every (grasp, direction) pair, vectorized: the relaxation to the
-   most violated halfspace gives ``phi_lo`` (exact when one constraint is active); the
-   relaxed point repaired along ``z0`` is feasible and gives ``phi_hi``.
-3. OSQP solves the pairs whose bounds do not already pin the value and that can still
-   be the minimum (branch and bound on the pairs): one cached OSQP problem per
-   ``(contact count, edges)`` shape (``P = I``, ``A = B`` with a dense pattern), values
-   updated in place (``update(Ax=..., u=...)``), warm-started from the relaxation,
-   polished. A pair OSQP does not solve (status not solved) is solved exactly by NNLS.
+1. Screens, exact sign. Fewer than 3 contacts (7 if ``mu = 0``) or ``rank G < 6``:
+   0. Else FC iff some internal force is strictly inside every pyramid, i.e. iff
+   ``B z < 0`` has a solution. The candidate ``Pi n`` (every finger pushing along its
+   normal, made internal) settles most FC grasps; otherwise the least-distance
+   program ``min |z| s.t. B z <= -1``, solved exactly by Lawson-Hanson NNLS, is
+   feasible iff the grasp is FC. Either way ``z0`` with ``B z0 <= -1`` is kept.
+2. Certified bounds for every pair, vectorized over the subgrasps and the 12
+   directions: the relaxation to the most violated halfspace gives ``|z*| >= lo``
+   (exact when one constraint is active); the points ``theta z1 + c z0``
+   (``z1`` the relaxed optimum, ``theta`` on a 5-point grid, ``c`` the smallest
+   feasible) are feasible and give ``|z*| <= hi``. With ``margin``, ``theta = 0``
+   alone is tried first; most validity decisions end here.
+3. Best-first branch and bound over the pairs: the pair with the smallest certified
+   lower bound on its quality is solved, until that bound reaches the best solved
+   value (typically 1-4 of the 48 pairs of a 4-contact ``min_subgrasp_quality``).
+   ``solver="osqp"`` (default): one cached OSQP problem per ``(rows, n)`` shape, i.e.
+   per (contact count, edges), ``P = I``, ``A = B`` with a dense pattern; per pair only
+   ``Ax`` (skipped when the subgrasp has not changed) and ``u`` are updated, warm start
+   from the feasible point, polish on, ``max_iter = 400``. A pair OSQP leaves
+   unsolved (ADMM needs a median of ~170 iterations here and thousands near
+   degenerate active sets) is solved exactly by Lawson-Hanson. ``solver="nnls"``
+   solves every pair exactly by Lawson-Hanson (the least-distance dual is an NNLS),
+   about 3x faster than the OSQP path here. Results are clamped to the certified bounds.
 
-``solver="nnls"`` solves step 3 exactly with Lawson-Hanson instead of OSQP.
+Accuracy: the sign never depends on OSQP or on a tolerance other than the screens'
+(``RANK_TOL``, ``MAX_INTERIOR_NORM``); values are exact to ~1e-9 (NNLS, or OSQP with
+successful polish) or to OSQP's ``eps`` (1e-7 relative) otherwise.
 
-Measured (``python scripts/bench_grasp.py``, 2-core machine): see docs/force_closure.md.
+Measured speed and the comparison with a qhull reference: docs/force_closure.md and
+``python scripts/bench_grasp.py``.
 """
 
 from __future__ import annotations
@@ -800,7 +814,8 @@ def _min_contacts(mu: float) -> int:
     return 3 if mu > 0.0 else 7
 
 
-_DEFAULT = ForceClosure()
+#: The instance behind the module-level functions (e.g. ``DEFAULT.solver = "nnls"``).
+DEFAULT = ForceClosure()
 
 
 def force_closure_quality(
@@ -844,7 +859,7 @@ def force_closure_quality(
         InvalidInputError: bad shapes, non-finite values, zero-length normal,
             ``mu < 0``, ``edges < 3``, ``torque_scale <= 0``, ``margin < 0``.
     """
-    return _DEFAULT.quality(
+    return DEFAULT.quality(
         points, normals, mu, edges=edges, torque_scale=torque_scale, margin=margin, solve=solve
     )
 
@@ -892,7 +907,7 @@ def min_subgrasp_quality(
     Raises:
         InvalidInputError: as :func:`force_closure_quality`, or ``margin < 0``.
     """
-    return _DEFAULT.min_subgrasp_quality(
+    return DEFAULT.min_subgrasp_quality(
         points, normals, mu, edges=edges, torque_scale=torque_scale, margin=margin, solve=solve
     )
 
@@ -922,7 +937,7 @@ def is_force_closure(
     Returns:
         ``Q > margin`` (``min_subgrasp_quality > margin`` with ``subgrasps``).
     """
-    return _DEFAULT.is_force_closure(
+    return DEFAULT.is_force_closure(
         points,
         normals,
         mu,
