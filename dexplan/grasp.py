@@ -99,6 +99,7 @@ Measured speed and the comparison with a qhull reference: docs/force_closure.md 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -425,7 +426,7 @@ def _public_nnls(e: FloatArray, f: FloatArray, maxiter: int) -> FloatArray:
     return nnls(e, f, maxiter=maxiter)[0]
 
 
-def _fast_nnls_or_public() -> object:
+def _fast_nnls_or_public() -> Callable[[FloatArray, FloatArray, int], FloatArray]:
     """Return the compiled Lawson-Hanson kernel of scipy (no input checks) if usable."""
     try:
         from scipy.optimize._slsqplib import nnls as kernel  # private: guarded
