@@ -38,6 +38,7 @@ import multiprocessing
 import os
 import platform
 import resource
+import signal
 import socket
 import sqlite3
 import statistics
@@ -614,6 +615,9 @@ def execute_run(task: RunTask) -> dict[str, Any]:
 
 def _child_main(task: RunTask, conn: Connection) -> None:
     """Worker process entry: run, send the record, exit without interpreter teardown."""
+    # Ctrl-C reaches the whole process group: the parent stops the sweep and kills
+    # the workers; a worker must not turn it into a failed run of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         rec = execute_run(task)
         conn.send(rec)
@@ -990,6 +994,25 @@ def _require_ray() -> Any:
     return ray
 
 
+def _check_ray_address(address: str) -> None:
+    """Fail fast (instead of Ray's long retries) when ``host:port`` does not answer.
+
+    Raises:
+        InvalidInputError: nothing listens at the address.
+    """
+    if address in ("local", "auto"):
+        return
+    hostport = address.split("://", 1)[-1]
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not port.isdigit():
+        return  # leave other forms to Ray
+    try:
+        with socket.create_connection((host, int(port)), timeout=5.0):
+            pass
+    except OSError as exc:
+        raise InvalidInputError(f"--ray {address!r}: no Ray cluster answers there ({exc})") from exc
+
+
 def _run_ray(
     tasks: Sequence[RunTask],
     address: str,
@@ -1009,11 +1032,16 @@ def _run_ray(
             "logging_level": logging.ERROR,
             "configure_logging": True,
         }
-        if address == "local":
-            kwargs.update(num_cpus=jobs or os.cpu_count() or 1, include_dashboard=False)
-            ray.init(**kwargs)
-        else:
-            ray.init(address=address, **kwargs)
+        try:
+            if address == "local":
+                kwargs.update(num_cpus=jobs or os.cpu_count() or 1, include_dashboard=False)
+                ray.init(**kwargs)
+            else:
+                ray.init(address=address, **kwargs)
+        except Exception as exc:  # no cluster there, version mismatch, ...
+            raise InvalidInputError(
+                f"--ray {address!r}: cannot start or join a Ray cluster: {exc}"
+            ) from exc
         started_here = True
     try:
         window = jobs or max(1, int(ray.cluster_resources().get("CPU", 1)))
@@ -1424,6 +1452,7 @@ def run_benchmark(
         require_matplotlib()
     if ray_address is not None:
         _require_ray()
+        _check_ray_address(ray_address)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InvalidInputError(f"-o: {str(out)!r} exists and is not a folder")

@@ -393,6 +393,7 @@ def _cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedPro
         (["paper_sphere", "--seeds", "0"], "--seeds"),
         (["paper_sphere", "--time-limit", "0"], "--time-limit"),
         (["nope.toml"], "not found"),
+        (["paper_sphere", "--ray", "127.0.0.1:1"], "--ray"),  # nothing listens there
     ],
 )
 def test_cli_bad_inputs_exit_2(tmp_path, args, match):
@@ -507,9 +508,10 @@ def test_cli_bench_spawn_backend_same_plans_and_resume(sweep, tmp_path):
     ref = next(r for r in res.records if r["planner"] == "RRTConnect" and r["seed"] == 1)
     assert ref["solved"], "RRTConnect seed 1 did not solve: nothing to compare"
     assert rec["status_name"] == ref["status_name"]
-    # RRTConnect stops at its first solution: a seed gives the same plan in any fresh process
+    # a seed gives the same plan in any fresh process (the roadmap size may differ: the
+    # GSn search runs in clock-limited rounds)
     assert rec["plan_sha256"] == ref["plan_sha256"]
-    assert rec["graph_states"] == ref["graph_states"]
+    assert (rec["regrasps"], rec["transfers"]) == (ref["regrasps"], ref["transfers"])
     second = _cli(*args, "--no-plots", cwd=tmp_path)
     assert second.returncode == 0, second.stderr
     assert "runs: 0 new, 1 resumed" in second.stdout
@@ -606,7 +608,7 @@ def test_ray_backend_matches_local_pool(sweep, tmp_path):
         if r["planner"] == "RRTConnect" and ref["solved"]:  # deterministic: seed for seed
             assert r["status_name"] == ref["status_name"]
             assert r["plan_sha256"] == ref["plan_sha256"]
-            for col in ("graph_states", "graph_motions", "regrasps", "transfers", "waypoints"):
+            for col in ("regrasps", "transfers", "waypoints", "object_path_rad"):
                 assert r[col] == ref[col], col
             compared += 1
     assert compared >= 1, "RRTConnect solved no seed: nothing to compare"
