@@ -36,6 +36,7 @@ from dexplan.planning import ompl_adapter
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_object_path
+from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.typing import FloatArray
@@ -359,8 +360,13 @@ def query_roadmap(
 def object_move_free(ctx: PlanningContext, a: FloatArray, b: FloatArray) -> bool:
     """True when the object alone can move straight from a's pose to b's (no obstacle)."""
     s = ctx.transitions.settings
-    dense = densify_poses(np.array([a[:POSE_DIM], b[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
-    return not any(ctx.world.object_collides(p) for p in dense)
+    return straight_move_ok(
+        a[:POSE_DIM],
+        b[:POSE_DIM],
+        lambda p: not ctx.world.object_collides(p),
+        s.max_step_m,
+        s.max_step_rad,
+    )
 
 
 def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:

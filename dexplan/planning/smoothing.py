@@ -21,13 +21,18 @@ from dexplan.planning.transitions import GraspContacts, Transitions, densify_pos
 from dexplan.typing import FloatArray
 
 
-def _straight_ok(
+def straight_move_ok(
     a: FloatArray,
     b: FloatArray,
     pose_ok: Callable[[FloatArray], bool],
     step_m: float,
     step_rad: float,
 ) -> bool:
+    """True when ``pose_ok`` holds along the straight move from pose ``a`` to ``b`` (XYZW).
+
+    The move is sampled at ``step_m`` / ``step_rad``; ``a`` itself is not checked
+    (callers start from a pose already known to be fine).
+    """
     dense = densify_poses(np.array([a, b]), step_m, step_rad)
     return all(pose_ok(p) for p in dense[1:])
 
@@ -55,7 +60,7 @@ def shortcut_object_path(
     i = 0
     while i < len(poses) - 1:
         j = len(poses) - 1
-        while j > i + 1 and not _straight_ok(poses[i], poses[j], pose_ok, step_m, step_rad):
+        while j > i + 1 and not straight_move_ok(poses[i], poses[j], pose_ok, step_m, step_rad):
             j = (i + j) // 2 if j - i > 8 else j - 1
         kept.append(j)
         i = j
