@@ -113,6 +113,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         time_limit=args.time_limit,
         roadmap=roadmap,
         progress=None if args.quiet else (lambda m: _err(m)),
+        reduction=args.reduction,
     )
     st = result.stats
     if args.save_roadmap is not None and result.roadmap is not None:
@@ -272,6 +273,13 @@ def build_parser() -> argparse.ArgumentParser:
     p_plan.add_argument("-o", "--output", default="plan.json", help="plan file (plan.json)")
     p_plan.add_argument("--save-roadmap", help="write the GSn roadmap to this .npz file")
     p_plan.add_argument("--load-roadmap", help="answer the query on a saved roadmap")
+    p_plan.add_argument(
+        "--reduction",
+        choices=("auto", "gaits", "edges"),  # planner.REDUCTIONS (not imported: slow)
+        default="auto",
+        help="GSn path to transfers/regrasps: finger gaits along the object trajectory, "
+        "edge by edge with bisection, or auto (gaits, then edges) (default: auto)",
+    )
     p_plan.add_argument("--rrd", help="write a Rerun recording (needs the viz extra)")
     p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_plan.set_defaults(func=cmd_plan)

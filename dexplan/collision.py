@@ -17,6 +17,7 @@ radius) and reported as a collision beyond :data:`CONTACT_PENETRATION_TOL`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -64,11 +65,11 @@ class CollisionReport:
 
 def pose_to_se3(pose_xyzquat: FloatArray) -> pin.SE3:
     """SE3 of ``pose_xyzquat: (7,)`` (position, quaternion XYZW, normalised here)."""
-    q = np.asarray(pose_xyzquat[3:7], dtype=float)
-    n = float(np.linalg.norm(q))
+    x, y, z, qx, qy, qz, qw = np.asarray(pose_xyzquat, dtype=float)[:7].tolist()
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if n == 0.0:
         raise InvalidInputError("pose_xyzquat quaternion must be non-zero, got [0, 0, 0, 0]")
-    return pin.XYZQUATToSE3(np.concatenate([pose_xyzquat[:3], q / n]))
+    return pin.XYZQUATToSE3(np.array([x, y, z, qx / n, qy / n, qz / n, qw / n]))
 
 
 class CollisionWorld:
@@ -146,6 +147,7 @@ class CollisionWorld:
         }
         self._finger_of_name = {self.geometry_name(g): i for g, i in self._finger_of_geom.items()}
         self.geom_data = pin.GeometryData(gm)
+        self._tip_mask: tuple[bool, ...] | None = None  # unknown: set on first check
         for req in self.geom_data.collisionRequests:
             req.enable_contact = False
         # places the obstacles once (they never move)
@@ -165,11 +167,25 @@ class CollisionWorld:
             return True
         return frozenset((self._link_of[a], self._link_of[b])) in excluded
 
-    def _place(self, q_hand: FloatArray, object_pose_xyzquat: FloatArray) -> None:
+    def _place(self, q_hand: FloatArray, object_pose_xyzquat: FloatArray) -> pin.SE3:
         pin.updateGeometryPlacements(
             self.hand.model, self.hand.data, self.geom_model, self.geom_data, q_hand
         )
-        self.geom_data.oMg[self.object_geom] = pose_to_se3(object_pose_xyzquat)
+        M = pose_to_se3(object_pose_xyzquat)
+        self.geom_data.oMg[self.object_geom] = M
+        return M
+
+    def _set_tip_pairs(self, contact_fingers: tuple[bool, ...]) -> None:
+        # toggling pairs is a C++ call per finger: only when the mask changes
+        if contact_fingers == self._tip_mask:
+            return
+        gd = self.geom_data
+        for i, pair in enumerate(self._tip_object_pairs):
+            if contact_fingers[i]:
+                gd.deactivateCollisionPair(pair)
+            else:
+                gd.activateCollisionPair(pair)
+        self._tip_mask = contact_fingers
 
     def geometry_name(self, g: int) -> str:
         """Readable name of geometry ``g`` (link name, ``object`` or obstacle name)."""
@@ -201,18 +217,23 @@ class CollisionWorld:
         Returns:
             A :class:`CollisionReport`.
         """
-        self._place(q_hand, object_pose_xyzquat)
+        M = self._place(q_hand, object_pose_xyzquat)
         gd = self.geom_data
-        for i, pair in enumerate(self._tip_object_pairs):
-            if contact_fingers[i]:
-                gd.deactivateCollisionPair(pair)
-            else:
-                gd.activateCollisionPair(pair)
+        mask = tuple(bool(c) for c in contact_fingers)
+        self._set_tip_pairs(mask)
         penetration = 0.0
-        if any(contact_fingers):
-            tips = self.hand.fingertip_positions(q_hand)[np.asarray(contact_fingers, dtype=bool)]
-            sd = self.object_signed_distance(tips, object_pose_xyzquat) - self.hand.fingertip_radius
-            penetration = max(0.0, float(-np.min(sd)))
+        if any(mask):
+            # forward kinematics is fresh from _place: only the tip frames are updated
+            hand = self.hand
+            R, t = M.rotation, M.translation
+            sdf = self.obj._sdf_grad_xyz
+            worst = np.inf
+            for i, fid in enumerate(hand.tip_frame_ids):
+                if mask[i]:
+                    p = pin.updateFramePlacement(hand.model, hand.data, fid).translation
+                    x, y, z = ((p - t) @ R).tolist()
+                    worst = min(worst, sdf(x, y, z)[0])
+            penetration = max(0.0, hand.fingertip_radius - worst)
         pair_names = None
         if pin.computeCollisions(self.geom_model, gd, first_only):
             for k, res in enumerate(gd.collisionResults):

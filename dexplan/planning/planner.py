@@ -19,7 +19,7 @@ A query runs in three stages:
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,7 +31,7 @@ from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl_adapter import check_planner
 from dexplan.planning.path import Segment, count_kinds, object_path_length
-from dexplan.planning.reduction import grasp_from_state, reduce_object_path
+from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
 from dexplan.planning.smoothing import merge_regrasps, shortcut_object_path
 from dexplan.planning.transitions import densify_poses
@@ -40,6 +40,9 @@ from dexplan.scenario import Scenario
 from dexplan.typing import FloatArray
 
 Progress = Callable[[str], None]
+
+REDUCTIONS = ("auto", "gaits", "edges")
+"""Reduction methods accepted by :func:`plan`."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +88,25 @@ def goal_reached(scenario: Scenario, pose: FloatArray) -> tuple[bool, float]:
     return d <= 1.0, d
 
 
+def _reduction_schedule(reduction: str) -> Iterator[tuple[str, str]]:
+    """Reduction attempts ``(method, trajectory)`` in order, until one succeeds.
+
+    Gaits on the shortcut trajectory first (fewest segments), then on the raw
+    GSn trajectory in case the shortcut is the trouble, then the edge-by-edge
+    reduction with bisection; further attempts repeat gaits on the raw
+    trajectory with new random landings.
+    """
+    if reduction == "edges":
+        yield "edges", "gsn"
+        return
+    yield "gaits", "shortcut"
+    yield "gaits", "raw"
+    if reduction == "auto":
+        yield "edges", "gsn"
+    while True:
+        yield "gaits", "raw"
+
+
 def start_state(ctx: PlanningContext, attempts: int = 400) -> FloatArray | None:
     """The start GSn state: the scenario's ``start.q`` (checked) or a sampled grasp.
 
@@ -123,6 +145,7 @@ def plan(
     time_limit: float | None = None,
     roadmap: Roadmap | None = None,
     progress: Progress | None = None,
+    reduction: str = "auto",
 ) -> PlanResult:
     """Plan a manipulation path for a scenario.
 
@@ -134,11 +157,24 @@ def plan(
         roadmap: a roadmap from an earlier run (multi-query); it is extended
             only when it cannot answer.
         progress: called with short progress messages.
+        reduction: how the GSn path becomes transfers and regrasps: ``gaits``
+            (follow the object trajectory with finger gaits,
+            :func:`~dexplan.planning.reduction.reduce_object_path`), ``edges``
+            (the reduction property edge by edge with bisection,
+            :func:`~dexplan.planning.reduction.reduce_gsn_path`) or ``auto``
+            (gaits, then edges when gaits fail).
 
     Returns:
         A :class:`PlanResult`; every solved plan has passed the verifier.
+
+    Raises:
+        InvalidInputError: unknown ``reduction`` or planner name.
     """
     t0 = time.perf_counter()
+    if reduction not in REDUCTIONS:
+        raise InvalidInputError(
+            f"reduction must be one of {', '.join(REDUCTIONS)}, got {reduction!r}"
+        )
     say = progress or (lambda _msg: None)
     spec = scenario.planner
     planner = planner or spec.name
@@ -204,21 +240,32 @@ def plan(
         return bool(inside) and not ctx.world.object_collides(p)
 
     short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
-    dense = densify_poses(short, settings.max_step_m, settings.max_step_rad)
     grasp = grasp_from_state(ctx.transitions, pose0, q_start)
     # a fresh stream: module-2 link attempts (as many as the clock allowed)
     # must not change the reduction's choices
     ctx.transitions.rng = np.random.default_rng([seed, 2])
     red = None
     attempt = 0
-    while time.perf_counter() < deadline:
+    for method, source in _reduction_schedule(reduction):
+        if time.perf_counter() >= deadline:
+            break
         attempt += 1
-        red = reduce_object_path(ctx.transitions, dense, q_start, grasp)
+        if method == "gaits":
+            traj = short if source == "shortcut" else poses
+            dense = densify_poses(traj, settings.max_step_m, settings.max_step_rad)
+            red = reduce_object_path(ctx.transitions, dense, q_start, grasp)
+        else:
+            # the GSn states' own contacts (the last state's pose may be replaced
+            # by the goal pose above: its contacts are taken at its own pose)
+            grasps = [
+                grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in gsn.path
+            ]
+            grasps[0] = grasp
+            red = reduce_gsn_path(ctx.transitions, poses, grasps, q_start, deadline=deadline)
+        stats["reduction_method"] = method
         if red.success:
             break
-        say(f"reduction attempt {attempt} failed: {red.reason}")
-        if attempt == 2:  # the raw trajectory, in case the shortcut is the trouble
-            dense = densify_poses(poses, settings.max_step_m, settings.max_step_rad)
+        say(f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}")
     stats["reduction_attempts"] = attempt
     stats["reduction_time_s"] = time.perf_counter() - t_red
     stats["object_poses_shortcut"] = len(short)

@@ -16,16 +16,28 @@ to look like a finger gait (see MEASURED.md):
 Only the object trajectory of the GSn path is followed; its contacts are
 offered as landing hints. A clear failure status is returned when no regrasp
 works or no progress is made.
+
+When that fails, :func:`reduce_gsn_path` applies the reduction property edge
+by edge: each GSn edge ``(pose_a, contacts_a) -> (pose_b, contacts_b)`` becomes
+a transfer on the current grasp, or regrasps onto ``contacts_b`` then a
+transfer, or regrasps onto ``contacts_a`` then a transfer; when none is valid
+the edge is bisected on GSn (object pose slerp, fingertips averaged and
+projected onto the surface) until every piece is, or a resolution limit is
+hit.
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.path import Segment
-from dexplan.planning.transitions import GraspContacts, Transitions
+from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
+from dexplan.pose import interpolate_pose, inverse_transform_points
 from dexplan.typing import FloatArray
 
 
@@ -36,10 +48,16 @@ class ReductionSettings:
     Attributes:
         max_regrasps: give up after this many regrasps.
         max_stall: give up after this many regrasps in a row without object progress.
+        max_depth: resolution limit of :func:`reduce_gsn_path`: a GSn edge is
+            bisected at most this many times (into at most ``2**max_depth`` pieces).
+        same_contact_m: contacts closer than this (m, object frame) count as
+            the same; no regrasp moves a finger by less.
     """
 
     max_regrasps: int = 200
     max_stall: int = 8
+    max_depth: int = 5
+    same_contact_m: float = 1e-3
 
 
 @dataclass(frozen=True)
@@ -173,3 +191,165 @@ def grasp_from_state(trans: Transitions, pose: FloatArray, q: FloatArray) -> Gra
     tips = inverse_transform_points(pose, trans.hand.fingertip_positions(q))
     pts, n_out = trans.obj.closest_point(tips)
     return GraspContacts(np.asarray(pts), np.asarray(n_out))
+
+
+def reduce_gsn_path(
+    trans: Transitions,
+    poses: FloatArray,
+    grasps: Sequence[GraspContacts],
+    q_start: FloatArray,
+    settings: ReductionSettings | None = None,
+    deadline: float | None = None,
+) -> ReductionResult:
+    """The reduction property, edge by edge: transfers and regrasps along a GSn path.
+
+    Every edge of the path is replaced by (first that is valid)
+
+    1. a transfer on the current grasp;
+    2. regrasps onto the edge's end contacts, then a transfer;
+    3. regrasps onto the edge's start contacts, then a transfer;
+
+    or else it is bisected and both halves are reduced in turn, at most
+    ``settings.max_depth`` times. The grasp is changed only where a transfer
+    needs it, so a path that one grasp can follow gives a single transfer.
+
+    Args:
+        trans: local planners.
+        poses: (K, 7) object poses of the GSn path, XYZW, unit quaternions.
+        grasps: K contact sets (object frame), one per GSn state.
+        q_start: (nq,) hand configuration holding ``grasps[0]`` at ``poses[0]``.
+        settings: limits (``max_depth`` is the resolution limit).
+        deadline: ``time.perf_counter()`` value after which it gives up.
+
+    Returns:
+        A :class:`ReductionResult`; ``reached`` is the index of the last GSn
+        state reached. The failure reason names the edge and the limit hit.
+    """
+    if len(poses) != len(grasps):
+        raise InvalidInputError(f"{len(poses)} poses but {len(grasps)} contact sets")
+    reducer = _EdgeReducer(trans, settings or ReductionSettings(), deadline, q_start, grasps[0])
+    for k in range(len(poses) - 1):
+        if not reducer.edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1], 0):
+            return ReductionResult(
+                False,
+                tuple(reducer.segments),
+                k,
+                f"GSn edge {k} -> {k + 1} of {len(poses) - 1}: {reducer.failure}",
+                reducer.stats(),
+            )
+    return ReductionResult(True, tuple(reducer.segments), len(poses) - 1, None, reducer.stats())
+
+
+class _EdgeReducer:
+    """State of :func:`reduce_gsn_path`: the hand's current configuration and grasp."""
+
+    def __init__(
+        self,
+        trans: Transitions,
+        settings: ReductionSettings,
+        deadline: float | None,
+        q: FloatArray,
+        grasp: GraspContacts,
+    ) -> None:
+        self.trans = trans
+        self.settings = settings
+        self.deadline = deadline
+        self.q = q.copy()
+        self.grasp = grasp
+        self.segments: list[Segment] = []
+        self.regrasps = 0
+        self.bisections = 0
+        self.failure = ""
+
+    def stats(self) -> dict[str, int]:
+        out = _stats(self.trans, self.regrasps)
+        out["reduction_bisections"] = self.bisections
+        return out
+
+    def edge(
+        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts, depth: int
+    ) -> bool:
+        """Reduce the edge ``(pa, ca) -> (pb, cb)``; the hand is at ``pa`` on ``self.grasp``."""
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            self.failure = "time limit reached"
+            return False
+        s = self.trans.settings
+        dense = densify_poses(np.stack([pa, pb]), s.max_step_m, s.max_step_rad)
+        if self._transfer(dense, [], self.q, self.grasp):
+            return True
+        for target in (cb, ca):
+            moved = self._regrasps_to(pa, target)
+            if moved is not None and self._transfer(dense, *moved):
+                return True
+        if depth >= self.settings.max_depth:
+            self.failure = (
+                f"resolution limit: no transfer or regrasp sequence is valid after "
+                f"{depth} bisections (max_depth={self.settings.max_depth})"
+            )
+            return False
+        self.bisections += 1
+        pm, cm = self._midpoint(pa, ca, pb, cb)
+        return self.edge(pa, ca, pm, cm, depth + 1) and self.edge(pm, cm, pb, cb, depth + 1)
+
+    def _transfer(
+        self, dense: FloatArray, regrasps: list[Segment], q: FloatArray, grasp: GraspContacts
+    ) -> bool:
+        """Transfer along ``dense`` after ``regrasps``; commit all of it when it is valid."""
+        tr = self.trans.transfer(dense, 0, q, grasp)
+        if tr.reason is not None:
+            return False
+        self.segments.extend(regrasps)
+        self.regrasps += len(regrasps)
+        last = self.segments[-1] if self.segments else None
+        if last is not None and last.kind == "transfer":
+            # consecutive edges on one grasp make a single transfer
+            self.segments[-1] = Segment("transfer", None, last.waypoints + tr.waypoints[1:])
+        elif len(tr.waypoints) > 1:
+            self.segments.append(Segment("transfer", None, tr.waypoints))
+        self.q, self.grasp = tr.waypoints[-1].q, grasp
+        return True
+
+    def _regrasps_to(
+        self, pose: FloatArray, target: GraspContacts
+    ) -> tuple[list[Segment], FloatArray, GraspContacts] | None:
+        """Regrasps (one finger at a time) from the current grasp onto ``target``.
+
+        Every intermediate grasp keeps all its (n-1) subgrasps force closure;
+        the finger order is chosen greedily. None when no order works.
+        """
+        trans, grasp, q = self.trans, self.grasp, self.q
+        gap = np.linalg.norm(grasp.points - target.points, axis=1)
+        todo = [int(f) for f in np.argsort(-gap) if gap[f] > self.settings.same_contact_m]
+        if not todo:
+            return None  # same grasp: the transfer on it already failed
+        segs: list[Segment] = []
+        while todo:
+            for f in todo:
+                new = grasp.replace(f, target.points[f], target.normals_out[f])
+                if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
+                    continue
+                seg = trans.regrasp(pose, q, grasp, f, target.points[f], target.normals_out[f])
+                if seg is not None:
+                    segs.append(seg)
+                    q, grasp = seg.end.q, new
+                    todo.remove(f)
+                    break
+            else:
+                return None
+        return segs, q, grasp
+
+    def _midpoint(
+        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
+    ) -> tuple[FloatArray, GraspContacts]:
+        """GSn midpoint of an edge, as a projection of the ambient midpoint.
+
+        Interpolating the hand joints moves the fingertips roughly along the
+        chord between their world positions (as OMPL's projected interpolation
+        does), so: the object pose slerps, the world fingertip centres are
+        averaged, and each is projected onto the object's offset surface.
+        """
+        trans = self.trans
+        pm = interpolate_pose(pa, pb, 0.5)
+        tips_world = 0.5 * (trans.tip_targets(pa, ca) + trans.tip_targets(pb, cb))
+        pts, n_out = trans.obj.closest_point(inverse_transform_points(pm, tips_world))
+        return pm, GraspContacts(np.asarray(pts).reshape(-1, 3), np.asarray(n_out).reshape(-1, 3))

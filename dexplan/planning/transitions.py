@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -171,8 +172,13 @@ class Transitions:
         r = self.hand.fingertip_radius
         return (grasp.points + r * grasp.normals_out) @ R.T + pose[:3]
 
-    def grasp_quality(self, grasp: GraspContacts) -> float:
-        """Minimum force-closure quality over the grasp and its (n-1) subgrasps."""
+    def grasp_quality(self, grasp: GraspContacts, *, exact: bool = False) -> float:
+        """Minimum force-closure quality over the grasp and its (n-1) subgrasps.
+
+        With ``exact=False`` only certified bounds decide the margin (cheap,
+        conservative: sampled landings are plentiful); ``exact=True`` solves
+        the undecided cases (for given contacts, such as a GSn path's).
+        """
         v = self.validity
         return float(
             min_subgrasp_quality(
@@ -182,7 +188,7 @@ class Transitions:
                 edges=v.friction_edges,
                 torque_scale=self.obj.characteristic_length,
                 margin=v.fc_margin,
-                solve=False,  # landings are plentiful: certified ones only
+                solve=exact,
             )
         )
 
@@ -303,12 +309,15 @@ class Transitions:
         grasp: GraspContacts,
         future_poses: FloatArray,
         hint: tuple[FloatArray, FloatArray] | None = None,
-    ) -> list[tuple[FloatArray, FloatArray, int]]:
+        limit: int = 8,
+    ) -> Iterator[tuple[FloatArray, FloatArray, int]]:
         """Landing contacts for ``finger``, best first: ``(point, normal_out, score)``.
 
         Filters: reachable now (with joint margin), fingertips apart, every
         (n-1) subgrasp of the new grasp force closure. Sorted by
-        :meth:`follow_scores`, ties by force-closure quality.
+        :meth:`follow_scores` (random among ties). A generator: the force-closure
+        test, the costly filter, runs only on the candidates the caller asks
+        for (the first usually works), at most ``limit`` are yielded.
         """
         s = self.settings
         pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
@@ -328,22 +337,22 @@ class Transitions:
         moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
         keep = np.flatnonzero(apart & moved)
         if len(keep) == 0:
-            return []
+            return
         scores = self.follow_scores(finger, tip_obj[keep], future_poses)
         reach = scores > 0
         keep, scores = keep[reach], scores[reach]
         order = np.lexsort((self.rng.random(len(keep)), -scores))
-        out = []
+        found = 0
         for k in order:
             c = keep[k]
             self.stats["landing_checks"] += 1
             new = grasp.replace(finger, pts[c], nrm[c])
             if self.grasp_quality(new) <= self.validity.fc_margin:
                 continue
-            out.append((pts[c], nrm[c], int(scores[k])))
-            if len(out) >= 8:
-                break
-        return out
+            yield pts[c], nrm[c], int(scores[k])
+            found += 1
+            if found >= limit:
+                return
 
     # ------------------------------------------------------------------ regrasp
     def regrasp(

@@ -1,0 +1,129 @@
+"""The reduction property edge by edge (bisection) and the planner's reduction choice."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from dexplan.exceptions import InvalidInputError
+from dexplan.plan import build_plan_document, verify_plan
+from dexplan.planning.context import build_context, build_hand
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.planner import plan, start_state
+from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
+from dexplan.pose import quat_angle
+from dexplan.scenario import default_scenario
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return default_scenario()
+
+
+@pytest.fixture(scope="module")
+def start_and_goal(scenario):
+    """A start state and a valid GSn state at the goal pose (180 degrees away)."""
+    ctx = build_context(scenario, seed=1)
+    x0 = start_state(ctx)
+    xg = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
+    assert x0 is not None and xg is not None
+    return x0, xg
+
+
+def _grasps(ctx, states):
+    return [grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in states]
+
+
+def test_edge_reduction_plan_passes_verify(scenario) -> None:
+    result = plan(scenario, seed=3, reduction="edges", time_limit=60.0)
+    assert result.solved, (result.status, result.message)
+    assert result.stats["reduction_method"] == "edges"
+    kinds = [s.kind for s in result.segments]
+    assert "regrasp" in kinds and "transfer" in kinds
+    # transfers on one grasp across several GSn edges are merged into one
+    assert not any(a == b == "transfer" for a, b in itertools.pairwise(kinds))
+    for seg in result.segments:
+        if seg.kind == "transfer":  # contacts fixed in the object frame
+            first = np.array(seg.waypoints[0].contacts)
+            assert all(np.allclose(np.array(w.contacts), first) for w in seg.waypoints)
+    doc = build_plan_document(scenario, build_hand(scenario), result)
+    report = verify_plan(doc)
+    assert report.ok, [str(v) for v in report.violations[:5]]
+
+
+def test_one_long_edge_needs_bisection(scenario, start_and_goal) -> None:
+    """A single 180-degree GSn edge: no transfer/regrasp sequence does it whole."""
+    x0, xg = start_and_goal
+    poses = np.stack([x0[:POSE_DIM], xg[:POSE_DIM]])
+    ctx = build_context(scenario, seed=1)
+    grasps = _grasps(ctx, [x0, xg])
+    flat = reduce_gsn_path(
+        ctx.transitions, poses, grasps, x0[POSE_DIM:], ReductionSettings(max_depth=0)
+    )
+    assert not flat.success
+    assert flat.reached == 0
+    assert "resolution limit" in flat.reason and "edge 0 -> 1" in flat.reason
+    assert flat.stats["reduction_bisections"] == 0
+
+    ctx = build_context(scenario, seed=1)
+    red = reduce_gsn_path(ctx.transitions, poses, grasps, x0[POSE_DIM:])
+    assert red.success, red.reason
+    assert red.stats["reduction_bisections"] >= 1
+    assert red.stats["reduction_regrasps"] >= 1
+    end = red.segments[-1].end
+    np.testing.assert_allclose(end.object_pose_xyzquat, poses[-1], atol=1e-12)
+    # every regrasp moves one finger and keeps the object still
+    for seg in red.segments:
+        if seg.kind == "regrasp":
+            poses_seg = np.array([w.object_pose_xyzquat for w in seg.waypoints])
+            assert np.ptp(poses_seg, axis=0).max() == 0.0
+            moved = np.ptp(np.array([w.q for w in seg.waypoints]), axis=0) > 0
+            assert set(np.flatnonzero(moved)) <= set(ctx.hand.finger_q_index[seg.finger])
+
+
+def test_short_edge_is_one_transfer(scenario, start_and_goal) -> None:
+    x0, _ = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    pose1 = x0[:POSE_DIM].copy()
+    pose1[2] += 0.004  # lift the object 4 mm: the grasp follows
+    g0 = _grasps(ctx, [x0])[0]
+    res = reduce_gsn_path(
+        ctx.transitions, np.stack([x0[:POSE_DIM], pose1]), [g0, g0], x0[POSE_DIM:]
+    )
+    assert res.success, res.reason
+    assert [s.kind for s in res.segments] == ["transfer"]
+    end = res.segments[-1].end
+    np.testing.assert_allclose(end.object_pose_xyzquat, pose1, atol=1e-12)
+    tips = ctx.hand.fingertip_positions(end.q)
+    np.testing.assert_allclose(tips, ctx.transitions.tip_targets(pose1, g0), atol=1e-4)
+
+
+def test_bisected_edges_reach_the_goal(scenario) -> None:
+    """A coarse GSn path (every 4th state): bisection recovers the missing states."""
+    ctx = build_context(scenario, seed=3)
+    res = plan(scenario, seed=3, reduction="gaits", time_limit=60.0)
+    assert res.gsn_path.shape[0] >= 3
+    states = res.gsn_path[::4]
+    if not np.array_equal(states[-1], res.gsn_path[-1]):
+        states = np.vstack([states, res.gsn_path[-1:]])
+    poses = states[:, :POSE_DIM].copy()
+    poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
+    red = reduce_gsn_path(ctx.transitions, poses, _grasps(ctx, states), states[0, POSE_DIM:])
+    assert red.success, red.reason
+    end = red.segments[-1].end.object_pose_xyzquat
+    assert quat_angle(end[3:], poses[-1, 3:]) < 1e-9
+    assert np.linalg.norm(end[:3] - poses[-1, :3]) < 1e-12
+
+
+def test_bad_reduction_name_is_an_input_error(scenario) -> None:
+    with pytest.raises(InvalidInputError, match="reduction must be one of"):
+        plan(scenario, reduction="magic")
+
+
+def test_mismatched_contacts_is_an_input_error(scenario, start_and_goal) -> None:
+    x0, _ = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    with pytest.raises(InvalidInputError, match="2 poses but 1 contact sets"):
+        reduce_gsn_path(
+            ctx.transitions, np.stack([x0[:POSE_DIM]] * 2), _grasps(ctx, [x0]), x0[POSE_DIM:]
+        )
