@@ -243,9 +243,11 @@ class _Checker:
                     "contact_on_surface",
                     f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface",
                 )
-            p_s, n_s = obj.closest_point(c)
-            expected_tip = np.asarray(p_s).reshape(3) + r * np.asarray(n_s).reshape(3)
-            gap = float(np.linalg.norm(expected_tip - tips[i]))
+            # the fingertip sphere touches the surface at the closest point to
+            # its centre, pushing along the normal there (at a box edge, the
+            # direction from the edge to the centre): that is the contact
+            p_s, n_s = obj.closest_point(tips[i])
+            gap = float(np.linalg.norm(np.asarray(p_s).reshape(3) - c))
             if gap > TIP_DISTANCE_TOL:
                 self.add(
                     si,
