@@ -357,6 +357,32 @@ def test_same_seed_same_prm_roadmap():
     np.testing.assert_array_equal(a.edges, b.edges)
 
 
+@pytest.mark.timeout(60)
+def test_iteration_budget_stops_the_search_deterministically():
+    """A search stopped by max_iterations (not the clock) depends on the seed only."""
+
+    def tree(budget):
+        problem = PlanningProblem(make_spec(), is_valid, planner="KPIECE1", seed=5)
+        problem.set_start(SOUTH)
+        # a region no sample falls into: the search runs its budget out
+        problem.set_goal(north_goal(np.random.default_rng(0), 1e-12, with_sampler=False))
+        result = problem.solve(30.0, max_iterations=budget)
+        return result, problem.planner_data()
+
+    (ra, a), (_, b) = tree(40), tree(40)
+    assert not ra.solved and ra.time_s < 30.0
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.edges, b.edges)
+    _, bigger = tree(400)
+    assert len(bigger.vertices) > len(a.vertices)
+
+    prm = PlanningProblem(make_spec(), is_valid, planner="PRM", seed=5)
+    prm.set_start(SOUTH)
+    prm.set_goal_state(NORTH)
+    with pytest.raises(PlannerError, match="single-query planners"):
+        prm.solve(1.0, max_iterations=10)
+
+
 # --------------------------------------------------------------------------- options
 
 

@@ -11,7 +11,7 @@ from dexplan.exceptions import PlanFileError
 from dexplan.plan import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import plan
-from dexplan.scenario import default_scenario
+from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -115,11 +115,26 @@ def test_rejects_missing_goal_and_broken_continuity(solved) -> None:
 
 
 def test_same_seed_same_plan(solved) -> None:
-    scenario, _, doc = solved
+    scenario, result, doc = solved
     again = plan(scenario, time_limit=60.0)
     assert again.solved
+    # module 1 repeats as well: PRM's roadmap grows to milestone counts, not by the clock
+    np.testing.assert_array_equal(again.gsn_path, result.gsn_path)
     doc2 = build_plan_document(scenario, build_hand(scenario), again)
     assert doc2["segments"] == doc["segments"]
+
+
+@pytest.mark.parametrize("planner", ["KPIECE1", "RRTConnect"])
+def test_same_seed_same_plan_with_an_obstacle(planner: str) -> None:
+    """On the cube the plan follows the GSn path: module 1 must repeat too."""
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    a = plan(scenario, planner=planner, seed=4, time_limit=60.0)
+    b = plan(scenario, planner=planner, seed=4, time_limit=60.0)
+    assert a.solved and b.solved, (a.message, b.message)
+    np.testing.assert_array_equal(a.gsn_path, b.gsn_path)
+    assert [s.kind for s in a.segments] == [s.kind for s in b.segments]
+    for sa, sb in zip(a.segments, b.segments, strict=True):
+        np.testing.assert_array_equal([w.q for w in sa.waypoints], [w.q for w in sb.waypoints])
 
 
 def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:

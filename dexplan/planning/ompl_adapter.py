@@ -1411,12 +1411,22 @@ class PlanningProblem:
         return int(self._planner.milestoneCount())
 
     def solve(
-        self, time_limit: float, *, interpolate: bool = True, check_path: bool = True
+        self,
+        time_limit: float,
+        *,
+        max_iterations: int | None = None,
+        interpolate: bool = True,
+        check_path: bool = True,
     ) -> SolveResult:
         """Run the planner on the current query.
 
         Args:
             time_limit: seconds (a C++ timed termination condition).
+            max_iterations: also stop after this many planner iterations
+                (termination-condition checks). A search stopped this way, not by
+                the clock, depends on the seed only: deterministic. Single-query
+                planners only (the PRM family checks the condition from a
+                second thread; use :meth:`grow_roadmap` with ``max_milestones``).
             interpolate: densify the path along the space's discrete geodesics
                 (steps <= ``lambda_ * delta`` in planning units).
             check_path: re-check the path in travel direction (motions, constraint,
@@ -1453,6 +1463,20 @@ class PlanningProblem:
                     message="no acceptable goal sample",
                 )
         ptc = ob.timedPlannerTerminationCondition(limit)
+        if max_iterations is not None:
+            if self.is_multi_query:
+                raise PlannerError(
+                    f"max_iterations is for single-query planners, not {self._planner_name} "
+                    "(its solution checker runs in a second thread)"
+                )
+            budget = _as_int(max_iterations, "max_iterations", 1)
+            count = [0]
+
+            def spent() -> bool:
+                count[0] += 1
+                return count[0] > budget
+
+            ptc = ob.plannerOrTerminationCondition(ptc, ob.PlannerTerminationCondition(spent))
         self._sink.ptc = ptc
         try:
             status = self._planner.solve(ptc)

@@ -52,12 +52,15 @@ class ReductionSettings:
             bisected at most this many times (into at most ``2**max_depth`` pieces).
         same_contact_m: contacts closer than this (m, object frame) count as
             the same; no regrasp moves a finger by less.
+        resync_m: in :func:`reduce_gsn_path`, a finger whose contact is farther
+            than this (m) from the GSn path's is regrasped back onto it.
     """
 
     max_regrasps: int = 200
     max_stall: int = 8
     max_depth: int = 5
     same_contact_m: float = 1e-3
+    resync_m: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -276,6 +279,7 @@ class _EdgeReducer:
         s = self.trans.settings
         dense = densify_poses(np.stack([pa, pb]), s.max_step_m, s.max_step_rad)
         if self._transfer(dense, [], self.q, self.grasp):
+            self._resync(pb, cb)
             return True
         for target in (cb, ca):
             moved = self._regrasps_to(pa, target)
@@ -308,6 +312,30 @@ class _EdgeReducer:
             self.segments.append(Segment("transfer", None, tr.waypoints))
         self.q, self.grasp = tr.waypoints[-1].q, grasp
         return True
+
+    def _resync(self, pose: FloatArray, target: GraspContacts) -> None:
+        """Regrasp fingers that drifted far from the GSn path's contacts, where possible.
+
+        Transfers keep the grasp while the path's contacts slide on; a grasp
+        far from the path's can no longer be regrasped onto it finger by
+        finger, so fingers more than ``settings.resync_m`` away are moved back
+        (each only when its landing keeps every (n-1) subgrasp force closure).
+        """
+        trans = self.trans
+        gap = np.linalg.norm(self.grasp.points - target.points, axis=1)
+        for f in np.argsort(-gap):
+            if gap[f] <= self.settings.resync_m:
+                break
+            f = int(f)
+            new = self.grasp.replace(f, target.points[f], target.normals_out[f])
+            if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
+                continue
+            point, normal = target.points[f], target.normals_out[f]
+            seg = trans.regrasp(pose, self.q, self.grasp, f, point, normal)
+            if seg is not None:
+                self.segments.append(seg)
+                self.regrasps += 1
+                self.q, self.grasp = seg.end.q, new
 
     def _regrasps_to(
         self, pose: FloatArray, target: GraspContacts

@@ -196,6 +196,13 @@ class GsnResult:
     message: str = ""
 
 
+ROUND_ITERATIONS = 50
+"""Planner iterations of a tree planner's first module-1 round (doubling per round)."""
+
+ROUND_MILESTONES = 4
+"""Roadmap size after a PRM-family planner's first module-1 round (doubling per round)."""
+
+
 def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
     """Object-pose distance of two states: translation / length + rotation angle."""
     return float(np.linalg.norm(a[:3] - b[:3])) / length + quat_angle(a[3:7], b[3:7])
@@ -273,11 +280,18 @@ def explore_gsn(
     """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
 
     The paper's single-query scheme: the OMPL planner grows its roadmap in
-    rounds (0.25 s, then doubling); after each round without an exact
-    solution, module 2 tries a few transfer-regrasp links between the start's
-    component and the goal region's, and the query stops as soon as they are
-    connected. With ``module2=False`` the OMPL planner alone runs until the
-    deadline (a pure GSn path or none).
+    rounds; after each round without a path, module 2 tries a few
+    transfer-regrasp links between the start's component and the goal
+    region's, and the query stops as soon as they are connected. With
+    ``module2=False`` the OMPL planner alone runs until the deadline.
+
+    Rounds are counted in work, not time, so the same seed gives the same
+    path whenever the deadline does not cut the search short: tree planners
+    run :data:`ROUND_ITERATIONS` planner iterations (doubling each round); the
+    PRM family, whose own ``solve`` is multi-threaded and time-sliced, grows
+    its roadmap single-threaded to :data:`ROUND_MILESTONES` milestones
+    (doubling), after which start and goal are connected into it and the
+    roadmap is searched.
     """
     t0 = time.perf_counter()
     problem = ompl_adapter.PlanningProblem(
@@ -298,11 +312,15 @@ def explore_gsn(
     )
     key = scenario_key(ctx)
     stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
-    round_time, rounds = 0.25, 0
+    iterations, milestones, rounds = ROUND_ITERATIONS, ROUND_MILESTONES, 0
     while True:
         rounds += 1
-        now = time.perf_counter()
-        res = problem.solve(max(0.05, min(round_time, deadline - now)))
+        remaining = max(0.05, deadline - time.perf_counter())
+        if problem.is_multi_query:
+            problem.grow_roadmap(remaining, max_milestones=milestones)
+            res = problem.solve(1e-6)  # only connects start and goal milestones into it
+        else:
+            res = problem.solve(remaining, max_iterations=iterations)
         data = problem.planner_data()
         roadmap = Roadmap(
             np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
@@ -311,9 +329,15 @@ def explore_gsn(
             planner,
             key,
         )
+        starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
+        path = None
+        if res.solved and res.path is not None and len(res.path):
+            path = np.asarray(res.path)
+        elif problem.is_multi_query and starts:
+            path = _roadmap_path(problem, roadmap, starts[0], query)
         stats.update(
             {
-                "gsn_status": res.status,
+                "gsn_status": "exact" if path is not None else res.status,
                 "gsn_rounds": rounds,
                 "gsn_time_s": time.perf_counter() - t0,
                 "roadmap_nodes": roadmap.n_vertices,
@@ -321,22 +345,36 @@ def explore_gsn(
                 "components": roadmap.components()[0],
             }
         )
-        if res.solved and res.path is not None and len(res.path):
-            return GsnResult(np.asarray(res.path), roadmap, stats)
+        if path is not None:
+            return GsnResult(path, roadmap, stats)
+        iterations *= 2
+        milestones *= 2
         if not module2:
             if time.perf_counter() >= deadline - 0.05:
                 return GsnResult(None, roadmap, stats, "no GSn path within the time limit")
-            round_time *= 2.0
             continue
         # module 2: a few links from the start's component towards the goal region
-        starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
         start = starts[0] if starts else roadmap.add_vertex(query.start)
-        link_deadline = min(deadline, time.perf_counter() + round_time)
-        linked = link_query(ctx, roadmap, query, start, link_deadline, stats, max_attempts=4)
+        linked = link_query(ctx, roadmap, query, start, deadline, stats, max_attempts=4)
         stats["gsn_time_s"] = time.perf_counter() - t0
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
-        round_time *= 2.0
+
+
+def _roadmap_path(
+    problem: ompl_adapter.PlanningProblem, roadmap: Roadmap, start: int, query: GsnQuery
+) -> FloatArray | None:
+    """Shortest roadmap path from ``start`` into the goal region, densified on GSn.
+
+    None when there is none, or when a roadmap edge is not a valid motion in
+    the travel direction (projection is direction-dependent; see MEASURED.md).
+    """
+    goals = [i for i, x in enumerate(roadmap.vertices) if query.goal_test(x)[0]]
+    ids = roadmap.shortest_path(start, goals) if goals else None
+    if ids is None:
+        return None
+    checked = problem.check_path(roadmap.vertices[ids], interpolate=True)
+    return np.asarray(checked.path) if checked.path_valid else None
 
 
 def query_roadmap(
