@@ -243,11 +243,18 @@ class _Checker:
                     "contact_on_surface",
                     f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface",
                 )
-            # the fingertip sphere touches the surface at the closest point to
-            # its centre, pushing along the normal there (at a box edge, the
-            # direction from the edge to the centre): that is the contact
-            p_s, n_s = obj.closest_point(tips[i])
-            gap = float(np.linalg.norm(np.asarray(p_s).reshape(3) - c))
+            # The fingertip sphere touches the surface at the closest point to
+            # its centre, pushing along the normal there. On a face that is the
+            # stated contact's own normal (exact per contact: the force-closure
+            # memo below hits); at a box edge or corner, the direction from
+            # the edge to the centre.
+            p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(c))
+            gap = float(np.linalg.norm(p_s + r * n_s - tips[i]))
+            if gap > TIP_DISTANCE_TOL:
+                p_t, n_s = (
+                    np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tips[i])
+                )
+                gap = float(np.linalg.norm(p_t - c))
             if gap > TIP_DISTANCE_TOL:
                 self.add(
                     si,

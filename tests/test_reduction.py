@@ -1,5 +1,6 @@
 """The reduction property edge by edge (bisection) and the planner's reduction choice."""
 
+import copy
 import itertools
 
 import numpy as np
@@ -11,8 +12,8 @@ from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
-from dexplan.pose import quat_angle
-from dexplan.scenario import default_scenario
+from dexplan.pose import inverse_transform_points, quat_angle
+from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -127,3 +128,33 @@ def test_mismatched_contacts_is_an_input_error(scenario, start_and_goal) -> None
         reduce_gsn_path(
             ctx.transitions, np.stack([x0[:POSE_DIM]] * 2), _grasps(ctx, [x0]), x0[POSE_DIM:]
         )
+
+
+def test_fingertips_on_box_edges_are_verified_contacts() -> None:
+    """GSn lets a fingertip roll over a box edge; such plans verify, a moved contact not."""
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    result = plan(scenario, planner="KPIECE1", seed=2, reduction="edges", time_limit=60.0)
+    assert result.solved, (result.status, result.message)
+    hand = build_hand(scenario)
+    ctx = build_context(scenario)
+    r = hand.fingertip_radius
+    on_edge = []
+    for si, seg in enumerate(result.segments):
+        for wi, w in enumerate(seg.waypoints):
+            tips = inverse_transform_points(w.object_pose_xyzquat, hand.fingertip_positions(w.q))
+            for i, c in enumerate(w.contacts):
+                if c is None:
+                    continue
+                p, n = ctx.obj.closest_point(np.asarray(c))
+                if np.linalg.norm(np.asarray(p) + r * np.asarray(n) - tips[i]) > 1e-3:
+                    on_edge.append((si, wi, i))
+    assert on_edge, "expected a fingertip on a box edge in this plan"
+    doc = build_plan_document(scenario, hand, result)
+    report = verify_plan(doc)
+    assert report.ok, [str(v) for v in report.violations[:5]]
+    si, wi, i = on_edge[0]
+    bad = copy.deepcopy(doc)
+    c = bad["segments"][si]["waypoints"][wi]["contacts"][i]
+    c[2] += 0.004  # move the stated contact 4 mm
+    rules = {v.rule for v in verify_plan(bad).violations}
+    assert "contact_matches_fingertip" in rules
