@@ -60,6 +60,7 @@ __all__ = [
     "DEFAULT_BASELINE",
     "DEFAULT_PLANNERS",
     "PLAN_STATUSES",
+    "REDUCTION_METHODS",
     "RUN_COLUMNS",
     "BenchDatabase",
     "BenchProgress",
@@ -125,6 +126,10 @@ PLAN_STATUSES: tuple[str, ...] = (
 statuses, then ``error`` (the run raised), ``crash`` (the worker process died)
 and ``killed`` (the run overran its hard wall-clock limit)."""
 
+REDUCTION_METHODS: tuple[str, ...] = ("gaits", "edges")
+"""How a solved run's GSn path became transfers and regrasps, in the order of
+the ``reduction method`` enum (see :func:`dexplan.planning.planner.plan`)."""
+
 _OMPL_STATUS_OF: dict[str, int] = {
     "solved": 6,  # Exact solution
     "no_start_grasp": 1,  # Invalid start
@@ -180,6 +185,7 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     ("module2_attempts", "INTEGER"),
     ("module2_links", "INTEGER"),
     ("reduction_attempts", "INTEGER"),
+    ("reduction_method", "ENUM"),  # REDUCTION_METHODS
     ("regrasps", "INTEGER"),
     ("transfers", "INTEGER"),
     ("waypoints", "INTEGER"),
@@ -520,6 +526,9 @@ def _fill_stats(rec: dict[str, Any], stats: Mapping[str, Any]) -> None:
         "object_path_rad",
     ):
         rec[name] = stats.get(name)
+    method = stats.get("reduction_method")
+    known = method in REDUCTION_METHODS
+    rec["reduction_method"] = REDUCTION_METHODS.index(method) if known else None
     if rec["regrasps"] is not None and rec["transfers"] is not None:
         rec["solution_segments"] = int(rec["regrasps"]) + int(rec["transfers"])
     validity = stats.get("validity") or {}
@@ -725,6 +734,7 @@ class BenchDatabase:
             c.execute("ALTER TABLE progress ADD stage INTEGER")
         enums = [("status", i, d) for i, d in enumerate(OMPL_STATUSES)]
         enums += [("plan status", i, d) for i, d in enumerate(PLAN_STATUSES)]
+        enums += [("reduction method", i, d) for i, d in enumerate(REDUCTION_METHODS)]
         c.executemany("INSERT OR IGNORE INTO enums VALUES (?, ?, ?)", enums)
         for name, sql in _VIEWS.items():
             c.execute(f"DROP VIEW IF EXISTS {name}")

@@ -138,7 +138,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         f"roadmap_nodes: {st.get('roadmap_nodes')}  graph_nodes: {st.get('graph_nodes')}  "
         f"components: {st.get('components')}\n"
         f"transfers: {st.get('transfers')}  regrasps: {st.get('regrasps')}  "
-        f"waypoints: {st.get('waypoints')}\n"
+        f"waypoints: {st.get('waypoints')}  reduction: {st.get('reduction_method')}\n"
     )
     return EXIT_OK
 

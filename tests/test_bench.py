@@ -455,6 +455,7 @@ def test_sweep_writes_database_csv_plots(sweep):
             assert r["plan_verify_ratio"] == pytest.approx(r["time"] / r["verify_time"])
             assert len(r["plan_sha256"]) == 64
             assert r["regrasps"] + r["transfers"] == r["solution_segments"] >= 1
+            assert bench.REDUCTION_METHODS[r["reduction_method"]] in ("gaits", "edges")
     assert any(r["solved"] for r in res.records), "no run solved paper_sphere"
     # progress: a first call with the totals, then one per run
     assert events[0].record is None and events[0].total == 4
@@ -472,6 +473,8 @@ def test_sweep_writes_database_csv_plots(sweep):
     assert conn.execute("SELECT name, timelimit FROM experiments").fetchall() == [
         ("paper_sphere", SWEEP_TIME_LIMIT)
     ]
+    methods = conn.execute("SELECT value, description FROM enums WHERE name='reduction method'")
+    assert dict(methods.fetchall()) == {0: "gaits", 1: "edges"}
 
 
 @needs_planning

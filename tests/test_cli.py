@@ -63,6 +63,7 @@ def test_load_roadmap_answers(planned: Path) -> None:
         (("plan", "-o", "no/such/dir/p.json"), "folder does not exist"),
         (("verify", "missing.json"), "not found"),
         (("plan", "--load-roadmap", "missing.npz"), "roadmap file not found"),
+        (("plan", "--reduction", "magic"), "invalid choice: 'magic'"),
     ],
 )
 def test_bad_input_exit_code_2_without_traceback(tmp_path: Path, args, needle: str) -> None:

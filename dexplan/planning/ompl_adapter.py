@@ -87,6 +87,7 @@ __all__ = [
     "available_planners",
     "connected_components",
     "get_log_level",
+    "plan_joint_path",
     "set_log_level",
 ]
 
@@ -1698,3 +1699,126 @@ class PlanningProblem:
     def valid_sampler_count(self) -> int:
         """Return how many Python valid-state samplers OMPL allocated (diagnostics)."""
         return len(self._samplers)
+
+
+# ------------------------------------------------------------ unconstrained paths
+
+
+def plan_joint_path(
+    start: FloatArray,
+    goal: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    is_valid: Callable[[FloatArray], Any],
+    *,
+    resolution: float,
+    time_limit: float,
+    max_iterations: int = 1000,
+    seed: int | None = None,
+    planner: str = "RRTConnect",
+) -> FloatArray | None:
+    """A valid path between two points of a box, such as one finger's joint space.
+
+    An unconstrained ``RealVectorStateSpace`` with the given bounds, the Python
+    validity test, a single-query OMPL planner, then OMPL's path simplifier
+    (shortcuts and smoothing, re-checked). The caps make it usable as a
+    bounded fallback; with ``seed`` the answer depends on the seed only unless
+    the time limit, not ``max_iterations``, stops the search.
+
+    Args:
+        start: (n,) start point.
+        goal: (n,) goal point.
+        lower: (n,) lower bounds.
+        upper: (n,) upper bounds.
+        is_valid: ``(n,) -> bool``.
+        resolution: largest max-norm distance between checked states of a motion.
+        time_limit: seconds.
+        max_iterations: planner iterations.
+        seed: OMPL seed (None: OMPL's current generator).
+        planner: a single-query planner of :data:`PLANNERS`.
+
+    Returns:
+        (K, n) waypoints from ``start`` to ``goal`` (K >= 2) whose straight
+        legs are valid at ``resolution``, or None when none was found.
+
+    Raises:
+        InvalidInputError: bad shapes, bounds, caps or planner name.
+        PlannerError: ``is_valid`` raised.
+    """
+    _check_planner_name(planner)
+    if planner in MULTI_QUERY_PLANNERS:
+        raise InvalidInputError(f"plan_joint_path needs a single-query planner, not {planner}")
+    lo = np.asarray(lower, dtype=np.float64)
+    hi = np.asarray(upper, dtype=np.float64)
+    n = lo.shape[0] if lo.ndim == 1 else 0
+    if n == 0 or hi.shape != (n,) or not np.all(np.isfinite(lo)) or not np.all(lo < hi):
+        raise InvalidInputError(
+            f"lower and upper must be finite (n,) arrays with lower < upper, got {lo} and {hi}"
+        )
+    ends = []
+    for name, value in (("start", start), ("goal", goal)):
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+            raise InvalidInputError(f"{name} must be {n} finite numbers, got {value!r}")
+        ends.append(arr)
+    step = _as_pos(resolution, "resolution")
+    limit = _as_pos(time_limit, "time_limit")
+    budget = _as_int(max_iterations, "max_iterations", 1)
+    if seed is not None:
+        _reseed_ompl(_derived_seed(int(seed), 0))
+
+    space = ob.RealVectorStateSpace(n)
+    bounds = ob.RealVectorBounds(n)
+    for i in range(n):
+        bounds.setLow(i, float(lo[i]))
+        bounds.setHigh(i, float(hi[i]))
+    space.setBounds(bounds)
+    si = ob.SpaceInformation(space)
+    sink = _ErrorSink()
+    read = _reader(n)
+
+    def check(state: Any) -> bool:
+        if sink.error is not None:
+            return False
+        try:
+            return bool(is_valid(read(state)))
+        except Exception as exc:  # must not unwind through C++: recorded, re-raised
+            sink.record(exc)
+            return False
+
+    si.setStateValidityChecker(check)
+    # OMPL's resolution is a fraction of the space's extent, in its L2 metric:
+    # a max-norm step of `step` is at most sqrt(n) * step long
+    si.setStateValidityCheckingResolution(min(1.0, step / space.getMaximumExtent()))
+    si.setup()
+    pdef = ob.ProblemDefinition(si)
+    a, b = space.allocState(), space.allocState()
+    for i in range(n):
+        a[i], b[i] = float(ends[0][i]), float(ends[1][i])
+    pdef.setStartAndGoalStates(a, b)
+    solver = PLANNERS[planner](si)
+    solver.setProblemDefinition(pdef)
+    solver.setup()
+    count = [0]
+
+    def spent() -> bool:
+        count[0] += 1
+        return count[0] > budget
+
+    ptc = ob.plannerOrTerminationCondition(
+        ob.timedPlannerTerminationCondition(limit), ob.PlannerTerminationCondition(spent)
+    )
+    sink.ptc = ptc
+    status = solver.solve(ptc)
+    sink.ptc = None
+    if sink.error is not None:
+        raise PlannerError(
+            f"is_valid raised during plan_joint_path: {type(sink.error).__name__}: {sink.error}"
+        ) from sink.error
+    if _STATUS_NAMES.get(status.getStatus().value) != "exact":
+        return None
+    path = og.PathGeometric(pdef.getSolutionPath())
+    og.PathSimplifier(si).simplifyMax(path)
+    if sink.error is not None or not path.check():
+        return None
+    return np.array([read(path.getState(k)) for k in range(path.getStateCount())])

@@ -12,7 +12,8 @@ apart in object position, object rotation and every joint.
 **Regrasp**: the object is still and the other n-1 fingers hold it (force
 closure is required of every (n-1) subgrasp of a valid grasp, so they can). The
 free finger lifts off along the surface normal (tilted if it must), moves in its
-own joint space (straight line, then batched random via points), and lands on
+own joint space (straight line, then batched random via points, then OMPL's
+RRTConnect in the finger's joint space, capped), and lands on
 the new contact along the new normal. Lift and landing are interpolated in
 task space so the fingertip leaves and meets the surface squarely.
 
@@ -35,6 +36,7 @@ from dexplan.collision import CollisionWorld
 from dexplan.grasp import min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Shape
+from dexplan.planning import ompl_adapter
 from dexplan.planning.path import Segment, Waypoint
 from dexplan.planning.validity import ValiditySettings
 from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
@@ -56,6 +58,11 @@ class TransitionSettings:
         via_points: random via points tried for a free-finger move.
         tip_clearance: minimum gap between fingertip spheres (m).
         follow_stride: pose stride when scoring how long a landing can be followed.
+        transit_planner: OMPL planner for a free-finger move that neither the
+            straight line nor a via point clears (None: no such fallback).
+        transit_time: its time cap (s).
+        transit_iterations: its iteration cap (the answer depends on the seed only
+            when this cap, not the time, stops it).
     """
 
     max_step_m: float = 0.008
@@ -66,6 +73,9 @@ class TransitionSettings:
     via_points: int = 96
     tip_clearance: float = 0.004
     follow_stride: int = 2
+    transit_planner: str | None = "RRTConnect"
+    transit_time: float = 1.0
+    transit_iterations: int = 200
 
 
 @dataclass(frozen=True)
@@ -512,4 +522,50 @@ class Transitions:
             if second is None:
                 continue
             return first + second[1:]
-        return None
+        return self._planned_move(finger, qa, qb, pose, free_mask)
+
+    def _planned_move(
+        self,
+        finger: int,
+        qa: FloatArray,
+        qb: FloatArray,
+        pose: FloatArray,
+        free_mask: tuple[bool, ...],
+    ) -> list[FloatArray] | None:
+        """The capped fallback: an OMPL planner in the finger's joint space."""
+        s = self.settings
+        if s.transit_planner is None:
+            return None
+        self.stats["transit_planned"] = self.stats.get("transit_planned", 0) + 1
+        idx = self.hand.finger_q_index[finger]
+
+        def free(q_f: FloatArray) -> bool:
+            q = qa.copy()
+            q[idx] = q_f
+            return self.world.is_free(q, pose, free_mask)
+
+        via = ompl_adapter.plan_joint_path(
+            qa[idx],
+            qb[idx],
+            self.hand.lower[idx],
+            self.hand.upper[idx],
+            free,
+            resolution=s.max_step_rad,
+            time_limit=s.transit_time,
+            max_iterations=s.transit_iterations,
+            seed=int(self.rng.integers(2**31 - 1)),
+            planner=s.transit_planner,
+        )
+        if via is None:
+            return None
+        qs = [qa.copy()]
+        for q_f in via[1:]:
+            q = qa.copy()
+            q[idx] = q_f
+            leg = self._segment_free(qs[-1], q, pose, free_mask)  # re-checked at our resolution
+            if leg is None:
+                return None
+            qs.extend(leg[1:])
+        qs[-1] = qb.copy()
+        self.stats["transit_planned_found"] = self.stats.get("transit_planned_found", 0) + 1
+        return qs
