@@ -1,11 +1,14 @@
-"""Local planners: the free finger's capped OMPL fallback in its joint space."""
+"""Local planners: the free finger's capped OMPL fallback; dropping needless regrasps."""
 
 import itertools
 
 import numpy as np
 
 from dexplan.planning.context import build_context
-from dexplan.planning.transitions import TransitionSettings
+from dexplan.planning.path import Segment
+from dexplan.planning.reduction import grasp_from_state
+from dexplan.planning.smoothing import drop_regrasps
+from dexplan.planning.transitions import TransitionSettings, densify_poses
 from dexplan.scenario import default_scenario
 
 
@@ -46,3 +49,54 @@ def test_blocked_free_finger_move_falls_back_to_ompl() -> None:
     assert found >= 1
     assert tr.stats["transit_planned"] == len(blocked)
     assert tr.stats["transit_planned_found"] == found
+
+
+def _landing(tr, f, pose, q, grasp, future):
+    """A regrasp of finger f onto a contact it can follow the whole of ``future`` from."""
+    for point, normal, _ in tr.landing_candidates(f, pose, q, grasp, future, limit=50):
+        seg = tr.regrasp(pose, q, grasp, f, point, normal)
+        new = grasp.replace(f, point, normal)
+        if seg is not None and tr.transfer(future, 0, seg.end.q, new).reason is None:
+            return seg, new
+    raise AssertionError(f"no landing for finger {f}")
+
+
+def test_needless_regrasps_are_dropped() -> None:
+    """R_f, T, R_f where the old grasp makes T too -> T on the old grasp, one R_f."""
+    scenario = default_scenario()
+    ctx = build_context(scenario, seed=2)
+    tr = ctx.transitions
+    x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+    assert x is not None
+    pose, q = x[:7], x[7:]
+    grasp = grasp_from_state(tr, pose, q)
+    lifted = pose.copy()
+    lifted[2] += 0.004
+    moves = densify_poses(np.stack([pose, lifted]), 0.002, 0.04)
+    f = 1
+    r1, grasp1 = _landing(tr, f, pose, q, grasp, moves)
+    t = tr.transfer(moves, 0, r1.end.q, grasp1)
+    assert t.reason is None
+    transfer = Segment("transfer", None, t.waypoints)
+    lifted2 = lifted.copy()
+    lifted2[2] += 0.004
+    moves2 = densify_poses(np.stack([lifted, lifted2]), 0.002, 0.04)
+    r2, grasp2 = _landing(tr, f, lifted, transfer.end.q, grasp1, moves2)
+    t2 = tr.transfer(moves2, 0, r2.end.q, grasp2)
+    last = Segment("transfer", None, t2.waypoints)
+    assert tr.transfer(moves, 0, q, grasp).reason is None  # the old grasp lifts it too
+
+    # R_f T R_f T: the old grasp makes the first transfer (R_f T R_f -> T R_f), then
+    # the last one too (R_f T -> T), and the transfers in a row join: one transfer
+    out = drop_regrasps(tr, [r1, transfer, r2, last])
+    assert [s.kind for s in out] == ["transfer"]
+    assert out[0].start is r1.start  # the plan before it is unchanged
+    np.testing.assert_array_equal(out[0].end.object_pose_xyzquat, lifted2)
+    held = np.array(out[0].start.contacts)
+    assert all(np.array_equal(np.array(w.contacts), held) for w in out[0].waypoints)
+    poses = np.array([w.object_pose_xyzquat for w in out[0].waypoints])
+    assert np.all(np.diff(poses[:, 2]) >= 0) and len(poses) >= len(moves) + len(moves2) - 1
+    # a trailing regrasp goes (the object is already where the plan ends)
+    assert [s.kind for s in drop_regrasps(tr, [transfer, r2])] == ["transfer"]
+    # the only segment is kept even if it is a regrasp
+    assert drop_regrasps(tr, [r1]) == [r1]

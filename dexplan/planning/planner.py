@@ -33,7 +33,7 @@ from dexplan.planning.ompl_adapter import check_planner
 from dexplan.planning.path import Segment, count_kinds, object_path_length
 from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
-from dexplan.planning.smoothing import merge_regrasps, shortcut_object_path
+from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.scenario import Scenario
@@ -275,7 +275,7 @@ def plan(
             "reduction_failed", msg or "", roadmap=roadmap, gsn_path=gsn.path, start_q=q_start
         )
     stats.update({f"local_{k}": v for k, v in red.stats.items()})
-    segments = merge_regrasps(ctx.transitions, list(red.segments))
+    segments = drop_regrasps(ctx.transitions, merge_regrasps(ctx.transitions, list(red.segments)))
     stats.update(count_kinds(segments))
     stats["graph_nodes"] = len(segments) + 1
     stats["waypoints"] = sum(len(s.waypoints) for s in segments)

@@ -6,6 +6,11 @@
   detour costs regrasps (MEASURED.md).
 - :func:`merge_regrasps` replaces two regrasps of the same finger in a row by
   one, when the local planner finds the direct move.
+- :func:`drop_regrasps` drops regrasps the plan does not need: trailing ones
+  (the object is already at the goal), and a regrasp whose following transfer
+  the old grasp can make too when the same finger regrasps right after it
+  (that later regrasp then starts from the old contact), or when that
+  transfer ends the plan. Transfers left in a row on one grasp are joined.
 
 Every segment the planner keeps is re-checked afterwards by the plan verifier.
 """
@@ -16,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dexplan.planning.path import Segment
+from dexplan.planning.path import Segment, Waypoint
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
 from dexplan.typing import FloatArray
 
@@ -111,3 +116,86 @@ def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | Non
         return None
     # reuse the exact boundary waypoints so the neighbours still join up
     return Segment("regrasp", f, (w0, *seg.waypoints[1:-1], w1))
+
+
+def drop_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]:
+    """Drop regrasps that the transfers after them do not need (see the module doc).
+
+    Every replacement is planned by the local planners from the exact
+    boundary waypoints, and kept only when it ends where the segments it
+    replaces ended, so the rest of the plan is unchanged.
+    """
+    segs = list(segments)
+    while len(segs) > 1 and segs[-1].kind == "regrasp":
+        segs.pop()  # regrasps do not move the object: the goal is reached before them
+    k = 0
+    while k + 1 < len(segs):
+        r, t = segs[k], segs[k + 1]
+        after = segs[k + 2] if k + 2 < len(segs) else None
+        if r.kind != "regrasp" or t.kind != "transfer" or r.finger is None:
+            k += 1
+            continue
+        if after is None:
+            moved = _transfer_on(trans, r.start, t)
+            if moved is not None:
+                segs[k : k + 2] = [moved]
+                continue
+        elif after.kind == "regrasp" and after.finger == r.finger:
+            moved = _transfer_on(trans, r.start, t)
+            again = None if moved is None else _regrasp_to(trans, moved.end, after)
+            if again is not None:
+                segs[k : k + 3] = [moved, again]
+                continue
+        k += 1
+    return _join_transfers(segs)
+
+
+def _stated_grasp(trans: Transitions, w: Waypoint) -> GraspContacts:
+    """The contacts a waypoint states (exactly), with the normals its fingertips touch."""
+    from dexplan.planning.reduction import grasp_from_state
+
+    touched = grasp_from_state(trans, w.object_pose_xyzquat, w.q)
+    points = np.array([touched.points[i] if c is None else c for i, c in enumerate(w.contacts)])
+    return GraspContacts(points, touched.normals_out)
+
+
+def _transfer_on(trans: Transitions, start: Waypoint, t: Segment) -> Segment | None:
+    """Transfer ``t``'s object motion on the grasp of waypoint ``start``, or None."""
+    grasp = _stated_grasp(trans, start)
+    poses = np.array([w.object_pose_xyzquat for w in t.waypoints])
+    tr = trans.transfer(poses, 0, start.q, grasp)
+    if tr.reason is not None:
+        return None
+    return Segment("transfer", None, (start, *tr.waypoints[1:]))
+
+
+def _regrasp_to(trans: Transitions, start: Waypoint, target: Segment) -> Segment | None:
+    """Regrasp of ``target.finger`` from ``start`` to where ``target`` ends, or None."""
+    f = target.finger
+    assert f is not None
+    pose = start.object_pose_xyzquat
+    grasp = _stated_grasp(trans, start)
+    end = _stated_grasp(trans, target.end)
+    if trans.grasp_quality(grasp) <= trans.validity.fc_margin:
+        return None  # certified bounds only: keep the original plan when unsure
+    seg = trans.regrasp(pose, start.q, grasp, f, end.points[f], end.normals_out[f])
+    if seg is None or not np.allclose(seg.end.q, target.end.q, atol=1e-6):
+        return None
+    return Segment("regrasp", f, (start, *seg.waypoints[1:-1], target.end))
+
+
+def _join_transfers(segments: list[Segment]) -> list[Segment]:
+    """Join transfers in a row that hold the same contacts into one."""
+    out: list[Segment] = []
+    for s in segments:
+        prev = out[-1] if out else None
+        if prev is not None and prev.kind == s.kind == "transfer" and _same_contacts(prev, s):
+            out[-1] = Segment("transfer", None, prev.waypoints + s.waypoints[1:])
+        else:
+            out.append(s)
+    return out
+
+
+def _same_contacts(a: Segment, b: Segment) -> bool:
+    pairs = zip(a.end.contacts, b.start.contacts, strict=True)
+    return all(x is not None and y is not None and np.array_equal(x, y) for x, y in pairs)
