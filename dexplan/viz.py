@@ -928,7 +928,7 @@ def _log_contacts_and_fc(
     than two holding fingers; for ``min_subgrasp``, while a finger is free).
     """
     rr = _rerun()
-    from dexplan.pose import transform_points
+    from dexplan.pose import inverse_transform_points, transform_points
 
     hand, obj = scene.hand, scene.obj
     assert hand is not None and obj is not None
@@ -976,9 +976,11 @@ def _log_contacts_and_fc(
     n_strips: list[list[int]] = [[] for _ in range(n)]
     full_q: list[float | None] = []
     sub_q: list[float | None] = []
+    r = hand.fingertip_radius
     for seg in segments:
         for w in seg.waypoints:
             pose = w.object_pose_xyzquat
+            tips = inverse_transform_points(pose, hand.fingertip_positions(w.q))
             pts_obj, nrm_in = [], []
             for i, c in enumerate(w.contacts):
                 if c is None:
@@ -994,6 +996,12 @@ def _log_contacts_and_fc(
                     cone = np.vstack(_friction_cone(c, n_s, scene.mu, n_edges, cone_h))
                     local[key_c] = (p_s, n_s, np.vstack([c[None], cone]))
                 p_s, n_s, pts_local = local[key_c]
+                if np.linalg.norm(p_s + r * n_s - tips[i]) > 1e-3:
+                    # a fingertip on a box edge: it pushes along the normal at
+                    # its own closest point (as the verifier reads it)
+                    n_s = np.asarray(obj.closest_point(tips[i])[1], dtype=float).reshape(3)
+                    cone = np.vstack(_friction_cone(c, n_s, scene.mu, n_edges, cone_h))
+                    pts_local = np.vstack([c[None], cone])
                 pts_obj.append(p_s)
                 nrm_in.append(-n_s)
                 pts_w = transform_points(pose, pts_local)
