@@ -472,20 +472,12 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
         dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
         da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
+        last = (len(segments) - 1, len(segments[-1].waypoints) - 1)
         if dp > float(goal.get("position_tol", 0.005)) + 1e-12:
-            chk.add(
-                len(segments) - 1,
-                len(segments[-1].waypoints) - 1,
-                "goal",
-                f"object ends {dp * 1e3:.2f} mm from the goal position",
-            )
+            chk.add(*last, "goal", f"object ends {dp * 1e3:.2f} mm from the goal position")
         if da > float(goal.get("angle_tol", 0.05)) + 1e-12:
-            chk.add(
-                len(segments) - 1,
-                len(segments[-1].waypoints) - 1,
-                "goal",
-                f"object ends {math.degrees(da):.2f} deg from the goal orientation",
-            )
+            msg = f"object ends {math.degrees(da):.2f} deg from the goal orientation"
+            chk.add(*last, "goal", msg)
     return VerifyReport(tuple(chk.violations), total, len(segments))
 
 

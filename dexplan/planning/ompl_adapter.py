@@ -898,34 +898,29 @@ def _make_sampler_allocator(
 ) -> Callable[[Any], Any]:
     """Return ``alloc(si) -> ob.ValidStateSampler`` wrapping the Python samplers."""
 
+    def fill(state: Any, draw: Callable[[], Any]) -> bool:
+        """Copy an accepted draw into ``state``; exceptions are recorded, not raised."""
+        if sink.error is not None:
+            return False
+        try:
+            x = draw()
+            y = None if x is None else accept(x)
+        except Exception as exc:  # must not unwind through C++: recorded, re-raised
+            sink.record(exc)
+            return False
+        if y is None:
+            return False
+        state.copy(y.tolist())
+        return True
+
     class _Sampler(ob.ValidStateSampler):
         def sample(self, state: Any) -> bool:
-            if sink.error is not None:
-                return False
-            try:
-                x = sample()
-                y = None if x is None else accept(x)
-            except Exception as exc:  # must not unwind through C++: recorded, re-raised
-                sink.record(exc)
-                return False
-            if y is None:
-                return False
-            state.copy(y.tolist())
-            return True
+            return fill(state, sample)
 
         def sampleNear(self, state: Any, near: Any, distance: float) -> bool:  # noqa: N802
-            if sample_near is None or sink.error is not None:
+            if sample_near is None:
                 return False
-            try:
-                x = sample_near(frame.state_x(near), float(distance))
-                y = None if x is None else accept(x)
-            except Exception as exc:  # must not unwind through C++: recorded, re-raised
-                sink.record(exc)
-                return False
-            if y is None:
-                return False
-            state.copy(y.tolist())
-            return True
+            return fill(state, lambda: sample_near(frame.state_x(near), float(distance)))
 
     def allocate(si: Any) -> Any:
         sampler = _Sampler(si)
@@ -1775,18 +1770,8 @@ def plan_joint_path(
     space.setBounds(bounds)
     si = ob.SpaceInformation(space)
     sink = _ErrorSink()
-    read = _reader(n)
-
-    def check(state: Any) -> bool:
-        if sink.error is not None:
-            return False
-        try:
-            return bool(is_valid(read(state)))
-        except Exception as exc:  # must not unwind through C++: recorded, re-raised
-            sink.record(exc)
-            return False
-
-    si.setStateValidityChecker(check)
+    frame = _Frame(n, None)
+    si.setStateValidityChecker(_make_validity(is_valid, frame, sink))
     # OMPL's resolution is a fraction of the space's extent, in its L2 metric:
     # a max-norm step of `step` is at most sqrt(n) * step long
     si.setStateValidityCheckingResolution(min(1.0, step / space.getMaximumExtent()))
@@ -1825,4 +1810,4 @@ def plan_joint_path(
     simplifier.ropeShortcutPath(path)
     if sink.error is not None or not path.check():
         return None
-    return np.array([read(path.getState(k)) for k in range(path.getStateCount())])
+    return np.array([frame.read(path.getState(k)) for k in range(path.getStateCount())])

@@ -499,7 +499,7 @@ class Transitions:
         pose: FloatArray,
         free_mask: tuple[bool, ...],
     ) -> list[FloatArray] | None:
-        """Collision-free joint-space move of one finger: straight, else via points."""
+        """Collision-free joint-space move of one finger: straight, via points, else OMPL."""
         direct = self._segment_free(qa, qb, pose, free_mask)
         if direct is not None:
             return direct
