@@ -92,18 +92,19 @@ def _reduction_schedule(reduction: str) -> Iterator[tuple[str, str]]:
     """Reduction attempts ``(method, trajectory)`` in order, until one succeeds.
 
     Gaits on the shortcut trajectory first (fewest segments), then on the raw
-    GSn trajectory in case the shortcut is the trouble, then the edge-by-edge
-    reduction with bisection; further attempts repeat gaits on the raw
-    trajectory with new random landings.
+    GSn trajectory in case the shortcut is the trouble, both once more with
+    new random landings (a retry usually works and gives far fewer regrasps
+    than the edges), then the edge-by-edge reduction with bisection; further
+    attempts repeat gaits with new random landings.
     """
     if reduction == "edges":
         yield "edges", "gsn"
         return
-    yield "gaits", "shortcut"
-    yield "gaits", "raw"
+    yield from (("gaits", "shortcut"), ("gaits", "raw")) * 2
     if reduction == "auto":
         yield "edges", "gsn"
     while True:
+        yield "gaits", "shortcut"
         yield "gaits", "raw"
 
 
