@@ -266,6 +266,21 @@ class CollisionWorld:
                 return True
         return False
 
+    def object_clearance(self, object_pose_xyzquat: FloatArray) -> float:
+        """Distance (m) from the object at a pose to the nearest obstacle (inf without any).
+
+        Negative values are penetration depths where coal can compute them.
+        """
+        if not self.obstacle_geoms:
+            return float("inf")
+        gd, gm = self.geom_data, self.geom_model
+        gd.oMg[self.object_geom] = pose_to_se3(object_pose_xyzquat)
+        best = float("inf")
+        for g in self.obstacle_geoms:
+            k = self._pair_of[(self.object_geom, g)]
+            best = min(best, float(pin.computeDistance(gm, gd, k).min_distance))
+        return best
+
     def object_signed_distance(
         self, p_world: FloatArray, object_pose_xyzquat: FloatArray
     ) -> FloatArray:

@@ -86,3 +86,15 @@ def test_self_collision_between_fingers(paper_hand: Hand) -> None:
     rep = world.check(q, far, [False] * 4)
     assert not rep.free
     assert world.finger_of(rep.pair[0]) != world.finger_of(rep.pair[1])
+
+
+def test_object_clearance_to_obstacles(paper_hand: Hand) -> None:
+    """Exact distances: a sphere of radius 1 cm beside a 2 cm thick wall at x = 0."""
+    wall = Obstacle(Box([0.02, 0.3, 0.3]), (0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0), "wall")
+    world = CollisionWorld(paper_hand, Sphere(0.01), [wall])
+    for gap in (0.0005, 0.003, 0.02):
+        pose = np.array([0.01 + 0.01 + gap, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0])
+        assert world.object_clearance(pose) == pytest.approx(gap, abs=1e-6)
+        assert not world.object_collides(pose)
+    assert world.object_clearance(CENTRE) <= 0.0 and world.object_collides(CENTRE)
+    assert CollisionWorld(paper_hand, Sphere(0.01)).object_clearance(CENTRE) == np.inf

@@ -1,5 +1,6 @@
 """Module 1: GSn paths from OMPL planners on the paper scenario; module 2 links."""
 
+import dataclasses
 import itertools
 import time
 
@@ -10,6 +11,7 @@ from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import goal_reached, start_state
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, try_link
+from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
 from dexplan.scenario import default_scenario
 
@@ -100,3 +102,16 @@ def test_gsn_state_space_properties(scenario) -> None:
             m = problem.interpolate(a, b, t)
             assert ctx.gsn.residual(m) < 1e-4  # interpolated states stay on GSn
         np.testing.assert_allclose(problem.round_trip(a), a, atol=1e-12)
+
+
+def test_validity_keeps_the_object_clear_of_obstacles(scenario) -> None:
+    """GSn states closer than object_clearance to an obstacle are invalid (no tunnelling)."""
+    ctx = build_context(scenario, seed=6)
+    x = start_state(ctx)
+    assert x is not None and ctx.validity.is_valid(x)
+    table_top = -0.02 + 0.005  # the scenario's table: 1 cm thick at z = -0.02
+    clearance = ctx.world.object_clearance(x[:POSE_DIM])
+    assert clearance == pytest.approx(x[2] - 0.04 - table_top, abs=1e-6)
+    strict = dataclasses.replace(ctx.validity.settings, object_clearance=clearance + 1e-4)
+    verdict = GraspValidity(ctx.gsn, ctx.world, strict).check(x)
+    assert not verdict.valid and verdict.reason == "collision"

@@ -73,6 +73,8 @@ class ReductionResult:
         reached: index of the last pose reached in the dense trajectory.
         reason: failure reason, None on success.
         stats: counters (transfers, regrasps, attempts).
+        final: the failure does not depend on random choices (the object
+            trajectory itself is blocked): retrying the same trajectory is useless.
     """
 
     success: bool
@@ -80,6 +82,7 @@ class ReductionResult:
     reached: int
     reason: str | None
     stats: dict[str, int] = field(default_factory=dict)
+    final: bool = False
 
 
 def reduce_object_path(
@@ -127,6 +130,7 @@ def reduce_object_path(
                 idx,
                 f"transfer blocked: {tr.reason}",
                 _stats(trans, regrasps),
+                final=tr.reason == "object_collision",
             )
         future = poses[idx:]
         # the blocking finger first, then the others, least remaining follow first

@@ -19,6 +19,7 @@ A roadmap can be saved (``.npz``) and loaded to answer later queries
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import time
 from collections.abc import Callable, Mapping
@@ -127,6 +128,30 @@ class Roadmap:
             path.append(int(pred[path[-1]]))
         return path[::-1]
 
+    def path_states(self, ids: list[int], geodesic: Geodesic | None = None) -> FloatArray:
+        """States along a vertex path: GSn edges densified by ``geodesic``, links as they are.
+
+        Args:
+            ids: vertex indices, consecutive ones joined by an edge or a link.
+            geodesic: ``(a, b) -> (K, n)`` states of the GSn motion a -> b (ends
+                included), or None when it cannot give one; None keeps the vertices.
+
+        Returns:
+            (M, 7 + nq) states. Without densification the object would move on
+            the chord between two GSn states, which need not clear the obstacles
+            the GSn motion clears.
+        """
+        links = {tuple(sorted(pair)) for pair in self.links.tolist()}
+        out = [self.vertices[ids[0]]]
+        for a, b in itertools.pairwise(ids):
+            if geodesic is not None and tuple(sorted((a, b))) not in links:
+                states = geodesic(self.vertices[a], self.vertices[b])
+                if states is not None:
+                    out.extend(states[1:])
+                    continue
+            out.append(self.vertices[b])
+        return np.array(out)
+
     # ------------------------------------------------------------------ files
     def save(self, path: str | Path) -> None:
         """Write the roadmap to ``path`` (``.npz``), atomically."""
@@ -195,6 +220,9 @@ class GsnResult:
     stats: dict[str, Any] = field(default_factory=dict)
     message: str = ""
 
+
+Geodesic = Callable[[FloatArray, FloatArray], FloatArray | None]
+"""``(a, b) -> (K, n)`` states of the GSn motion from a to b, or None."""
 
 ROUND_ITERATIONS = 50
 """Planner iterations of a tree planner's first module-1 round (doubling per round)."""
@@ -355,7 +383,9 @@ def explore_gsn(
             continue
         # module 2: a few links from the start's component towards the goal region
         start = starts[0] if starts else roadmap.add_vertex(query.start)
-        linked = link_query(ctx, roadmap, query, start, deadline, stats, max_attempts=4)
+        linked = link_query(
+            ctx, roadmap, query, start, deadline, stats, max_attempts=4, geodesic=_geodesic(problem)
+        )
         stats["gsn_time_s"] = time.perf_counter() - t0
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
@@ -375,6 +405,16 @@ def _roadmap_path(
         return None
     checked = problem.check_path(roadmap.vertices[ids], interpolate=True)
     return np.asarray(checked.path) if checked.path_valid else None
+
+
+def _geodesic(problem: ompl_adapter.PlanningProblem) -> Geodesic:
+    """GSn motions of a roadmap's edges, re-checked in travel direction."""
+
+    def states(a: FloatArray, b: FloatArray) -> FloatArray | None:
+        checked = problem.check_path(np.stack([a, b]), interpolate=True)
+        return np.asarray(checked.path) if checked.path_valid else None
+
+    return states
 
 
 def query_roadmap(
@@ -425,12 +465,14 @@ def link_query(
     deadline: float,
     stats: dict[str, Any],
     max_attempts: int | None = None,
+    geodesic: Geodesic | None = None,
 ) -> GsnResult:
     """Module 2: join the start's component to the goal region with links, then search.
 
     Goal vertices are the roadmap vertices in the goal region, plus sampled
     goal states when there are none. Component pairs are tried nearest first
-    (object-pose distance); every successful link merges two components.
+    (object-pose distance); every successful link merges two components. The
+    path's GSn edges are densified with ``geodesic`` when given.
     """
     t0 = time.perf_counter()
     goals = [i for i, x in enumerate(roadmap.vertices) if query.goal_test(x)[0]]
@@ -482,4 +524,4 @@ def link_query(
     stats["components_after_links"] = roadmap.components()[0]
     if path_ids is None:
         return GsnResult(None, roadmap, stats, "start and goal are not connected in GSn")
-    return GsnResult(roadmap.vertices[path_ids], roadmap, stats)
+    return GsnResult(roadmap.path_states(path_ids, geodesic), roadmap, stats)
