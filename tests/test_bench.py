@@ -522,11 +522,14 @@ def test_cli_bench_spawn_backend_same_plans_and_resume(sweep, tmp_path):
 
 @needs_planning
 def test_overrunning_run_is_killed_and_recorded(tmp_path):
+    # an unsolvable query with a 600 s limit cannot end within the 0.3 s run
+    # timeout however fast the machine or the planner is: it must be killed
+    unsolvable = str(ROOT / "tests" / "data" / "unsolvable_lid.toml")
     res = run_benchmark(
-        ["paper_sphere"],
+        [unsolvable],
         "RRTConnect",
         1,
-        30.0,
+        600.0,
         out_dir=tmp_path,
         baseline=None,
         plots=False,
@@ -536,7 +539,7 @@ def test_overrunning_run_is_killed_and_recorded(tmp_path):
     assert rec["status_name"] == "killed" and rec["status"] == 7 and rec["solved"] == 0
     assert "exceeded" in rec["message"]
     again = run_benchmark(
-        ["paper_sphere"], "RRTConnect", 1, 30.0, out_dir=tmp_path, baseline=None, plots=False
+        [unsolvable], "RRTConnect", 1, 600.0, out_dir=tmp_path, baseline=None, plots=False
     )
     assert again.new_runs == 0  # a killed run is a result: resuming does not retry it
 
