@@ -359,28 +359,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``dexplan`` console script."""
+def run(argv: Sequence[str] | None = None) -> int:
+    """Run one ``dexplan`` command in this process and return its exit code.
+
+    Every error becomes one ``dexplan: error: ...`` line on stderr and exit
+    code 2 (bad input) or 3 (a bug); nothing is raised. Tests call this;
+    :func:`main` is the console script.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        code = int(args.func(args))
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help, --version or a usage error
+        return int(exc.code or 0) if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    try:
+        return int(args.func(args))
     except DexplanError as exc:
-        sys.stderr.write(f"dexplan: error: {exc}\n")
-        code = EXIT_BAD_INPUT
+        _err(f"error: {exc}")
+        return EXIT_BAD_INPUT
     except OSError as exc:  # unreadable or unwritable files
-        sys.stderr.write(f"dexplan: error: {exc}\n")
-        code = EXIT_BAD_INPUT
+        _err(f"error: {exc}")
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        sys.stderr.write("dexplan: interrupted\n")
-        code = 130
+        _err("interrupted")
+        return 130
     except Exception as exc:  # a bug: say so plainly, traceback only on request
         if args.debug:
             raise
-        sys.stderr.write(
-            f"dexplan: internal error: {type(exc).__name__}: {exc} (rerun with --debug)\n"
-        )
-        code = EXIT_INTERNAL
+        detail = str(exc)[:300]
+        _err(f"internal error: {type(exc).__name__}: {detail} (rerun with --debug)")
+        return EXIT_INTERNAL
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``dexplan`` console script."""
+    code = run(argv)
     sys.stdout.flush()
     sys.stderr.flush()
     # nanobind (ompl) reports "leaked instances" at interpreter exit; users

@@ -7,6 +7,10 @@ offending field and value.
 
 from __future__ import annotations
 
+import difflib
+import reprlib
+from collections.abc import Iterable
+
 
 class DexplanError(Exception):
     """Root of every error raised by dexplan."""
@@ -38,3 +42,42 @@ class PlanFileError(DexplanError):
 
 class DependencyError(DexplanError):
     """An optional dependency (e.g. ``rerun-sdk`` for ``viz``) is not installed."""
+
+
+# ---------------------------------------------------------------- messages
+#: Longest echo of an offending value in an error message (characters).
+MAX_ECHO = 80
+
+
+def shorten(value: object, limit: int = MAX_ECHO) -> str:
+    """``repr(value)`` cut to ``limit`` characters, cheap even for huge values.
+
+    Error messages echo the offending value; a 5M-entry list must not become a
+    25 MB line, nor take seconds to format (``reprlib`` bounds the work).
+    """
+    text = _REPR.repr(value) if isinstance(value, list | tuple | dict | set) else repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def unknown_field(prefix: str, key: str, value: object, allowed: Iterable[str]) -> str:
+    """Message for an unknown field, with a "did you mean" hint when one is close.
+
+    Args:
+        prefix: path of the table holding it (``object``, ``obstacles[1]``).
+        key: the unknown field.
+        value: its value.
+        allowed: the known fields.
+    """
+    allowed = sorted(allowed)
+    where = f"{prefix}.{key}" if prefix else str(key)
+    msg = f"unknown field {where} (= {shorten(value, 40)})"
+    close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+    if close:
+        msg += f"; did you mean {close[0]!r}?"
+    return msg + f" (allowed: {', '.join(allowed)})"
+
+
+_REPR = reprlib.Repr()
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 8
+_REPR.maxlevel = 3
+_REPR.maxstring = _REPR.maxother = MAX_ECHO

@@ -13,15 +13,10 @@ from typing import TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.exceptions import InvalidInputError, shorten
 
 FloatArray: TypeAlias = npt.NDArray[np.float64]
 IntArray: TypeAlias = npt.NDArray[np.int64]
-
-
-def _short(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def as_vector(value: object, name: str, size: int | None = None) -> FloatArray:
@@ -38,12 +33,12 @@ def as_vector(value: object, name: str, size: int | None = None) -> FloatArray:
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {_short(value)}") from exc
+        raise InvalidInputError(f"{name} must be numeric, got {shorten(value)}") from exc
     if arr.ndim != 1 or (size is not None and arr.shape[0] != size):
         want = f"({size},)" if size is not None else "a 1-D array"
         raise InvalidInputError(f"{name} must have shape {want}, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InvalidInputError(f"{name} must be finite, got {_short(arr.tolist())}")
+        raise InvalidInputError(f"{name} must be finite, got {shorten(arr.tolist())}")
     return arr
 
 
@@ -58,13 +53,13 @@ def as_points(value: object, name: str, width: int = 3) -> FloatArray:
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {_short(value)}") from exc
+        raise InvalidInputError(f"{name} must be numeric, got {shorten(value)}") from exc
     if arr.ndim == 1 and arr.shape[0] == width:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != width:
         raise InvalidInputError(f"{name} must have shape (N, {width}), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InvalidInputError(f"{name} must be finite, got {_short(arr.tolist())}")
+        raise InvalidInputError(f"{name} must be finite, got {shorten(arr.tolist())}")
     return arr
 
 
@@ -77,7 +72,7 @@ def as_positive(value: object, name: str, *, allow_zero: bool = False) -> float:
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be a number, got {_short(value)}") from exc
+        raise InvalidInputError(f"{name} must be a number, got {shorten(value)}") from exc
     if not math.isfinite(x) or x < 0.0 or (x == 0.0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InvalidInputError(f"{name} must be finite and {bound}, got {x!r}")

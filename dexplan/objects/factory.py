@@ -21,18 +21,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from dexplan.exceptions import InvalidInputError, MeshError
+from dexplan.exceptions import InvalidInputError, MeshError, shorten
 from dexplan.objects.mesh import Mesh
 from dexplan.objects.primitives import Box, Capsule, Cylinder, Sphere
 from dexplan.objects.shape import Shape
 
 #: Shape names accepted in the ``shape`` field.
 SHAPE_KINDS: tuple[str, ...] = ("sphere", "box", "capsule", "cylinder", "mesh")
-
-
-def _short(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _positive(d: Mapping[str, Any], key: str, field: str, default: float | None = None) -> float:
@@ -44,7 +39,7 @@ def _positive(d: Mapping[str, Any], key: str, field: str, default: float | None 
         raise InvalidInputError(f"{name} is missing")
     value = d[key]
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InvalidInputError(f"{name} must be a number, got {_short(value)}")
+        raise InvalidInputError(f"{name} must be a number, got {shorten(value)}")
     x = float(value)
     if not math.isfinite(x) or x <= 0.0:
         raise InvalidInputError(f"{name} must be finite and > 0, got {x!r}")
@@ -64,7 +59,7 @@ def _size(d: Mapping[str, Any], field: str) -> list[float]:
     )
     if not ok:
         raise InvalidInputError(
-            f"{name} must be 3 finite numbers > 0 (full edge lengths), got {_short(value)}"
+            f"{name} must be 3 finite numbers > 0 (full edge lengths), got {shorten(value)}"
         )
     return [float(x) for x in value]
 
@@ -72,7 +67,7 @@ def _size(d: Mapping[str, Any], field: str) -> list[float]:
 def _mesh(d: Mapping[str, Any], base_dir: Path | None, field: str) -> Mesh:
     raw = d.get("path")
     if not isinstance(raw, str) or not raw:
-        what = "is missing" if raw is None else f"must be a non-empty string, got {_short(raw)}"
+        what = "is missing" if raw is None else f"must be a non-empty string, got {shorten(raw)}"
         raise InvalidInputError(f"{field}.path {what}")
     path = Path(raw)
     if not path.is_absolute() and base_dir is not None:
@@ -80,7 +75,7 @@ def _mesh(d: Mapping[str, Any], base_dir: Path | None, field: str) -> Mesh:
     scale = _positive(d, "scale", field, default=1.0)
     expected = d.get("sha256")
     if expected is not None and not isinstance(expected, str):
-        raise InvalidInputError(f"{field}.sha256 must be a hex string, got {_short(expected)}")
+        raise InvalidInputError(f"{field}.sha256 must be a hex string, got {shorten(expected)}")
     try:
         mesh = Mesh.from_file(path, scale=scale)
     except MeshError as exc:
@@ -116,7 +111,7 @@ def shape_from_dict(
 
     """
     if not isinstance(d, Mapping):
-        raise InvalidInputError(f"{field} must be a table/dict, got {_short(d)}")
+        raise InvalidInputError(f"{field} must be a table/dict, got {shorten(d)}")
     kind = d.get("shape")
     if kind is None:
         raise InvalidInputError(
@@ -124,7 +119,7 @@ def shape_from_dict(
         )
     if kind not in SHAPE_KINDS:
         raise InvalidInputError(
-            f"{field}.shape must be one of {', '.join(SHAPE_KINDS)}, got {_short(kind)}"
+            f"{field}.shape must be one of {', '.join(SHAPE_KINDS)}, got {shorten(kind)}"
         )
     if kind == "sphere":
         return Sphere(_positive(d, "radius", field))
