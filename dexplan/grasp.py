@@ -121,6 +121,12 @@ __all__ = [
     "tangent_basis",
 ]
 
+#: Allowed number of edges of a linearized friction cone (``friction_edges`` in
+#: scenarios and plan files): fewer than 3 spans no cone, more than 64 only
+#: costs time (the round cone is approximated within 0.12%).
+MIN_FRICTION_EDGES = 3
+MAX_FRICTION_EDGES = 64
+
 #: The 12 signed unit axes ``+-e_i`` of the scaled wrench space, shape (12, 6).
 DIRECTIONS: FloatArray = np.vstack([np.eye(6), -np.eye(6)])
 
