@@ -538,9 +538,46 @@ def test_dict_round_trip(tmp_path: Path) -> None:
     assert shape_from_dict(absolute) == mesh
     # sha256 and scale are optional
     assert shape_from_dict({"shape": "mesh", "path": str(path)}).scale == 1.0
-    # extra keys (an obstacle's pose) are ignored
-    obst = {"shape": "box", "size": [1, 1, 1], "pose_xyzquat": [0, 0, 0, 0, 0, 0, 1]}
-    assert shape_from_dict(obst, field="obstacles[0]") == Box([1, 1, 1])
+    assert shape_from_dict({"shape": "box", "size": [1, 1, 1]}, field="obstacles[0]") == Box(
+        [1, 1, 1]
+    )
+
+
+@pytest.mark.parametrize(
+    ("d", "needles"),
+    [
+        ({"shape": "sphere", "radiuss": 0.05}, ["object.radiuss", "0.05", "'radius'"]),
+        ({"shape": "sphere", "raduis": 0.05}, ["object.raduis", "'radius'"]),
+        (
+            {"shape": "box", "size": [1, 1, 1], "radius": 1},
+            ["object.radius", "allowed: shape, size"],
+        ),
+        (
+            {"shape": "capsule", "radius": 1, "length": 1, "lenght": 2},
+            ["object.lenght", "'length'"],
+        ),
+        ({"shape": "mesh", "path": "x.obj", "sha": "ab"}, ["object.sha", "sha256"]),
+        # an obstacle's own keys are the caller's to strip
+        ({"shape": "box", "size": [1, 1, 1], "pose_xyzquat": [0] * 7}, ["object.pose_xyzquat"]),
+        # a typo of "shape" itself is reported as the typo
+        ({"shap": "sphere", "radius": 1}, ["object.shap", "'shape'"]),
+        ({"shape": "sphere", "radius": 1, "a\nb": 1}, ["'a\\nb'"]),
+    ],
+)
+def test_unknown_shape_fields_rejected(d: dict, needles: list[str]) -> None:
+    with pytest.raises(InvalidInputError, match="unknown field") as info:
+        shape_from_dict(d)
+    msg = str(info.value)
+    assert "\n" not in msg
+    for needle in needles:
+        assert needle in msg, (needle, msg)
+
+
+def test_mesh_sha256_field_accepted(tmp_path: Path) -> None:
+    path = tmp_path / "torus.obj"
+    path.write_bytes((BUILTIN_MESH_DIR / "torus.obj").read_bytes())
+    d = {"shape": "mesh", "path": "torus.obj", "scale": 2.0, "sha256": file_sha256(path)}
+    assert shape_from_dict(d, base_dir=tmp_path).scale == 2.0
 
 
 def test_sha256_mismatch(tmp_path: Path) -> None:
@@ -578,6 +615,13 @@ def test_mesh_from_arrays_has_no_dict(ico: Mesh) -> None:
         ({"shape": "mesh"}, r"object\.path is missing"),
         ({"shape": "mesh", "path": 3}, r"object\.path must be a non-empty string"),
         ({"shape": "mesh", "path": "x.obj", "scale": -2}, r"object\.scale must be finite"),
+        ({"shape": "mesh", "path": "x\0.obj"}, r"object\.path must be a non-empty string"),
+        (
+            {"shape": "sphere", "radius": 10**400},
+            r"object\.radius must be finite and > 0, got 1000",
+        ),
+        ({"shape": "box", "size": [1, 10**400, 1]}, r"object\.size must be 3 finite numbers"),
+        ({"shape": ["sphere"], "radius": 1.0}, r"object\.shape must be one of"),
     ],
 )
 def test_shape_from_dict_errors(d: dict, match: str) -> None:
