@@ -1,9 +1,11 @@
 """Scenario files: the hand, the object, obstacles, start, goal and planner.
 
 Scenarios are TOML, in metres and radians, poses in the world (= palm) frame
-with quaternions XYZW. Every field is validated; a wrong one raises
-:class:`~dexplan.exceptions.ScenarioError` naming the field and its value, and
-unknown fields are rejected (a typo never silently falls back to a default).
+with quaternions XYZW. Every field is validated before any model is built; a
+wrong one raises :class:`~dexplan.exceptions.ScenarioError` naming the field
+and its (shortened) value, unknown fields are rejected in every table with a
+"did you mean" hint (a typo never silently falls back to a default), and every
+size is bounded by one of the limits below (``docs/scenario_format.md``).
 The paper's experiment is embedded: :func:`default_scenario`.
 """
 
@@ -15,15 +17,44 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError
+from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError, shorten
+from dexplan.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
+from dexplan.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, check_fields, field_key
 from dexplan.typing import FloatArray
 
 DEFAULT_SCENARIO = "paper_sphere"
 SPACES = ("projected", "atlas", "tangent_bundle")
+
+# ---------------------------------------------------------------------- limits
+# Documented in docs/scenario_format.md ("Limits"); a value outside is bad input.
+MAX_SCENARIO_BYTES = 1_000_000  # a scenario file is a few hundred bytes
+MAX_POSITION = 10.0  # m: |x|, |y|, |z| of start, goal and obstacle positions
+MAX_HALF_EXTENT = 1.0  # m: workspace.half_extent per axis
+MAX_OBJECT_SIZE = 2.0  # m: object radius, length, box edge, mesh bounding diameter
+MAX_OBSTACLE_SIZE = 2.0 * MAX_POSITION  # m: the same for an obstacle
+MAX_MESH_SCALE = 1000.0  # object and obstacle mesh ``scale``
+MAX_OBSTACLES = 256  # [[obstacles]] tables
+MAX_MU = 10.0  # contact.mu (friction coefficient)
+MAX_FC_MARGIN = 1.0  # contact.fc_margin (force-closure quality; Q is a unit-force measure)
+MAX_POSITION_TOL = 1.0  # m: goal.position_tol
+MAX_ANGLE_TOL = math.pi  # rad: goal.angle_tol
+MAX_TIME_LIMIT = 86_400.0  # s: planner.time_limit (one day)
+SEED_LIMIT = 2**31  # planner.seed < SEED_LIMIT (OMPL's RNG is seeded with 31-bit values)
+MAX_JOINTS = 256  # start.q entries
+MAX_JOINT_VALUE = 1000.0  # |start.q[i]| (rad or m; joint limits are the hand's)
+MAX_FINGERS = 32  # hand.fingertip_frames entries
+MAX_FINGERTIP_RADIUS = 0.5  # m: hand.fingertip_radius
+MAX_COLLISION_EXCLUDE = 4096  # hand.collision_exclude pairs
+MAX_URDF_BYTES = 50_000_000  # hand.urdf file size
+MAX_NAME = 256  # characters of a name (scenario, obstacle, planner, frame, parameter)
+MAX_PATH = 4096  # characters of a file name (hand.urdf; mesh paths likewise)
+MAX_PLANNER_PARAMS = 64  # planner.params entries
+MAX_PARAM_INT = 2**53  # |integer planner.params value| (exact as a double, as OMPL stores it)
+MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
 
 
 @dataclass(frozen=True)
@@ -100,205 +131,420 @@ class Scenario:
 
 
 # ---------------------------------------------------------------- field checks
+def _fail(msg: str) -> NoReturn:
+    raise ScenarioError(msg)
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    """``text`` on one line, at most ``limit`` characters (foreign error texts)."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _only(table: Mapping[str, Any], prefix: str, allowed: set[str] | frozenset[str]) -> None:
+    try:
+        check_fields(table, prefix, allowed)
+    except InvalidInputError as exc:
+        raise ScenarioError(str(exc)) from exc
+
+
+def _where(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key
+
+
 def _table(doc: Mapping[str, Any], key: str, required: bool = True) -> Mapping[str, Any]:
     if key not in doc:
         if required:
-            raise ScenarioError(f"missing table [{key}]")
+            _fail(f"missing table [{key}]")
         return {}
     val = doc[key]
     if not isinstance(val, Mapping):
-        raise ScenarioError(f"{key} must be a table, got {val!r}")
+        _fail(f"{key} must be a table, got {shorten(val)}")
     return val
 
 
-def _only(table: Mapping[str, Any], prefix: str, allowed: set[str]) -> None:
-    extra = sorted(set(table) - allowed)
-    if extra:
-        raise ScenarioError(
-            f"unknown field {prefix}.{extra[0]} (= {table[extra[0]]!r}); allowed: {sorted(allowed)}"
-        )
+def _as_float(val: object) -> float | None:
+    """A TOML number as a float (huge ints become +-inf); None for anything else."""
+    if isinstance(val, bool) or not isinstance(val, int | float):
+        return None
+    try:
+        return float(val)
+    except OverflowError:
+        return math.inf if val > 0 else -math.inf
 
 
 def _number(
     table: Mapping[str, Any],
     key: str,
     prefix: str,
-    default: Any = None,
+    default: float | None = None,
     *,
-    lo: float | None = None,
+    lo: float,
+    hi: float,
     lo_open: bool = False,
 ) -> float:
+    """A finite number in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
+    name = _where(prefix, key)
     if key not in table:
         if default is None:
-            raise ScenarioError(f"missing field {prefix}.{key}")
+            _fail(f"missing field {name}")
         return float(default)
     val = table[key]
-    if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
-        raise ScenarioError(f"{prefix}.{key} must be a finite number, got {val!r}")
-    if lo is not None and (val < lo or (lo_open and val == lo)):
-        op = ">" if lo_open else ">="
-        raise ScenarioError(f"{prefix}.{key} must be {op} {lo}, got {val!r}")
-    return float(val)
+    x = _as_float(val)
+    if x is None or not math.isfinite(x):
+        _fail(f"{name} must be a finite number, got {shorten(val)}")
+    if x < lo or (lo_open and x == lo) or x > hi:
+        _fail(f"{name} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {shorten(val)}")
+    return x
 
 
-def _vector(table: Mapping[str, Any], key: str, prefix: str, size: int | None) -> FloatArray:
+def _integer(
+    table: Mapping[str, Any], key: str, prefix: str, default: int, *, lo: int, hi: int
+) -> int:
+    """An integer in ``[lo, hi]``."""
+    name = _where(prefix, key)
+    val = table.get(key, default)
+    if isinstance(val, bool) or not isinstance(val, int):
+        _fail(f"{name} must be an integer in [{lo}, {hi}], got {shorten(val)}")
+    if not lo <= val <= hi:
+        _fail(f"{name} must be an integer in [{lo}, {hi}], got {shorten(val)}")
+    return val
+
+
+def _string(table: Mapping[str, Any], key: str, prefix: str, default: str | None = None) -> str:
+    """A non-empty string of at most :data:`MAX_NAME` printable characters."""
+    name = _where(prefix, key)
     if key not in table:
-        raise ScenarioError(f"missing field {prefix}.{key}")
+        if default is None:
+            _fail(f"missing field {name}")
+        return default
     val = table[key]
-    ok = isinstance(val, list) and all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in val
-    )
-    if not ok or (size is not None and len(val) != size):
-        want = f"a list of {size} numbers" if size else "a list of numbers"
-        raise ScenarioError(f"{prefix}.{key} must be {want}, got {val!r}")
-    arr = np.asarray(val, dtype=float)
+    if not isinstance(val, str) or not val or len(val) > MAX_NAME or not val.isprintable():
+        _fail(
+            f"{name} must be a non-empty string of at most {MAX_NAME} printable characters, "
+            f"got {shorten(val)}"
+        )
+    return val
+
+
+def _vector(
+    table: Mapping[str, Any],
+    key: str,
+    prefix: str,
+    size: int | None,
+    *,
+    max_len: int | None = None,
+    max_abs: float | None = None,
+) -> FloatArray:
+    """A list of ``size`` (or 1 to ``max_len``) finite numbers, each ``|x| <= max_abs``."""
+    name = _where(prefix, key)
+    if key not in table:
+        _fail(f"missing field {name}")
+    val = table[key]
+    want = f"a list of {size} numbers" if size else f"a list of 1 to {max_len} numbers"
+    if not isinstance(val, list):
+        _fail(f"{name} must be {want}, got {shorten(val)}")
+    if (size is not None and len(val) != size) or (
+        max_len is not None and not 1 <= len(val) <= max_len
+    ):
+        _fail(f"{name} must be {want}, got {len(val)} entries: {shorten(val)}")
+    xs = [_as_float(v) for v in val]
+    if any(x is None for x in xs):
+        _fail(f"{name} must be {want}, got {shorten(val)}")
+    arr = np.array(xs, dtype=float)
     if not np.all(np.isfinite(arr)):
-        raise ScenarioError(f"{prefix}.{key} must be finite, got {val!r}")
+        _fail(f"{name} must be finite, got {shorten(val)}")
+    if max_abs is not None and np.any(np.abs(arr) > max_abs):
+        _fail(f"{name} entries must be within +-{max_abs:g}, got {shorten(val)}")
     return arr
 
 
 def _pose(table: Mapping[str, Any], key: str, prefix: str) -> FloatArray:
+    """``[x, y, z, qx, qy, qz, qw]``: position within :data:`MAX_POSITION`, unit quaternion."""
+    name = _where(prefix, key)
     pose = _vector(table, key, prefix, 7)
-    norm = float(np.linalg.norm(pose[3:]))
-    if abs(norm - 1.0) > 1e-3:
-        raise ScenarioError(
-            f"{prefix}.{key} quaternion (XYZW) must have unit norm, got norm {norm:.6g}"
+    if np.any(np.abs(pose[:3]) > MAX_POSITION):
+        _fail(
+            f"{name} position must be within +-{MAX_POSITION:g} m per axis, "
+            f"got {shorten(table[key][:3])}"
         )
+    norm = float(np.linalg.norm(pose[3:]))
+    if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
+        _fail(f"{name} quaternion (XYZW) must have unit norm, got norm {norm:.6g}")
     pose[3:] /= norm
     return pose
 
 
-def _shape_fields(table: Mapping[str, Any], prefix: str, base_dir: Path) -> dict[str, Any]:
+def _file(table: Mapping[str, Any], key: str, prefix: str, base_dir: Path) -> Path:
+    """An existing regular file named by a string field, resolved against ``base_dir``."""
+    name = _where(prefix, key)
+    raw = table[key]
+    if not isinstance(raw, str) or not raw or "\0" in raw or len(raw) > MAX_PATH:
+        _fail(
+            f"{name} must be a file name (a non-empty string of at most {MAX_PATH} "
+            f"characters, no NUL), got {shorten(raw)}"
+        )
+    try:
+        path = (base_dir / raw).resolve()
+        ok = path.is_file()
+    except (OSError, ValueError, RuntimeError) as exc:  # name too long, symlink loop
+        _fail(f"{name}: cannot use {shorten(raw)}: {_one_line(str(exc), 120)}")
+    if not ok:
+        _fail(f"{name} file not found: {shorten(str(path))}")
+    return path
+
+
+def _text_file(path: Path, name: str, max_bytes: int) -> None:
+    """Check that ``path`` is a readable UTF-8 text file of at most ``max_bytes`` bytes."""
+    try:
+        size = path.stat().st_size
+        if size > max_bytes:
+            _fail(f"{name} file is {size} bytes, more than {max_bytes}: {shorten(str(path))}")
+        data = path.read_bytes()
+    except OSError as exc:
+        _fail(f"{name}: cannot read {shorten(str(path))}: {_one_line(exc.strerror or str(exc))}")
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        _fail(
+            f"{name} is not a UTF-8 text file ({shorten(str(path))}): byte {exc.start} is invalid"
+        )
+    if b"\0" in data:
+        _fail(f"{name} is not a text file (it contains NUL bytes): {shorten(str(path))}")
+
+
+def _shape_fields(
+    table: Mapping[str, Any],
+    prefix: str,
+    base_dir: Path,
+    *,
+    own: frozenset[str] = frozenset(),
+    max_size: float,
+) -> dict[str, Any]:
+    """The shape fields of ``table`` (its ``own`` fields removed), checked and bounded.
+
+    Unknown fields are rejected against the shape kind's fields plus ``own``,
+    so the hint and the allowed list are those of this table.
+    """
     from dexplan.objects import shape_from_dict
 
-    shape = dict(table)
-    shape.pop("pose_xyzquat", None)
-    shape.pop("name", None)
+    kind = table.get("shape")
+    known = isinstance(kind, str) and kind in SHAPE_KINDS
+    allowed = SHAPE_FIELDS[kind] if known else frozenset().union(*SHAPE_FIELDS.values())
+    _only(table, prefix, allowed | own)
+    shape = {k: v for k, v in table.items() if k not in own}
+    scale = shape.get("scale")
+    if kind == "mesh" and (x := _as_float(scale)) is not None and x > MAX_MESH_SCALE:
+        _fail(f"{prefix}.scale must be <= {MAX_MESH_SCALE:g}, got {shorten(scale)}")
     try:
-        shape_from_dict(shape, base_dir)
+        built = shape_from_dict(shape, base_dir, field=prefix)
     except DexplanError as exc:
-        raise ScenarioError(f"{prefix}: {exc}") from exc
+        raise ScenarioError(_one_line(str(exc))) from exc
+    for key in ("radius", "length"):
+        if key in shape and shape[key] > max_size:
+            _fail(f"{prefix}.{key} must be <= {max_size:g} m, got {shorten(shape[key])}")
+    if "size" in shape and max(shape["size"]) > max_size:
+        _fail(f"{prefix}.size edges must be <= {max_size:g} m, got {shorten(shape['size'])}")
+    if kind == "mesh" and not 2.0 * built.bounding_radius <= max_size:
+        _fail(
+            f"{prefix}: the mesh is {2.0 * built.bounding_radius:.3g} m across (bounding "
+            f"sphere, scale {shorten(scale if scale is not None else 1.0)}), more than "
+            f"{max_size:g} m"
+        )
     return shape
+
+
+def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
+    urdf_fields = {"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"}
+    if "urdf" not in h:
+        for key, val in h.items():
+            if key in urdf_fields:
+                _fail(
+                    f"hand.{key} (= {shorten(val, 40)}) is only used with hand.urdf; "
+                    "a builtin hand defines its own"
+                )
+        _only(h, "hand", {"builtin"})
+        builtin = h.get("builtin", "paper")
+        if builtin not in ("paper", "allegro"):
+            _fail(f"hand.builtin must be 'paper' or 'allegro', got {shorten(builtin)}")
+        return HandSpec(builtin=builtin)
+    if "builtin" in h:
+        _fail(
+            f"hand.builtin (= {shorten(h['builtin'], 40)}) and hand.urdf "
+            f"(= {shorten(h['urdf'], 40)}) exclude each other: give one"
+        )
+    _only(h, "hand", urdf_fields)
+    if "fingertip_frames" not in h:
+        _fail("missing field hand.fingertip_frames (the URDF frames of the fingertip centres)")
+    frames = h["fingertip_frames"]
+    if not (
+        isinstance(frames, list)
+        and 1 <= len(frames) <= MAX_FINGERS
+        and all(isinstance(f, str) and f and len(f) <= MAX_NAME for f in frames)
+    ):
+        _fail(
+            f"hand.fingertip_frames must be a list of 1 to {MAX_FINGERS} frame names, "
+            f"got {shorten(frames)}"
+        )
+    excl = h.get("collision_exclude", [])
+    if not (
+        isinstance(excl, list)
+        and len(excl) <= MAX_COLLISION_EXCLUDE
+        and all(
+            isinstance(p, list)
+            and len(p) == 2
+            and all(isinstance(x, str) and x and len(x) <= MAX_NAME for x in p)
+            for p in excl
+        )
+    ):
+        _fail(
+            f"hand.collision_exclude must be a list of at most {MAX_COLLISION_EXCLUDE} "
+            f"[link, link] pairs, got {shorten(excl)}"
+        )
+    urdf = _file(h, "urdf", "hand", base_dir)
+    _text_file(urdf, "hand.urdf", MAX_URDF_BYTES)
+    return HandSpec(
+        builtin=None,
+        urdf=urdf,
+        fingertip_frames=tuple(frames),
+        fingertip_radius=_number(
+            h, "fingertip_radius", "hand", lo=0.0, lo_open=True, hi=MAX_FINGERTIP_RADIUS
+        ),
+        collision_exclude=tuple((a, b) for a, b in excl),
+    )
+
+
+def _params(p: Mapping[str, Any]) -> dict[str, Any]:
+    """``planner.params``: up to :data:`MAX_PLANNER_PARAMS` scalar values by name."""
+    params = p.get("params", {})
+    if not isinstance(params, Mapping):
+        _fail(f"planner.params must be a table, got {shorten(params)}")
+    if len(params) > MAX_PLANNER_PARAMS:
+        _fail(f"planner.params has {len(params)} entries, more than {MAX_PLANNER_PARAMS}")
+    for key, val in params.items():
+        name = f"planner.params.{field_key(key)}"
+        if not key or len(key) > MAX_NAME or not key.isprintable():
+            _fail(f"{name}: parameter names must be 1 to {MAX_NAME} printable characters")
+        if isinstance(val, bool):
+            continue
+        if isinstance(val, int):
+            if abs(val) > MAX_PARAM_INT:
+                _fail(f"{name} must be an integer within +-2**53, got {shorten(val)}")
+        elif isinstance(val, float):
+            if not math.isfinite(val) or abs(val) > MAX_PARAM_FLOAT:
+                _fail(
+                    f"{name} must be a finite number within +-{MAX_PARAM_FLOAT:g}, "
+                    f"got {shorten(val)}"
+                )
+        elif isinstance(val, str):
+            if len(val) > MAX_NAME or not val.isprintable():
+                _fail(
+                    f"{name} must be a string of at most {MAX_NAME} printable characters, "
+                    f"got {shorten(val)}"
+                )
+        else:
+            _fail(f"{name} must be a boolean, number or string, got {shorten(val)}")
+    return dict(params)
 
 
 # ---------------------------------------------------------------------- loading
 def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario") -> Scenario:
     """Validate a parsed TOML document and build a :class:`Scenario`.
 
+    Only the scenario's own files are opened (the URDF, meshes); no model is
+    built, so a bad field fails in milliseconds.
+
     Raises:
-        ScenarioError: a missing, malformed or unknown field.
+        ScenarioError: a missing, malformed, out-of-range or unknown field.
     """
     _only(
         doc,
-        "scenario",
+        "",
         {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner", "workspace"},
     )
-    scen_name = doc.get("name", name)
-    if not isinstance(scen_name, str):
-        raise ScenarioError(f"name must be a string, got {scen_name!r}")
+    scen_name = _string(doc, "name", "", default=name[:MAX_NAME] or "scenario")
 
-    h = _table(doc, "hand", required=False) or {"builtin": "paper"}
-    _only(
-        h, "hand", {"builtin", "urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"}
-    )
-    if "urdf" in h:
-        frames = h.get("fingertip_frames")
-        if not isinstance(frames, list) or not all(isinstance(f, str) for f in frames):
-            raise ScenarioError(f"hand.fingertip_frames must be a list of names, got {frames!r}")
-        urdf = (base_dir / str(h["urdf"])).resolve()
-        if not urdf.is_file():
-            raise ScenarioError(f"hand.urdf file not found: {str(urdf)!r}")
-        excl = h.get("collision_exclude", [])
-        if not isinstance(excl, list) or not all(
-            isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p) for p in excl
-        ):
-            raise ScenarioError(
-                f"hand.collision_exclude must be a list of [link, link] pairs, got {excl!r}"
-            )
-        hand = HandSpec(
-            builtin=None,
-            urdf=urdf,
-            fingertip_frames=tuple(frames),
-            fingertip_radius=_number(h, "fingertip_radius", "hand", lo=0.0, lo_open=True),
-            collision_exclude=tuple((a, b) for a, b in excl),
-        )
-    else:
-        builtin = h.get("builtin", "paper")
-        if builtin not in ("paper", "allegro"):
-            raise ScenarioError(f"hand.builtin must be 'paper' or 'allegro', got {builtin!r}")
-        hand = HandSpec(builtin=builtin)
+    hand = _hand(_table(doc, "hand", required=False) or {"builtin": "paper"}, base_dir)
 
-    obj = _shape_fields(_table(doc, "object"), "object", base_dir)
+    obj = _shape_fields(_table(doc, "object"), "object", base_dir, max_size=MAX_OBJECT_SIZE)
 
     c = _table(doc, "contact", required=False)
     _only(c, "contact", {"mu", "friction_edges", "fc_margin"})
-    mu = _number(c, "mu", "contact", 0.8, lo=0.0)
-    edges = c.get("friction_edges", 8)
-    if isinstance(edges, bool) or not isinstance(edges, int) or edges < 3:
-        raise ScenarioError(f"contact.friction_edges must be an integer >= 3, got {edges!r}")
-    fc_margin = _number(c, "fc_margin", "contact", 0.005, lo=0.0)
+    mu = _number(c, "mu", "contact", 0.8, lo=0.0, hi=MAX_MU)
+    edges = _integer(
+        c, "friction_edges", "contact", 8, lo=MIN_FRICTION_EDGES, hi=MAX_FRICTION_EDGES
+    )
+    fc_margin = _number(c, "fc_margin", "contact", 0.005, lo=0.0, hi=MAX_FC_MARGIN)
 
     obstacles_raw = doc.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
-        raise ScenarioError(f"obstacles must be an array of tables, got {obstacles_raw!r}")
+        _fail(f"obstacles must be an array of tables, got {shorten(obstacles_raw)}")
+    if len(obstacles_raw) > MAX_OBSTACLES:
+        _fail(f"obstacles has {len(obstacles_raw)} entries, more than {MAX_OBSTACLES}")
     obstacles = []
     for k, ob in enumerate(obstacles_raw):
         prefix = f"obstacles[{k}]"
         if not isinstance(ob, Mapping):
-            raise ScenarioError(f"{prefix} must be a table, got {ob!r}")
-        shape = _shape_fields(ob, prefix, base_dir)
+            _fail(f"{prefix} must be a table, got {shorten(ob)}")
+        shape = _shape_fields(
+            ob,
+            prefix,
+            base_dir,
+            own=frozenset({"name", "pose_xyzquat"}),
+            max_size=MAX_OBSTACLE_SIZE,
+        )
         shape["pose_xyzquat"] = _pose(ob, "pose_xyzquat", prefix).tolist()
-        shape["name"] = str(ob.get("name", f"obstacle{k}"))
+        shape["name"] = _string(ob, "name", prefix, default=f"obstacle{k}")
         obstacles.append(shape)
 
     s = _table(doc, "start")
     _only(s, "start", {"object_pose_xyzquat", "q"})
     start = StartSpec(
         _pose(s, "object_pose_xyzquat", "start"),
-        _vector(s, "q", "start", None) if "q" in s else None,
+        _vector(s, "q", "start", None, max_len=MAX_JOINTS, max_abs=MAX_JOINT_VALUE)
+        if "q" in s
+        else None,
     )
     g = _table(doc, "goal")
     _only(g, "goal", {"object_pose_xyzquat", "position_tol", "angle_tol"})
     goal = GoalSpec(
         _pose(g, "object_pose_xyzquat", "goal"),
-        _number(g, "position_tol", "goal", 0.005, lo=0.0, lo_open=True),
-        _number(g, "angle_tol", "goal", 0.05, lo=0.0, lo_open=True),
+        _number(g, "position_tol", "goal", 0.005, lo=0.0, lo_open=True, hi=MAX_POSITION_TOL),
+        _number(g, "angle_tol", "goal", 0.05, lo=0.0, lo_open=True, hi=MAX_ANGLE_TOL),
     )
 
     p = _table(doc, "planner", required=False)
     _only(p, "planner", {"name", "time_limit", "seed", "params", "space"})
-    pname = p.get("name", "PRM")
-    if not isinstance(pname, str):
-        raise ScenarioError(f"planner.name must be a string, got {pname!r}")
-    seed = p.get("seed", 1)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ScenarioError(f"planner.seed must be a non-negative integer, got {seed!r}")
-    params = p.get("params", {})
-    if not isinstance(params, Mapping):
-        raise ScenarioError(f"planner.params must be a table, got {params!r}")
     space = p.get("space", "projected")
     if space not in SPACES:
-        raise ScenarioError(f"planner.space must be one of {list(SPACES)}, got {space!r}")
+        _fail(f"planner.space must be one of {', '.join(SPACES)}, got {shorten(space)}")
     planner = PlannerSpec(
-        name=pname,
-        time_limit=_number(p, "time_limit", "planner", 30.0, lo=0.0, lo_open=True),
-        seed=seed,
-        params=dict(params),
+        name=_string(p, "name", "planner", default="PRM"),
+        time_limit=_number(
+            p, "time_limit", "planner", 30.0, lo=0.0, lo_open=True, hi=MAX_TIME_LIMIT
+        ),
+        seed=_integer(p, "seed", "planner", 1, lo=0, hi=SEED_LIMIT - 1),
+        params=_params(p),
         space=space,
     )
 
     w = _table(doc, "workspace", required=False)
     _only(w, "workspace", {"half_extent"})
-    half = _vector(w, "half_extent", "workspace", 3) if "half_extent" in w else np.full(3, 0.02)
-    if np.any(half < 0):
-        raise ScenarioError(f"workspace.half_extent must be >= 0, got {half.tolist()}")
+    half = np.full(3, 0.02)
+    if "half_extent" in w:
+        half = _vector(w, "half_extent", "workspace", 3)
+        if np.any(half < 0) or np.any(half > MAX_HALF_EXTENT):
+            _fail(
+                f"workspace.half_extent entries must be in [0, {MAX_HALF_EXTENT:g}] m, "
+                f"got {shorten(w['half_extent'])}"
+            )
 
     return Scenario(
         name=scen_name,
         hand=hand,
         object=obj,
         mu=mu,
-        friction_edges=int(edges),
+        friction_edges=edges,
         obstacles=tuple(obstacles),
         start=start,
         goal=goal,
@@ -313,19 +559,37 @@ def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario TOML file.
 
     Raises:
-        ScenarioError: missing file, TOML syntax error or an invalid field.
+        ScenarioError: missing, oversized or unreadable file, TOML syntax error
+            (including arrays or tables nested too deeply for the parser) or an
+            invalid field.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(f"scenario file not found: {str(path)!r}")
+    where = shorten(str(path))
     try:
-        doc = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from exc
+        if not path.is_file():
+            _fail(f"scenario file not found: {where}")
+        size = path.stat().st_size
+        if size > MAX_SCENARIO_BYTES:
+            _fail(f"scenario file {where} is {size} bytes, more than {MAX_SCENARIO_BYTES}")
+        data = path.read_bytes()
+    except (OSError, ValueError) as exc:  # unreadable, name too long, NUL in the name
+        raise ScenarioError(
+            f"cannot read scenario file {where}: {_one_line(str(exc), 120)}"
+        ) from exc
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            f"{where}: not valid TOML: not UTF-8 text (byte {exc.start} is invalid)"
+        ) from exc
+    except RecursionError as exc:
+        raise ScenarioError(f"{where}: not valid TOML: arrays or tables nested too deeply") from exc
+    except ValueError as exc:  # TOMLDecodeError, or an integer with too many digits
+        raise ScenarioError(f"{where}: not valid TOML: {_one_line(str(exc), 200)}") from exc
     try:
         return parse_scenario(doc, path.resolve().parent, path.stem)
     except InvalidInputError as exc:
-        raise ScenarioError(f"{path}: {exc}") from exc
+        raise ScenarioError(f"{where}: {_one_line(str(exc))}") from exc
 
 
 def builtin_scenario_path(name: str = DEFAULT_SCENARIO) -> Path:
