@@ -93,7 +93,7 @@ def test_bad_models_raise_typed_errors(hand: Hand, tmp_path) -> None:
         Hand(hand.urdf_xml, ["f0_tip", "nope"], 0.012)
     with pytest.raises(ModelError):
         Hand("<robot name='x'><link name='a'/>", ["a", "b"], 0.012)
-    with pytest.raises(InvalidInputError, match="fingertip_radius"):
+    with pytest.raises(ModelError, match="fingertip_radius"):
         Hand(hand.urdf_xml, ["f0_tip", "f1_tip"], -1.0)
     with pytest.raises(ModelError, match="not found"):
         Hand.from_urdf_file(tmp_path / "missing.urdf", ["a", "b"], 0.01)
