@@ -183,7 +183,7 @@ class Hand:
                 raise ModelError(f"fingertip frame {tip!r} shares joints with another finger")
             used.update(chain)
             finger_q_index.append(np.array(chain, dtype=np.int64))
-            _check_finger_geometry(self.model, self.geom_model, fid, name)
+            _check_finger_geometry(self.model, self.geom_model, fid, self.fingertip_radius, name)
         self.finger_q_index: tuple[IntArray, ...] = tuple(finger_q_index)
         self.neutral: FloatArray = np.clip(pin.neutral(self.model), self.lower, self.upper)
         self._analytic_ik: list[_PlanarFingerIK | None] = [
@@ -732,7 +732,7 @@ def _parse_urdf(text: str, name: str) -> _UrdfDescription:
         raise ModelError(f"hand {name!r}: malformed URDF XML: {exc}") from None
     if root.tag != "robot":
         raise ModelError(
-            f"hand {name!r}: the URDF's root element must be <robot>, got <{shorten(root.tag, 40)}>"
+            f"hand {name!r}: the URDF's root element must be <robot>, got <{root.tag[:40]}>"
         )
     for joint in root.findall("joint"):
         _check_joint_xml(joint, name)
@@ -751,7 +751,7 @@ def _parse_urdf(text: str, name: str) -> _UrdfDescription:
             elif shape.tag == "mesh":
                 entries.append(f"<mesh filename={shorten(shape.get('filename'))}>")
             else:
-                entries.append(f"<{shorten(shape.tag, 40)}>")
+                entries.append(f"<{shape.tag[:40]}>")
         for visual in link.findall("visual"):  # never loaded; may hold capsules too
             link.remove(visual)
         desc.collisions[lname] = entries
@@ -850,31 +850,65 @@ def _zero_length_body(model: pin.Model, jid: int) -> bool:
 
 
 def _check_finger_geometry(
-    model: pin.Model, geom: pin.GeometryModel, tip_frame: int, name: str
+    model: pin.Model, geom: pin.GeometryModel, tip_frame: int, tip_radius: float, name: str
 ) -> None:
-    """Every moving body of a finger carries collision geometry.
+    """Every link of a finger carries collision geometry, and so does its fingertip.
 
-    The body holding the fingertip always needs some; a body further up may go
-    without only when it has zero length (its child joints sit at its own
-    joint's origin, as between the two joints of a universal knuckle).
+    Rules: the child link of every joint of the finger's chain has a collision
+    element of its own, except a zero-length link (its child joints sit at its
+    joint's origin, as between the two joints of a universal knuckle) that
+    does not hold the fingertip; and some collision geometry moved by the
+    fingertip's joint comes within ``tip_radius`` of the fingertip centre
+    (the fingertip sphere, or a link that covers it).
 
     Raises:
-        ModelError: naming the first link without geometry.
+        ModelError: naming the first link without geometry, or the fingertip frame.
     """
-    with_geometry = {go.parentJoint for go in geom.geometryObjects}
-    jid = model.frames[tip_frame].parentJoint
+    frames = model.frames
+    tip = frames[tip_frame].name
+    own = {go.parentFrame for go in geom.geometryObjects}
+    jid = frames[tip_frame].parentJoint
     distal = True
     while jid > 0:
-        if jid not in with_geometry and (distal or not _zero_length_body(model, jid)):
-            bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
-            link = next((f.name for f in bodies if f.parentJoint == jid), model.names[jid])
+        link_id = next(
+            (
+                i
+                for i, f in enumerate(frames)
+                if f.type == pin.FrameType.BODY and f.parentJoint == jid
+            ),
+            None,
+        )
+        if (
+            link_id is not None
+            and link_id not in own
+            and (distal or not _zero_length_body(model, jid))
+        ):
             raise ModelError(
-                f"hand {name!r}: link {link!r} (moved by joint {model.names[jid]!r}, finger "
-                f"{model.frames[tip_frame].name!r}) has no collision geometry; every finger "
-                "link needs a <collision> element"
+                f"hand {name!r}: link {frames[link_id].name!r} (moved by joint "
+                f"{model.names[jid]!r}, finger {tip!r}) has no collision geometry; every "
+                "finger link needs a <collision> element"
             )
         distal = False
         jid = model.parents[jid]
+
+    tip_joint = frames[tip_frame].parentJoint
+    centre = frames[tip_frame].placement
+    probe = coal.Sphere(tip_radius)
+    probe_tf = coal.Transform3s(centre.rotation, centre.translation)
+    for go in geom.geometryObjects:
+        if go.parentJoint != tip_joint:
+            continue
+        tf = coal.Transform3s(go.placement.rotation, go.placement.translation)
+        d = coal.distance(
+            go.geometry, tf, probe, probe_tf, coal.DistanceRequest(), coal.DistanceResult()
+        )
+        if d <= 1e-9:
+            return
+    raise ModelError(
+        f"hand {name!r}: fingertip {tip!r} has no collision geometry: nothing that moves with it "
+        f"comes within fingertip_radius={tip_radius!r} m of the fingertip centre (add a "
+        "<sphere> collision element centred on the fingertip frame)"
+    )
 
 
 def _collision_exclude(pairs: object, links: set[str], name: str) -> tuple[tuple[str, str], ...]:
