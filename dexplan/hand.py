@@ -800,9 +800,15 @@ def _build_models(
         except (RuntimeError, ValueError) as exc:
             failure = exc
     if failure is not None:
-        raise ModelError(
-            f"cannot build collision model of hand {name!r}: {err.first_line() or failure}"
-        ) from failure
+        detail = err.first_line() or " ".join(str(failure).split())
+        if any(
+            e.startswith("<mesh")
+            for es in desc.collisions.values()
+            for e in es
+            if isinstance(e, str)
+        ):
+            detail += f" (package_dirs: {shorten([str(p) for p in package_dirs], 120)})"
+        raise ModelError(f"cannot build collision model of hand {name!r}: {detail}") from failure
     notes = notes or err.first_line()
 
     loaded: dict[str, list[pin.GeometryObject]] = {}
