@@ -40,6 +40,10 @@ class PlanFileError(DexplanError):
     """A plan file cannot be read or does not follow the ``dexplan-plan/1`` format."""
 
 
+class RoadmapFileError(PlanFileError):
+    """A roadmap file cannot be read or does not follow the ``dexplan-roadmap/1`` format."""
+
+
 class DependencyError(DexplanError):
     """An optional dependency (e.g. ``rerun-sdk`` for ``viz``) is not installed."""
 
