@@ -10,6 +10,12 @@ plan.
 models (Pinocchio hand, object, coal world, force closure) but shares no code
 path with the planner: every rule of DESIGN.md is checked again and each
 violation names the segment, the waypoint and the rule.
+
+Every document is first checked for structure by
+:func:`dexplan.plan_schema.validate_plan` (:func:`read_plan` and
+:func:`verify_plan` both call it): a malformed plan is a
+:class:`~dexplan.exceptions.PlanFileError` naming the field, never a violation,
+a crash or a silent pass.
 """
 
 from __future__ import annotations
@@ -25,11 +31,24 @@ from typing import Any
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError
+from dexplan import plan_schema
+from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, shorten
 from dexplan.files import atomic_output
+from dexplan.plan_schema import FORMAT, validate_plan
 from dexplan.planning.path import Segment, Waypoint
 
-FORMAT = "dexplan-plan/1"
+__all__ = [
+    "FORMAT",
+    "VerifyReport",
+    "Violation",
+    "build_plan_document",
+    "hand_from_plan",
+    "read_plan",
+    "segments_from_dicts",
+    "validate_plan",
+    "verify_plan",
+    "write_plan",
+]
 
 #: Verification tolerances (DESIGN.md).
 TIP_DISTANCE_TOL = 1e-3  # |fingertip distance to surface - r| (m)
@@ -39,6 +58,8 @@ MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
 CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
 STILL_TOL = 1e-9  # "does not move" (m, rad)
 FC_MIN = 0.0  # force-closure quality must exceed this
+GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
+GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
 
 
 # ------------------------------------------------------------------ writing
@@ -61,7 +82,7 @@ def segment_to_dict(s: Segment) -> dict[str, Any]:
 
 
 def segments_from_dicts(items: Sequence[Mapping[str, Any]]) -> tuple[Segment, ...]:
-    """Segments from their JSON form (shapes are checked by :func:`verify_plan`)."""
+    """Segments from their JSON form (of a document :func:`validate_plan` accepted)."""
     out = []
     for s in items:
         wps = tuple(
@@ -94,23 +115,76 @@ def write_plan(path: str | Path, doc: Mapping[str, Any]) -> None:
         raise PlanFileError(f"cannot write plan to {str(path)!r}: {exc}") from exc
 
 
-def read_plan(path: str | Path) -> dict[str, Any]:
-    """Read a plan file and check its format tag.
+def read_plan(path: str | Path, base_dir: str | Path | None = None) -> dict[str, Any]:
+    """Read a plan file and check its structure (:func:`validate_plan`).
+
+    Args:
+        path: the plan file.
+        base_dir: folder relative mesh paths resolve against (default: the
+            plan file's folder).
 
     Raises:
-        PlanFileError: missing file, invalid JSON or wrong format.
+        PlanFileError: missing or oversized file
+            (:data:`~dexplan.plan_schema.MAX_PLAN_BYTES`),
+            invalid or too deeply nested JSON, or a malformed plan (the message
+            names the field).
     """
     path = Path(path)
     if not path.is_file():
         raise PlanFileError(f"plan file not found: {str(path)!r}")
+    size = path.stat().st_size
+    if size > plan_schema.MAX_PLAN_BYTES:
+        limit = plan_schema.MAX_PLAN_BYTES
+        raise PlanFileError(f"{path}: {size} bytes, more than a plan may have ({limit})")
     try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PlanFileError(f"{path}: not valid JSON: {exc}") from exc
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
-        raise PlanFileError(f"{path}: format must be {FORMAT!r}, got {got!r}")
+        doc = json.loads(path.read_bytes())
+    except RecursionError as exc:
+        raise PlanFileError(f"{path}: not valid JSON: nested too deeply") from exc
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError, a 5000-digit int
+        raise PlanFileError(f"{path}: not valid JSON: {_clip(str(exc))}") from exc
+    try:
+        validate_plan(doc, path.resolve().parent if base_dir is None else base_dir)
+    except PlanFileError as exc:
+        raise PlanFileError(f"{path}: {exc}") from exc
     return doc
+
+
+def _clip(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters (a foreign message in a one-line error)."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Any:
+    """The :class:`~dexplan.hand.Hand` of a validated plan's ``hand`` table.
+
+    Args:
+        h: the ``hand`` table.
+        package_dirs: folders ``package://`` mesh URIs resolve against.
+
+    Raises:
+        PlanFileError: the URDF text does not build a hand with these
+            fingertip frames, or its joints are not ``hand.joint_names``.
+    """
+    from dexplan.hand import Hand
+
+    try:
+        hand = Hand(
+            h["urdf_xml"],
+            h["fingertip_frames"],
+            h["fingertip_radius"],
+            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
+            name="plan hand",
+            package_dirs=package_dirs,
+        )
+    except DexplanError as exc:
+        raise PlanFileError(f"hand: {_clip(str(exc))}") from exc
+    if list(hand.joint_names) != list(h["joint_names"]):
+        raise PlanFileError(
+            f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "
+            f"got {shorten(list(h['joint_names']))}"
+        )
+    return hand
 
 
 def file_sha256(path: str | Path) -> str:
@@ -154,30 +228,19 @@ class _Checker:
 
     def __init__(self, doc: Mapping[str, Any], base_dir: Path) -> None:
         from dexplan.collision import CollisionWorld, Obstacle
-        from dexplan.hand import Hand
         from dexplan.objects import shape_from_dict
 
-        h = doc["hand"]
-        self.hand = Hand(
-            h["urdf_xml"],
-            h["fingertip_frames"],
-            h["fingertip_radius"],
-            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
-            name="plan hand",
-        )
-        if list(self.hand.joint_names) != list(h["joint_names"]):
-            raise PlanFileError(
-                f"hand.joint_names {h['joint_names']} do not match the URDF's "
-                f"{list(self.hand.joint_names)}"
-            )
+        self.hand = hand_from_plan(doc["hand"])
         self.obj = shape_from_dict(doc["object"], base_dir)
         obstacles = [
             Obstacle(
                 shape_from_dict(
-                    {k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")}, base_dir
+                    {k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")},
+                    base_dir,
+                    field=f"obstacles[{k}]",
                 ),
-                tuple(ob["pose_xyzquat"]),
-                ob.get("name", f"obstacle{k}"),
+                tuple(float(v) for v in ob["pose_xyzquat"]),
+                str(ob.get("name", f"obstacle{k}")),
             )
             for k, ob in enumerate(doc.get("obstacles", []))
         ]
@@ -197,18 +260,9 @@ class _Checker:
         from dexplan.pose import inverse_transform_points
 
         hand, obj = self.hand, self.obj
-        pose, q = w.object_pose_xyzquat, w.q
-        if pose.shape != (7,) or not np.all(np.isfinite(pose)):
-            self.add(si, wi, "object_pose", f"must be 7 finite numbers, got {pose.tolist()}")
-            return
+        pose, q = w.object_pose_xyzquat, w.q  # sizes and finiteness: validate_plan
         if abs(float(np.linalg.norm(pose[3:])) - 1.0) > 1e-6:
             self.add(si, wi, "object_pose", "quaternion is not unit length")
-            return
-        if q.shape != (hand.nq,) or not np.all(np.isfinite(q)):
-            self.add(si, wi, "q", f"must be {hand.nq} finite numbers, got {q.tolist()}")
-            return
-        if len(w.contacts) != self.n:
-            self.add(si, wi, "contacts", f"must list {self.n} fingers, got {len(w.contacts)}")
             return
         if not hand.within_limits(q, 1e-9):
             bad = [
@@ -223,10 +277,6 @@ class _Checker:
         for i, c in enumerate(w.contacts):
             if c is None:
                 continue
-            c = np.asarray(c, dtype=float)
-            if c.shape != (3,) or not np.all(np.isfinite(c)):
-                self.add(si, wi, "contacts", f"finger {i}: contact must be 3 finite numbers")
-                return
             d_tip = float(obj.signed_distance(tips[i])) - r
             if abs(d_tip) > TIP_DISTANCE_TOL:
                 self.add(
@@ -312,11 +362,6 @@ class _Checker:
 
         for wi in range(1, len(seg.waypoints)):
             a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
-            if (
-                a.q.shape != b.q.shape
-                or a.object_pose_xyzquat.shape != (7,) != b.object_pose_xyzquat.shape
-            ):
-                continue
             dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
             da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
             dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
@@ -348,10 +393,7 @@ class _Checker:
                     )
 
     def regrasp(self, si: int, seg: Segment) -> None:
-        f = seg.finger
-        if not isinstance(f, int) or not 0 <= f < self.n:
-            self.add(si, -1, "regrasp_finger", f"finger must be in [0, {self.n}), got {f!r}")
-            return
+        f = int(seg.finger)  # in [0, n): validate_plan
         wps = seg.waypoints
         if len(wps) < 3:
             self.add(si, -1, "regrasp_interior", "a regrasp needs at least one interior waypoint")
@@ -359,8 +401,6 @@ class _Checker:
         others = np.ones(self.hand.nq, dtype=bool)
         others[self.hand.finger_q_index[f]] = False
         for wi, w in enumerate(wps):
-            if w.q.shape != first.q.shape:
-                continue
             dpose = float(np.max(np.abs(w.object_pose_xyzquat - first.object_pose_xyzquat)))
             if dpose > STILL_TOL:
                 self.add(si, wi, "regrasp_object_still", f"the object moves ({dpose:.3g})")
@@ -410,34 +450,25 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         A :class:`VerifyReport` listing every violation.
 
     Raises:
-        PlanFileError: the document is structurally unusable (missing hand,
-            object or segments, unloadable models).
+        PlanFileError: the document is malformed (:func:`validate_plan`: the
+            message names the field) or its models cannot be rebuilt (the URDF
+            text, a mesh file).
     """
     from dexplan.pose import quat_angle
 
-    for key in ("hand", "object", "mu", "start", "goal", "segments"):
-        if key not in doc:
-            raise PlanFileError(f"plan is missing field {key!r}")
+    validate_plan(doc, base_dir)
     try:
         chk = _Checker(doc, Path(base_dir))
-        segments = segments_from_dicts(doc["segments"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise PlanFileError(f"malformed plan: {type(exc).__name__}: {exc}") from exc
-    except DexplanError as exc:
-        if isinstance(exc, PlanFileError):
-            raise
-        raise PlanFileError(f"cannot rebuild the plan's models: {exc}") from exc
+    except PlanFileError:
+        raise
+    except DexplanError as exc:  # a mesh file that changed since validation, coal
+        raise PlanFileError(f"cannot rebuild the plan's models: {_clip(str(exc))}") from exc
+    segments = segments_from_dicts(doc["segments"])
 
     if not segments:
         chk.add(-1, -1, "segments", "the plan has no segments")
     total = 0
     for si, seg in enumerate(segments):
-        if seg.kind not in ("transfer", "regrasp"):
-            chk.add(si, -1, "segment_kind", f"kind must be transfer or regrasp, got {seg.kind!r}")
-            continue
-        if not seg.waypoints:
-            chk.add(si, -1, "segment_waypoints", "segment has no waypoints")
-            continue
         for wi, w in enumerate(seg.waypoints):
             chk.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
         total += len(seg.waypoints)
@@ -446,36 +477,34 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
             chk.transfer(si, seg)
         else:
             chk.regrasp(si, seg)
-        if si > 0 and segments[si - 1].waypoints:
+        if si > 0:
             a, b = segments[si - 1].waypoints[-1], seg.waypoints[0]
-            same = (
-                a.q.shape == b.q.shape
-                and np.allclose(a.q, b.q, atol=STILL_TOL)
-                and np.allclose(a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL)
+            same = np.allclose(a.q, b.q, atol=STILL_TOL) and np.allclose(
+                a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL
             )
             if not same:
                 chk.add(si, 0, "continuity", "does not start where the previous segment ends")
 
-    # start and goal
-    if segments and segments[0].waypoints:
+    # start and goal (finite, tolerances > 0: validate_plan)
+    if segments:
         w0 = segments[0].waypoints[0]
         start = doc["start"]
-        sp = np.asarray(start.get("object_pose_xyzquat", []), dtype=float)
-        if sp.shape != (7,) or not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
+        sp = np.asarray(start["object_pose_xyzquat"], dtype=float)
+        if not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
             chk.add(0, 0, "start", "first waypoint is not the start object pose")
-        if "q" in start and start["q"] is not None:
+        if start.get("q") is not None:
             sq = np.asarray(start["q"], dtype=float)
-            if sq.shape != w0.q.shape or not np.allclose(sq, w0.q, atol=1e-9):
+            if not np.allclose(sq, w0.q, atol=1e-9):
                 chk.add(0, 0, "start", "first waypoint is not the start configuration")
-        wl = segments[-1].waypoints[-1] if segments[-1].waypoints else w0
+        wl = segments[-1].waypoints[-1]
         goal = doc["goal"]
         gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
         dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
         da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
         last = (len(segments) - 1, len(segments[-1].waypoints) - 1)
-        if dp > float(goal.get("position_tol", 0.005)) + 1e-12:
+        if not dp <= float(goal.get("position_tol", GOAL_POSITION_TOL)) + 1e-12:
             chk.add(*last, "goal", f"object ends {dp * 1e3:.2f} mm from the goal position")
-        if da > float(goal.get("angle_tol", 0.05)) + 1e-12:
+        if not da <= float(goal.get("angle_tol", GOAL_ANGLE_TOL)) + 1e-12:
             msg = f"object ends {math.degrees(da):.2f} deg from the goal orientation"
             chk.add(*last, "goal", msg)
     return VerifyReport(tuple(chk.violations), total, len(segments))

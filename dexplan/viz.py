@@ -178,7 +178,7 @@ class _Scene:
 
 
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
-    from dexplan.hand import Hand
+    from dexplan.plan import hand_from_plan
 
     package_dirs: list[str | Path] = [base_dir]
     try:  # the allegro hand's meshes live in example-robot-data
@@ -189,14 +189,7 @@ def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
         )
     except (ImportError, OSError, ValueError):
         pass
-    return Hand(
-        h["urdf_xml"],
-        h["fingertip_frames"],
-        h["fingertip_radius"],
-        collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
-        name="plan hand",
-        package_dirs=package_dirs,
-    )
+    return hand_from_plan(h, package_dirs)
 
 
 def _obstacles(items: Sequence[Mapping[str, Any]], base_dir: Path) -> list:
@@ -217,20 +210,22 @@ def _obstacles(items: Sequence[Mapping[str, Any]], base_dir: Path) -> list:
 
 
 def _scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> _Scene:
-    """Hand, object and obstacles of a ``dexplan-plan/1`` document."""
-    from dexplan.objects import shape_from_dict
+    """Hand, object and obstacles of a ``dexplan-plan/1`` document.
 
-    for key in ("hand", "object"):
-        if key not in doc:
-            raise PlanFileError(f"plan is missing field {key!r}")
-    try:
-        hand = _hand_from_doc(doc["hand"], base_dir)
-        obj = shape_from_dict(doc["object"], base_dir)
-        obstacles = _obstacles(doc.get("obstacles", []), base_dir)
-    except (KeyError, TypeError) as exc:
-        raise PlanFileError(f"malformed plan: {type(exc).__name__}: {exc}") from exc
-    goal = doc.get("goal") or {}
-    start = doc.get("start") or {}
+    Raises:
+        PlanFileError: the document is malformed (the message names the
+            field; :func:`dexplan.plan_schema.validate_plan`) or its hand does
+            not build.
+    """
+    from dexplan.objects import shape_from_dict
+    from dexplan.plan_schema import validate_plan
+
+    validate_plan(doc, base_dir)
+    hand = _hand_from_doc(doc["hand"], base_dir)
+    obj = shape_from_dict(doc["object"], base_dir)
+    obstacles = _obstacles(doc.get("obstacles", []), base_dir)
+    goal = doc["goal"]
+    start = doc["start"]
     return _Scene(
         hand=hand,
         obj=obj,
@@ -807,32 +802,19 @@ def record_plan(
 
     Raises:
         DependencyError: rerun-sdk missing.
-        PlanFileError: the document lacks the hand, object or segments, or
-            a waypoint has the wrong shape.
+        PlanFileError: the document is malformed (the message names the
+            field) or its hand does not build.
         InvalidInputError: the output folder does not exist.
 
     """
     rr = _rerun()
     from dexplan.plan import segments_from_dicts
 
-    if "segments" not in doc:
-        raise PlanFileError("plan is missing field 'segments'")
-    scene = _scene_from_doc(doc, Path(base_dir))
-    try:
-        segments = segments_from_dicts(doc["segments"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise PlanFileError(f"malformed plan segments: {type(exc).__name__}: {exc}") from exc
+    scene = _scene_from_doc(doc, Path(base_dir))  # validates the document
+    segments = segments_from_dicts(doc["segments"])
     hand, obj = scene.hand, scene.obj
     assert hand is not None and obj is not None
-    n = hand.n_fingers
     waypoints = [(si, wi, w) for si, s in enumerate(segments) for wi, w in enumerate(s.waypoints)]
-    for si, wi, w in waypoints:
-        if w.object_pose_xyzquat.shape != (7,) or w.q.shape != (hand.nq,) or len(w.contacts) != n:
-            raise PlanFileError(
-                f"segment {si}, waypoint {wi}: expected a 7-pose, {hand.nq} joints and "
-                f"{n} contacts, got {w.object_pose_xyzquat.shape}, {w.q.shape}, "
-                f"{len(w.contacts)}"
-            )
 
     name = f"dexplan plan {doc.get('scenario', '')}".strip()
     with _recording(path, name, _plan_blueprint(roadmap is not None)) as rec:
@@ -1214,7 +1196,7 @@ def write_recording(
     def load_doc(item: Mapping[str, Any] | str | Path) -> tuple[Mapping[str, Any], Path]:
         if isinstance(item, Mapping):
             return item, Path(base_dir or ".")
-        return read_plan(item), Path(base_dir or Path(item).resolve().parent)
+        return read_plan(item, base_dir), Path(base_dir or Path(item).resolve().parent)
 
     if not isinstance(source, Mapping) and Path(source).suffix == ".npz":
         scene, folder = load_doc(plan) if plan is not None else (None, Path(base_dir or "."))
