@@ -1047,7 +1047,7 @@ def _allegro_hand(*, left: bool) -> Hand:
     try:
         path = example_robot_data_file(f"allegro_hand_description/urdf/allegro_{side}_hand.urdf")
     except DependencyError as exc:
-        raise DependencyError(f"hand {hand_name!r} needs {exc}") from None
+        raise DependencyError(f"hand {hand_name!r}: {exc}") from None
     text = _urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
     # mesh URIs are package://example-robot-data/robots/...: the folder above it
     share = path.parents[3].parent

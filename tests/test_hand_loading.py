@@ -166,7 +166,8 @@ def test_allegro_without_example_robot_data(monkeypatch) -> None:
         raise metadata.PackageNotFoundError(name)
 
     monkeypatch.setattr(hand_module.metadata, "distribution", missing)
-    with pytest.raises(DependencyError, match=r"allegro_left.*pip install 'dexplan\[allegro\]'"):
+    want = r"hand 'allegro_left': example-robot-data is not installed: pip install 'dexplan\["
+    with pytest.raises(DependencyError, match=want):
         Hand.builtin("allegro_left")
 
 
