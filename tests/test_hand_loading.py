@@ -16,15 +16,10 @@ import pytest
 from dexplan import hand as hand_module
 from dexplan.collision import CollisionWorld
 from dexplan.exceptions import DependencyError, ModelError
-from dexplan.hand import (
-    ALLEGRO_TIPS,
-    MOUNT_LINK,
-    Hand,
-    example_robot_data_file,
-    mount_urdf,
-)
+from dexplan.hand import ALLEGRO_TIPS, Hand, example_robot_data_file
 from dexplan.native_output import captured_stderr
 from dexplan.objects.primitives import Sphere
+from dexplan.urdf import MOUNT_LINK, mount_urdf
 
 #: MEASURED.md: a valid fingertip-only grasp of a R 6 cm sphere at (0.09, 0, -0.01)
 #: in palm_link (right hand), joints in Pinocchio order.
