@@ -12,6 +12,7 @@ The paper's experiment is embedded: :func:`default_scenario`.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -268,7 +269,8 @@ def _pose(table: Mapping[str, Any], key: str, prefix: str) -> FloatArray:
             f"{name} position must be within +-{MAX_POSITION:g} m per axis, "
             f"got {shorten(table[key][:3])}"
         )
-    norm = float(np.linalg.norm(pose[3:]))
+    with np.errstate(over="ignore"):  # a norm of inf is rejected below
+        norm = float(np.linalg.norm(pose[3:]))
     if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
         _fail(f"{name} quaternion (XYZW) must have unit norm, got norm {norm:.6g}")
     pose[3:] /= norm
@@ -306,9 +308,7 @@ def _text_file(path: Path, name: str, max_bytes: int) -> None:
     try:
         data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        _fail(
-            f"{name} is not a UTF-8 text file ({shorten(str(path))}): byte {exc.start} is invalid"
-        )
+        _fail(f"{name} is not UTF-8 text ({shorten(str(path))}): byte {exc.start} is invalid")
     if b"\0" in data:
         _fail(f"{name} is not a text file (it contains NUL bytes): {shorten(str(path))}")
 
@@ -577,19 +577,37 @@ def load_scenario(path: str | Path) -> Scenario:
             f"cannot read scenario file {where}: {_one_line(str(exc), 120)}"
         ) from exc
     try:
-        doc = tomllib.loads(data.decode("utf-8"))
+        text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(
             f"{where}: not valid TOML: not UTF-8 text (byte {exc.start} is invalid)"
         ) from exc
+    try:
+        doc = tomllib.loads(text)
     except RecursionError as exc:
-        raise ScenarioError(f"{where}: not valid TOML: arrays or tables nested too deeply") from exc
-    except ValueError as exc:  # TOMLDecodeError, or an integer with too many digits
+        raise ScenarioError(
+            f"{where}: not valid TOML: arrays or tables nested too deeply{_line_of(text, _DEEP)}"
+        ) from exc
+    except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: not valid TOML: {_one_line(str(exc), 200)}") from exc
+    except ValueError as exc:  # int(): more digits than Python converts
+        raise ScenarioError(
+            f"{where}: not valid TOML: an integer has too many digits{_line_of(text, _LONG_INT)}"
+        ) from exc
     try:
         return parse_scenario(doc, path.resolve().parent, path.stem)
     except InvalidInputError as exc:
         raise ScenarioError(f"{where}: {_one_line(str(exc))}") from exc
+
+
+_DEEP = re.compile(r"(?:[\[{]\s*){32}")  # 32 arrays or tables opened in a row
+_LONG_INT = re.compile(r"[0-9][0-9_]{1000,}")
+
+
+def _line_of(text: str, pattern: re.Pattern[str]) -> str:
+    """`` (line N)`` of the first match of ``pattern`` in ``text``, or ``""``."""
+    m = pattern.search(text)
+    return f" (line {text.count(chr(10), 0, m.start()) + 1})" if m else ""
 
 
 def builtin_scenario_path(name: str = DEFAULT_SCENARIO) -> Path:
