@@ -216,8 +216,8 @@ def _hand(h: Any) -> tuple[int, int]:
     joints = _names(h["joint_names"], "hand.joint_names", 1, MAX_JOINTS, "joint names")
     tips = _names(h["fingertip_frames"], "hand.fingertip_frames", 2, MAX_FINGERS, "frame names")
     _number(h["fingertip_radius"], "hand.fingertip_radius", lo=0.0, lo_open=True)
-    pairs = _list(h.get("collision_exclude", []), "hand.collision_exclude", 0,
-                  MAX_EXCLUDE_PAIRS, "[link, link] pairs")  # fmt: skip
+    excl = h.get("collision_exclude", [])
+    pairs = _list(excl, "hand.collision_exclude", 0, MAX_EXCLUDE_PAIRS, "[link, link] pairs")
     for k, pair in enumerate(pairs):
         _names(pair, f"hand.collision_exclude[{k}]", 2, 2, "link names")
     return len(joints), len(tips)
@@ -227,6 +227,13 @@ def _shape(d: Any, path: str, base_dir: Path | None) -> None:
     """A shape table, checked by :func:`dexplan.objects.shape_from_dict`."""
     from dexplan.objects import shape_from_dict
 
+    if isinstance(d, Mapping):  # numbers are bounded as everywhere in a plan
+        for key, value in d.items():
+            entries = value if isinstance(value, list | tuple) else [value]
+            for i, x in enumerate(entries):
+                if _is_number(x) and not _finite(x):
+                    where = f"{path}.{_key(key)}" + (f"[{i}]" if entries is value else "")
+                    _fail(where, f"must be a finite number (|x| <= {MAX_ABS_VALUE:g})", x)
     try:
         shape_from_dict(d, base_dir, field=path)
     except DexplanError as exc:  # InvalidInputError, MeshError: they name the field

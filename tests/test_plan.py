@@ -44,6 +44,17 @@ def test_planner_plan_passes_verify(solved) -> None:
     assert "transfer" in kinds and "regrasp" in kinds
 
 
+def test_planner_document_is_well_formed(solved) -> None:
+    """Every field the planner writes is one the format knows (plan_schema)."""
+    from dexplan.plan_schema import validate_plan
+
+    _, _, doc = solved
+    validate_plan(doc)
+    validate_plan(json.loads(json.dumps(doc)))
+    for seg in doc["segments"]:
+        assert (seg["finger"] is None) == (seg["kind"] == "transfer")
+
+
 def test_plan_file_round_trip_atomic(solved, tmp_path: Path) -> None:
     _, _, doc = solved
     path = tmp_path / "p.json"

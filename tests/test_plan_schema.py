@@ -10,6 +10,7 @@ valid plan is made by hand (no planning): a transfer turning the sphere by
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import math
 from collections.abc import Callable, Iterator
@@ -138,12 +139,18 @@ def make_plan(hand: Hand) -> dict[str, Any]:
     return json.loads(json.dumps(doc))  # no shared waypoint dicts
 
 
-@pytest.fixture(scope="module")
-def base_plan(paper_hand: Hand) -> dict[str, Any]:
-    doc = make_plan(paper_hand)
+@functools.cache
+def valid_plan() -> dict[str, Any]:
+    """The valid plan, made once (hypothesis tests call this: no fixture in their reports)."""
+    doc = make_plan(Hand.builtin("paper"))
     report = verify_plan(doc)
     assert report.ok, [str(v) for v in report.violations]
     return doc
+
+
+@pytest.fixture(scope="module")
+def base_plan() -> dict[str, Any]:
+    return valid_plan()
 
 
 @pytest.fixture()
@@ -666,15 +673,15 @@ def check_mutation(capfd, tmp_path: Path, base: dict, mutation: tuple, *, via: s
 
 
 @given(data=st.data())
-def test_mutated_plans_verify(capfd, tmp_path: Path, base_plan: dict, data: st.DataObject) -> None:
-    mutation = data.draw(mutations(base_plan), label="mutation")
-    check_mutation(capfd, tmp_path, base_plan, mutation, via="verify")
+def test_mutated_plans_verify(capfd, tmp_path: Path, data: st.DataObject) -> None:
+    mutation = data.draw(mutations(valid_plan()), label="mutation")
+    check_mutation(capfd, tmp_path, valid_plan(), mutation, via="verify")
 
 
 @given(data=st.data())
-def test_mutated_plans_show(capfd, tmp_path: Path, base_plan: dict, data: st.DataObject) -> None:
-    mutation = data.draw(mutations(base_plan), label="mutation")
-    check_mutation(capfd, tmp_path, base_plan, mutation, via="show")
+def test_mutated_plans_show(capfd, tmp_path: Path, data: st.DataObject) -> None:
+    mutation = data.draw(mutations(valid_plan()), label="mutation")
+    check_mutation(capfd, tmp_path, valid_plan(), mutation, via="show")
 
 
 def _well_formed_mutations(doc: dict) -> list[tuple[str, tuple, Any]]:
@@ -693,20 +700,35 @@ def _well_formed_mutations(doc: dict) -> list[tuple[str, tuple, Any]]:
 
 
 @given(data=st.data())
-def test_well_formed_mutations_verify(
-    capfd, tmp_path: Path, base_plan: dict, data: st.DataObject
-) -> None:
+def test_well_formed_mutations_verify(capfd, tmp_path: Path, data: st.DataObject) -> None:
     """Still well formed: exit 1 exactly when a rule breaks, 0 when harmless."""
-    cands = _SITES.setdefault(-id(base_plan), _well_formed_mutations(base_plan))
+    base = valid_plan()
+    cands = _SITES.setdefault(-id(base), _well_formed_mutations(base))
     mutation = data.draw(st.sampled_from(cands), label="mutation")
-    check_mutation(capfd, tmp_path, base_plan, mutation, via="verify")
+    check_mutation(capfd, tmp_path, base, mutation, via="verify")
 
 
 @pytest.mark.slow
 @settings(max_examples=2000)
 @given(data=st.data())
-def test_mutated_plans_verify_thorough(
-    capfd, tmp_path: Path, base_plan: dict, data: st.DataObject
-) -> None:
-    mutation = data.draw(mutations(base_plan), label="mutation")
-    check_mutation(capfd, tmp_path, base_plan, mutation, via="verify")
+def test_mutated_plans_verify_thorough(capfd, tmp_path: Path, data: st.DataObject) -> None:
+    mutation = data.draw(mutations(valid_plan()), label="mutation")
+    check_mutation(capfd, tmp_path, valid_plan(), mutation, via="verify")
+
+
+@pytest.mark.slow
+@settings(max_examples=500)
+@given(data=st.data())
+def test_mutated_plans_show_thorough(capfd, tmp_path: Path, data: st.DataObject) -> None:
+    mutation = data.draw(mutations(valid_plan()), label="mutation")
+    check_mutation(capfd, tmp_path, valid_plan(), mutation, via="show")
+
+
+@pytest.mark.slow
+@settings(max_examples=500)
+@given(data=st.data())
+def test_well_formed_mutations_verify_thorough(capfd, tmp_path: Path, data: st.DataObject) -> None:
+    base = valid_plan()
+    cands = _SITES.setdefault(-id(base), _well_formed_mutations(base))
+    mutation = data.draw(st.sampled_from(cands), label="mutation")
+    check_mutation(capfd, tmp_path, base, mutation, via="verify")
