@@ -364,9 +364,11 @@ def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
                     "a builtin hand defines its own"
                 )
         _only(h, "hand", {"builtin"})
+        from dexplan.hand import BUILTIN_HANDS
+
         builtin = h.get("builtin", "paper")
-        if builtin not in ("paper", "allegro"):
-            _fail(f"hand.builtin must be 'paper' or 'allegro', got {shorten(builtin)}")
+        if not isinstance(builtin, str) or builtin not in BUILTIN_HANDS:
+            _fail(f"hand.builtin must be one of {', '.join(BUILTIN_HANDS)}, got {shorten(builtin)}")
         return HandSpec(builtin=builtin)
     if "builtin" in h:
         _fail(
