@@ -15,6 +15,7 @@ from dexplan.collision import CollisionWorld, Obstacle
 from dexplan.exceptions import DexplanError, ScenarioError
 from dexplan.hand import Hand
 from dexplan.objects import Shape, shape_from_dict
+from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import GraspSubspace
 from dexplan.planning.sampler import GraspSampler, SamplerSettings
 from dexplan.planning.transitions import Transitions, TransitionSettings
@@ -36,6 +37,8 @@ class PlanningContext:
         sampler: RLG-style sampler of valid GSn states.
         transitions: transfer and regrasp local planners.
         rng: the sampler's random generator (the local planners have their own).
+        deadline: the query's deadline, shared by the sampler and the local
+            planners (the planner sets it; default: never).
     """
 
     scenario: Scenario
@@ -47,6 +50,7 @@ class PlanningContext:
     sampler: GraspSampler
     transitions: Transitions
     rng: np.random.Generator
+    deadline: Deadline
 
 
 def build_hand(scenario: Scenario) -> Hand:
@@ -119,8 +123,11 @@ def build_context(
         mu=scenario.mu, friction_edges=scenario.friction_edges, fc_margin=scenario.fc_margin
     )
     validity = GraspValidity(gsn, world, vset)
-    sampler = GraspSampler(gsn, validity, rng, sampler_settings)
+    deadline = Deadline()
+    sampler = GraspSampler(gsn, validity, rng, sampler_settings, deadline)
     transitions = Transitions(
-        hand, obj, world, vset, transition_settings or TransitionSettings(), rng_local
+        hand, obj, world, vset, transition_settings or TransitionSettings(), rng_local, deadline
     )
-    return PlanningContext(scenario, hand, obj, world, gsn, validity, sampler, transitions, rng)
+    return PlanningContext(
+        scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline
+    )

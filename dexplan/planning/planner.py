@@ -44,6 +44,11 @@ Progress = Callable[[str], None]
 REDUCTIONS = ("auto", "gaits", "edges")
 """Reduction methods accepted by :func:`plan`."""
 
+VERIFY_RESERVE = 0.05
+"""Fraction of the time limit kept for the final verification: the search
+stages (start grasp, module 1 and 2, reduction, smoothing) stop at
+``(1 - VERIFY_RESERVE) * time_limit``, so the whole query ends within its limit."""
+
 
 @dataclass(frozen=True)
 class PlanResult:
@@ -130,6 +135,8 @@ def start_state(ctx: PlanningContext, attempts: int = 400) -> FloatArray | None:
             raise InvalidInputError(f"start.q is not a valid grasp: {verdict.reason}")
         return x
     for _ in range(max(1, attempts // ctx.sampler.settings.max_attempts)):
+        if ctx.deadline.expired():
+            return None
         x = ctx.sampler.sample_at_pose(pose)
         if x is not None:
             return x
@@ -182,6 +189,10 @@ def plan(
     if roadmap is None:
         check_planner(planner, spec.params)  # bad names fail before any work
     ctx = build_context(scenario, seed)
+    # every stage watches one deadline (the sampler, goal sampling and the
+    # local planners read it too), keeping a reserve for the verification
+    deadline = t0 + (1.0 - VERIFY_RESERVE) * time_limit
+    ctx.deadline.at = deadline
     stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
     pose0 = scenario.start.object_pose_xyzquat
 
@@ -198,7 +209,8 @@ def plan(
     say("sampling a start grasp")
     x_start = start_state(ctx)
     if x_start is None:
-        return result("no_start_grasp", "no valid grasp found at the start pose")
+        why = " within the time limit" if ctx.deadline.expired() else ""
+        return result("no_start_grasp", f"no valid grasp found at the start pose{why}")
     q_start = x_start[POSE_DIM:]
 
     query = GsnQuery(
@@ -206,7 +218,6 @@ def plan(
         goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
         goal_sampler=lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
     )
-    deadline = t0 + time_limit
     say(f"module 1: exploring GSn with {planner}")
     if roadmap is None:
         gsn = explore_gsn(

@@ -116,6 +116,10 @@ def reduce_object_path(
     regrasps = stall = 0
     r = trans.hand.fingertip_radius
     while True:
+        if trans.deadline.expired():
+            return ReductionResult(
+                False, tuple(segments), idx, "time limit reached", _stats(trans, regrasps)
+            )
         tr = trans.transfer(poses, idx, q, grasp)
         if len(tr.waypoints) > 1:
             segments.append(Segment("transfer", None, tr.waypoints))

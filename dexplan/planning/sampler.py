@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_to_matrix, random_quaternion, slerp
@@ -88,6 +89,8 @@ class GraspSampler:
         validity: its validity checker.
         rng: random generator (the only source of randomness).
         settings: sampler settings.
+        deadline: when sampling gives up (None: never); the planner shares
+            its query deadline here.
     """
 
     def __init__(
@@ -96,8 +99,10 @@ class GraspSampler:
         validity: GraspValidity,
         rng: np.random.Generator,
         settings: SamplerSettings | None = None,
+        deadline: Deadline | None = None,
     ) -> None:
         self.gsn = gsn
+        self.deadline = deadline or Deadline()
         self.validity = validity
         self.rng = rng
         self.settings = settings or SamplerSettings()
@@ -145,6 +150,8 @@ class GraspSampler:
         t0 = time.perf_counter()
         try:
             for _ in range(self.settings.max_attempts):
+                if self.deadline.expired():
+                    return None
                 self.stats.attempts += 1
                 pose_k = self.sample_pose() if pose is None else pose
                 if self.validity.world.object_collides(pose_k):
@@ -208,6 +215,8 @@ class GraspSampler:
                     found = True
             else:
                 for c in cand:
+                    if self.deadline.expired():  # iterative IK: ~0.4 ms a candidate
+                        return None
                     res = hand.finger_ik(i, tips[c], q)
                     if res.success:
                         q[hand.finger_q_index[i]] = res.q_finger

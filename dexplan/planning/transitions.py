@@ -37,6 +37,7 @@ from dexplan.grasp import min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Shape
 from dexplan.planning import ompl_adapter
+from dexplan.planning.deadline import Deadline
 from dexplan.planning.path import Segment, Waypoint
 from dexplan.planning.validity import ValiditySettings
 from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
@@ -150,6 +151,8 @@ class Transitions:
         validity: friction settings (force closure of landings).
         settings: resolution and search settings.
         rng: random generator for landing candidates and via points.
+        deadline: when regrasps and landings give up (None: never); the
+            planner shares its query deadline here.
     """
 
     def __init__(
@@ -160,8 +163,10 @@ class Transitions:
         validity: ValiditySettings,
         settings: TransitionSettings,
         rng: np.random.Generator,
+        deadline: Deadline | None = None,
     ) -> None:
         self.hand = hand
+        self.deadline = deadline or Deadline()
         self.obj = obj
         self.world = world
         self.validity = validity
@@ -354,6 +359,8 @@ class Transitions:
         order = np.lexsort((self.rng.random(len(keep)), -scores))
         found = 0
         for k in order:
+            if self.deadline.expired():
+                return
             c = keep[k]
             self.stats["landing_checks"] += 1
             new = grasp.replace(finger, pts[c], nrm[c])
@@ -379,6 +386,8 @@ class Transitions:
         The waypoints: lift along the (possibly tilted) normal, a free move in
         the finger's joint space, landing along the new normal.
         """
+        if self.deadline.expired():
+            return None
         self.stats["regrasp_attempts"] += 1
         hand = self.hand
         new_grasp = grasp.replace(finger, new_point, new_normal_out)
@@ -551,7 +560,7 @@ class Transitions:
             self.hand.upper[idx],
             free,
             resolution=s.max_step_rad,
-            time_limit=s.transit_time,
+            time_limit=max(1e-3, min(s.transit_time, self.deadline.remaining())),
             max_iterations=s.transit_iterations,
             seed=int(self.rng.integers(2**31 - 1)),
             planner=s.transit_planner,
