@@ -158,6 +158,19 @@ def test_header_claiming_1e9_rows(tmp_path: Path) -> None:
     assert "at most" in msg
 
 
+def test_header_claiming_more_rows_than_the_member_holds(tmp_path: Path) -> None:
+    path = tmp_path / "s.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        header = {"descr": "<f8", "fortran_order": False, "shape": (10**6, WIDTH)}
+        zf.writestr("vertices.npy", _npy_bytes(header, _vertices(3).tobytes()))
+        for name, arr in _arrays().items():
+            if name != "vertices":
+                buf = io.BytesIO()
+                np.save(buf, arr)
+                zf.writestr(f"{name}.npy", buf.getvalue())
+    _assert_clean(path, "vertices: the header claims shape (1000000, 19)", "holds")
+
+
 def test_a_million_zero_vertices(tmp_path: Path) -> None:
     """Zero quaternions (a ZeroDivisionError in quat_angle once linked) are rejected."""
     path = tmp_path / "z.npz"

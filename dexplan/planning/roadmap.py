@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 import time
 import zipfile
 import zlib
@@ -229,11 +230,19 @@ def _roadmap_error(where: str, msg: str) -> RoadmapFileError:
     return RoadmapFileError(f"{where}: {' '.join(msg.split())}")
 
 
-def _read_headers(path: Path, where: str) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Shape and dtype of every array of the archive, read from the ``.npy`` headers only."""
+_Headers = dict[str, tuple[tuple[int, ...], np.dtype]]
+
+
+def _read_headers(path: Path, where: str) -> tuple[_Headers, dict[str, tuple[int, int]]]:
+    """Shape and dtype of every array, from the ``.npy`` headers only, and their sizes.
+
+    Returns:
+        ``{name: (shape, dtype)}`` and ``{name: (header bytes, member bytes)}``.
+    """
     from numpy.lib import format as npy
 
-    out: dict[str, tuple[tuple[int, ...], np.dtype]] = {}
+    out: _Headers = {}
+    sizes: dict[str, tuple[int, int]] = {}
     try:
         with zipfile.ZipFile(path) as zf:
             members = {info.filename: info for info in zf.infolist()}
@@ -257,21 +266,32 @@ def _read_headers(path: Path, where: str) -> dict[str, tuple[tuple[int, ...], np
                         shape, _, dtype = npy.read_array_header_2_0(fh)
                     else:
                         raise _roadmap_error(where, f"{name}: unsupported .npy version {version}")
+                    header_bytes = fh.tell()
                 out[name] = (tuple(shape), dtype)
+                sizes[name] = (header_bytes, info.file_size)
     except (zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
         raise _roadmap_error(
             where, f"not a roadmap: not a complete .npz archive ({str(exc)[:80]})"
         ) from exc
     except (OSError, ValueError, EOFError, zlib.error, NotImplementedError) as exc:
-        raise _roadmap_error(
-            where, f"not a roadmap: unreadable .npz ({shorten(str(exc), 80)})"
-        ) from exc
-    return out
+        raise _roadmap_error(where, f"not a roadmap: unreadable .npz ({str(exc)[:80]})") from exc
+    return out, sizes
 
 
-def _check_headers(
-    headers: Mapping[str, tuple[tuple[int, ...], np.dtype]], where: str, ambient_dim: int | None
-) -> None:
+def _check_sizes(headers: _Headers, sizes: Mapping[str, tuple[int, int]], where: str) -> None:
+    """Every member holds as many bytes as its header promises (no read past a short one)."""
+    for name, (shape, dtype) in headers.items():
+        header_bytes, member_bytes = sizes[name]
+        claimed = header_bytes + math.prod(shape) * dtype.itemsize
+        if member_bytes != claimed:
+            raise _roadmap_error(
+                where,
+                f"{name}: the header claims shape {shape} ({claimed} bytes) but the archive "
+                f"holds {member_bytes} bytes",
+            )
+
+
+def _check_headers(headers: _Headers, where: str, ambient_dim: int | None) -> None:
     """Bound shapes and dtypes before any array is read (a header can claim 1e9 rows)."""
     shape, dtype = headers["vertices"]
     if dtype.kind != "f" or len(shape) != 2:
@@ -394,8 +414,9 @@ def read_roadmap_arrays(
         raise _roadmap_error(where, f"cannot use this roadmap file name ({exc})") from exc
     if not exists:
         raise RoadmapFileError(f"roadmap file not found: {where}")
-    headers = _read_headers(path, where)
+    headers, sizes = _read_headers(path, where)
     _check_headers(headers, where, ambient_dim)
+    _check_sizes(headers, sizes, where)
     try:
         with np.load(path, allow_pickle=False) as data:
             raw = {name: data[name] for name in _ROADMAP_ARRAYS}
