@@ -111,6 +111,9 @@ OMPL_STATUSES: tuple[str, ...] = (
 ``status`` enum (the 2.0.1 wheel's ``asString`` says "Unknown status" for Abort
 and Infeasible; the upstream names are used here)."""
 
+FAILED_RUN_STATUSES = frozenset({"error", "crash"})
+"""Statuses of runs that failed as runs (see :attr:`BenchResult.failed`)."""
+
 PLAN_STATUSES: tuple[str, ...] = (
     "solved",
     "no_start_grasp",
@@ -933,6 +936,10 @@ def _mp_context(start_method: str) -> Any:
             f"start method must be 'forkserver' or 'spawn', got {start_method!r}"
         )
     ctx = multiprocessing.get_context(start_method)
+    # Python 3.11's fork server starts with `python -c` and keeps the working
+    # folder first on sys.path (it ignores the parent's path): a folder named
+    # `dexplan` there would shadow the installed package in every worker
+    os.environ.setdefault("PYTHONSAFEPATH", "1")
     if start_method == "forkserver":
         # imports happen once in the server; every run still forks a fresh process
         ctx.set_forkserver_preload(["dexplan.bench", "dexplan.planning.planner"])
@@ -1386,6 +1393,15 @@ class BenchResult:
     backend: str
     planners: list[str]
     counts: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list[dict[str, Any]]:
+        """Records of runs that failed as runs (``error``, ``crash``), not as plans.
+
+        "No plan within the time limit" and a killed overrun are results;
+        a run that raised or whose process died says nothing about the planner.
+        """
+        return [r for r in self.records if r.get("status_name") in FAILED_RUN_STATUSES]
 
 
 def run_benchmark(

@@ -10,14 +10,36 @@ this module owns all output.
 
 from __future__ import annotations
 
-import argparse
-import os
-import sys
-from collections.abc import Sequence
-from importlib import metadata
-from typing import Any
+import signal
+import threading
 
-from dexplan.exceptions import DexplanError, InvalidInputError
+# SIGINT: some libraries catch BaseException around their own imports
+# (trimesh does), which swallows the KeyboardInterrupt raised there. The flag
+# survives: it is checked at every progress message and before any output.
+# Installed first thing, so that Ctrl-C is never lost, even during imports
+# (before :func:`run` starts it is only noted: no traceback from an import).
+_interrupted = False
+_running = False
+
+
+def _on_sigint(signum: int, frame: object) -> None:
+    global _interrupted
+    _interrupted = True
+    if _running:
+        raise KeyboardInterrupt
+
+
+if threading.current_thread() is threading.main_thread():
+    signal.signal(signal.SIGINT, _on_sigint)
+
+import argparse  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+import warnings  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from typing import Any  # noqa: E402
+
+from dexplan.exceptions import DexplanError, InvalidInputError  # noqa: E402
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -33,6 +55,8 @@ EPILOG = """exit codes:
 
 
 def _version(dist: str) -> str:
+    from importlib import metadata
+
     try:
         return metadata.version(dist)
     except metadata.PackageNotFoundError:
@@ -68,6 +92,22 @@ def _err(msg: str) -> None:
     sys.stderr.flush()
 
 
+def _check_interrupted() -> None:
+    if _interrupted:
+        raise KeyboardInterrupt
+
+
+def _progress(quiet: bool):
+    """The planner's progress callback: a stderr line, and the interrupt check."""
+
+    def say(message: str) -> None:
+        _check_interrupted()
+        if not quiet:
+            _err(message)
+
+    return say
+
+
 def _load_scenario(arg: str | None):
     from dexplan.scenario import default_scenario, load_scenario
 
@@ -76,18 +116,22 @@ def _load_scenario(arg: str | None):
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """Plan a scenario; write the plan (and optionally roadmap and recording)."""
-    from pathlib import Path
-
+    from dexplan.files import check_output_path
     from dexplan.plan import build_plan_document, write_plan
     from dexplan.planning.context import build_hand
     from dexplan.planning.planner import plan
     from dexplan.planning.roadmap import Roadmap
+    from dexplan.scenario import MAX_TIME_LIMIT, SEED_LIMIT
 
     scenario = _load_scenario(args.scenario)
-    if args.time_limit is not None and not args.time_limit > 0:
-        raise InvalidInputError(f"--time-limit must be > 0, got {args.time_limit}")
-    if args.seed is not None and args.seed < 0:
-        raise InvalidInputError(f"--seed must be >= 0, got {args.seed}")
+    if args.time_limit is not None and not (0 < args.time_limit <= MAX_TIME_LIMIT):
+        raise InvalidInputError(
+            f"--time-limit must be in (0, {MAX_TIME_LIMIT:g}] s, got {args.time_limit}"
+        )
+    if args.seed is not None and not 0 <= args.seed < SEED_LIMIT:
+        raise InvalidInputError(f"--seed must be in [0, {SEED_LIMIT - 1}], got {args.seed}")
+    if args.planner is not None and not args.planner.strip():
+        raise InvalidInputError("--planner: empty planner name")
     from dexplan.planning.ompl_adapter import check_planner
 
     check_planner(args.planner or scenario.planner.name, scenario.planner.params)
@@ -95,9 +139,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dexplan.viz import require_rerun
 
         require_rerun()
-    out = Path(args.output)
-    if not out.resolve().parent.is_dir():
-        raise InvalidInputError(f"-o: folder does not exist: {str(out.resolve().parent)!r}")
+    # every output is checked before planning: none is written unless all can be
+    out = check_output_path(args.output, "-o")
+    for option, value in (("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap)):
+        if value is not None:
+            check_output_path(value, option)
+    hand = build_hand(scenario)  # a bad hand model is bad input: one line, before any progress
     roadmap = None
     if args.load_roadmap is not None:
         from dexplan.planning.context import build_context
@@ -112,9 +159,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
         seed=args.seed,
         time_limit=args.time_limit,
         roadmap=roadmap,
-        progress=None if args.quiet else (lambda m: _err(m)),
+        progress=_progress(args.quiet),
         reduction=args.reduction,
     )
+    _check_interrupted()
     st = result.stats
     if args.save_roadmap is not None and result.roadmap is not None:
         result.roadmap.save(args.save_roadmap)
@@ -123,7 +171,6 @@ def cmd_plan(args: argparse.Namespace) -> int:
         _err(f"no plan: {result.status}: {result.message}")
         sys.stdout.write(f"status: {result.status}\ntime_s: {st.get('time_s', 0):.3f}\n")
         return EXIT_FAILED
-    hand = build_hand(scenario)
     doc = build_plan_document(scenario, hand, result, out.resolve().parent)
     write_plan(out, doc)
     if args.rrd is not None:
@@ -227,6 +274,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     )
     for path in result.plots:
         sys.stdout.write(f"plot: {path}\n")
+    failed = result.failed
+    if failed:
+        first = failed[0]
+        _err(
+            f"{len(failed)} of {len(result.records)} runs failed ({first['status_name']}: "
+            f"{first['scenario']} {first['planner']} seed {first['seed']}: "
+            f"{str(first.get('message') or '')[:200]}); see {result.csv}"
+        )
+        return EXIT_FAILED
     return EXIT_OK
 
 
@@ -366,13 +422,33 @@ def run(argv: Sequence[str] | None = None) -> int:
     code 2 (bad input) or 3 (a bug); nothing is raised. Tests call this;
     :func:`main` is the console script.
     """
-    parser = build_parser()
+    global _running
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _on_sigint)
+    _running = True
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help, --version or a usage error
-        return int(exc.code or 0) if isinstance(exc.code, int) else EXIT_BAD_INPUT
+        return _run(argv)
+    finally:
+        _running = False
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    args: argparse.Namespace | None = None
     try:
-        return int(args.func(args))
+        _check_interrupted()  # Ctrl-C during the imports above
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:  # argparse: --help, --version or a usage error
+            return int(exc.code or 0) if isinstance(exc.code, int) else EXIT_BAD_INPUT
+        with warnings.catch_warnings():
+            # numerical warnings of NumPy/SciPy inside the library are not for
+            # users: results are checked (and verified) on their own
+            warnings.simplefilter("ignore", RuntimeWarning)
+            code = int(args.func(args))
+        _check_interrupted()
+        return code
+    except BrokenPipeError:  # `dexplan info | head`: the reader left, nothing to say
+        return EXIT_OK
     except DexplanError as exc:
         _err(f"error: {exc}")
         return EXIT_BAD_INPUT
@@ -383,7 +459,7 @@ def run(argv: Sequence[str] | None = None) -> int:
         _err("interrupted")
         return 130
     except Exception as exc:  # a bug: say so plainly, traceback only on request
-        if args.debug:
+        if args is not None and args.debug:
             raise
         detail = str(exc)[:300]
         _err(f"internal error: {type(exc).__name__}: {detail} (rerun with --debug)")

@@ -41,3 +41,30 @@ def atomic_output(path: str | Path, what: str = "output") -> Iterator[Path]:
         os.replace(tmp, path)
     finally:
         Path(tmp).unlink(missing_ok=True)
+
+
+def check_output_path(path: str | Path, what: str) -> Path:
+    """Check, before any work, that ``path`` can be written; return it.
+
+    A run that plans for minutes and then cannot write its result (or leaves
+    one output without the other) is worse than one that refuses at once.
+
+    Args:
+        path: the file to be written.
+        what: the option or output it is, for the message (``-o``, ``--rrd``).
+
+    Raises:
+        InvalidInputError: the folder is missing or not writable, or ``path``
+            is a folder.
+    """
+    path = Path(path)
+    if str(path) == "":
+        raise InvalidInputError(f"{what}: empty file name")
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise InvalidInputError(f"{what}: folder does not exist: {str(folder)!r}")
+    if path.is_dir():
+        raise InvalidInputError(f"{what}: is a folder, not a file: {str(path)!r}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InvalidInputError(f"{what}: folder is not writable: {str(folder)!r}")
+    return path
