@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.exceptions import DependencyError, InvalidInputError, ModelError, shorten
+from dexplan.ik import FingerChain, SplitFingerIK, batch_dls
 from dexplan.typing import FloatArray, IntArray, as_vector
 from dexplan.urdf import (
     build_models,
@@ -189,6 +190,21 @@ class Hand:
         self._analytic_ik: list[_PlanarFingerIK | None] = [
             _PlanarFingerIK.detect(self, i) for i in range(self.n_fingers)
         ]
+        # vectorised kinematics (dexplan.ik): closed form where the structure
+        # allows it (also 4-joint fingers, redundancy on a grid), else batched DLS
+        self._chains: list[FingerChain | None] = [
+            FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
+        ]
+        self._split_ik: list[SplitFingerIK | None] = [
+            None
+            if self._analytic_ik[i] is not None
+            else SplitFingerIK.detect(
+                self._chains[i],
+                self.lower[self.finger_q_index[i]],
+                self.upper[self.finger_q_index[i]],
+            )
+            for i in range(self.n_fingers)
+        ]
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -326,12 +342,40 @@ class Hand:
         analytic = self._analytic_ik[finger]
         if analytic is not None:
             return analytic.solve(p_target_world, q_hand[self.finger_q_index[finger]])
+        split = self._split_ik[finger]
+        if split is not None:
+            return split.solve_near(p_target_world, q_hand[self.finger_q_index[finger]])
         res = self.finger_ik(finger, p_target_world, q_hand)
         return res.q_finger if res.success else None
 
     def has_closed_form_ik(self, finger: int) -> bool:
-        """True when ``finger`` is solved in closed form (see :meth:`finger_ik`)."""
-        return self._analytic_ik[finger] is not None
+        """True when ``finger`` is solved in closed form (see :meth:`finger_ik`).
+
+        Redundant 4-joint fingers whose other three joints have a closed form
+        count (``dexplan.ik.SplitFingerIK``; docs/hands.md, "IK and redundancy").
+        """
+        return self._analytic_ik[finger] is not None or self._split_ik[finger] is not None
+
+    def finger_ik_candidates(
+        self, finger: int, p_targets_world: FloatArray
+    ) -> tuple[FloatArray, np.ndarray]:
+        """Several IK solutions of one finger per target (all branches, free-joint grid).
+
+        Args:
+            finger: finger index.
+            p_targets_world: (N, 3) fingertip-centre targets, world frame.
+
+        Returns:
+            ``q_finger: (N, C, m)`` within limits and ``ok: (N, C)``. Closed-form
+            redundant fingers give every branch at every grid value of the free
+            joint; other fingers one solution per target (C = 1).
+        """
+        targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
+        split = self._split_ik[finger]
+        if split is not None:
+            return split.candidates(targets)
+        q, ok = self.finger_ik_batch(finger, targets)
+        return q[:, None, :], ok[:, None]
 
     def finger_ik_batch(
         self, finger: int, p_targets_world: FloatArray, q_init: FloatArray | None = None
@@ -345,13 +389,31 @@ class Hand:
 
         Returns:
             ``q_finger: (N, m)`` within limits and ``ok: (N,)`` success flags.
-            Closed-form fingers are solved vectorized; others call
+            Closed-form fingers are solved vectorized (a redundant finger
+            gives the solution nearest the middle of its joint ranges, see
+            :meth:`finger_ik_candidates`); other revolute fingers by batched
+            damped least squares from ``q_init``; the rest call
             :meth:`finger_ik` per target.
         """
         targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
         analytic = self._analytic_ik[finger]
         if analytic is not None:
             return analytic.solve_batch(targets)
+        split = self._split_ik[finger]
+        if split is not None:
+            return split.solve(targets)
+        idx = self.finger_q_index[finger]
+        chain = self._chains[finger]
+        if chain is not None:
+            q0 = (self.neutral if q_init is None else q_init)[idx]
+            q_b, ok_b = batch_dls(chain, targets, q0, self.lower[idx], self.upper[idx])
+            if not ok_b.all():  # deterministic restart from the middle of the ranges
+                bad = np.flatnonzero(~ok_b)
+                mid = 0.5 * (self.lower[idx] + self.upper[idx])
+                q_b[bad], ok_b[bad] = batch_dls(
+                    chain, targets[bad], mid, self.lower[idx], self.upper[idx]
+                )
+            return q_b, ok_b
         m = len(self.finger_q_index[finger])
         q_out = np.zeros((len(targets), m))
         ok = np.zeros(len(targets), dtype=bool)
@@ -379,8 +441,10 @@ class Hand:
         """Damped least squares IK of one finger's tip centre, within joint limits.
 
         Fingers of the "abduction + planar two-link" kind (as on the builtin
-        paper hand) are solved in closed form first (checked against
-        Pinocchio's FK when the hand is loaded); others, and targets the closed
+        paper hand), and 4-joint fingers that are of that kind once one free
+        joint is fixed (the Allegro's, ``dexplan.ik.SplitFingerIK``: the
+        solution nearest ``q_init``), are solved in closed form first (checked
+        against FK when the hand is loaded); others, and targets the closed
         form cannot reach within limits, use Levenberg-Marquardt steps
         ``dq = J^T (J J^T + lambda I)^-1 e`` with
         ``lambda = |e|^2 + 1e-9`` (damping vanishes near a solution, so the
@@ -416,6 +480,18 @@ class Hand:
             if q_f is not None:
                 q[idx] = q_f
                 err = float(np.linalg.norm(self._finger_tip(finger, q)[0] - target))
+                if err < tol:
+                    return IKResult(q_f, True, err, 1)
+        split = self._split_ik[finger]
+        if split is not None:
+            q_f = split.solve_near(target, q[idx])
+            if q_f is None:  # the free joint anywhere in its range
+                q_all, ok_all = split.solve(target[None], q[idx])
+                q_f = q_all[0] if ok_all[0] else None
+            if q_f is not None:
+                q_try = q.copy()
+                q_try[idx] = q_f
+                err = float(np.linalg.norm(self._finger_tip(finger, q_try)[0] - target))
                 if err < tol:
                     return IKResult(q_f, True, err, 1)
         lo, hi = self.lower[idx], self.upper[idx]

@@ -1,0 +1,427 @@
+"""Vectorised inverse kinematics of serial fingers (many targets at once).
+
+Two solvers, both working on whole batches of fingertip targets with NumPy:
+
+- :class:`SplitFingerIK`, closed form: a finger whose joints (after fixing at
+  most one *free* joint) are an axis joint followed by two parallel flexion
+  joints whose plane contains that axis ("abduction + planar 2R": the paper
+  hand's fingers, and the Allegro index, middle and ring with their distal
+  joint fixed, and the Allegro thumb with its first joint fixed). A 3-joint
+  finger has one solution per branch; a 4-joint finger is redundant, and the
+  free joint is resolved on a grid: every grid value is solved in closed form
+  and the solution nearest a reference configuration wins (the previous
+  joints when following a moving contact, the middle of the joint ranges when
+  sampling). See ``docs/hands.md``, "IK and redundancy".
+- :func:`batch_dls`: damped least squares over many targets at once, for any
+  revolute chain (:class:`FingerChain` gives vectorised forward kinematics and
+  the analytic position Jacobian).
+
+Frames: everything is in the world (= palm) frame. ``q`` arrays hold one
+finger's joints in chain order (root to tip), which is also the order of
+``Hand.finger_q_index[i]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.typing import FloatArray
+
+_REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"}
+
+#: Offsets (rad) of the free joint around its previous value tried when a
+#: redundant finger follows a moving contact.
+TRACK_DELTAS: tuple[int, ...] = (0, -1, 1, -3, 3, -8, 8)
+#: Spacing (rad) of the free-joint table used when following a contact (the
+#: free joint takes table values; TRACK_DELTAS are steps in that table).
+TRACK_RESOLUTION = 0.004
+#: Free-joint grid size when solving without a previous configuration.
+SAMPLE_GRID = 7
+
+
+def _skew(a: FloatArray) -> FloatArray:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+class FingerChain:
+    """Forward kinematics of one finger, vectorised over configurations.
+
+    Built from the Pinocchio model: the finger's joints must all be revolute
+    and form a chain from the root to the fingertip frame (every joint of a
+    finger belongs to it, so the chain's base is fixed in the world).
+
+    Args:
+        placements: per joint, ``(R, t)`` of the joint frame in its parent
+            joint's frame at zero angle; ``R: (3, 3)``, ``t: (3,)``.
+        axes: (m, 3) joint axes in their own joint frames (unit).
+        tip: (3,) fingertip centre in the last joint's frame.
+    """
+
+    def __init__(
+        self, placements: list[tuple[FloatArray, FloatArray]], axes: FloatArray, tip: FloatArray
+    ) -> None:
+        self.placements = placements
+        self.axes = axes
+        self.tip = tip
+        self.m = len(placements)
+        self._K = [_skew(a) for a in axes]
+        self._K2 = [k @ k for k in self._K]
+
+    @classmethod
+    def from_model(cls, model: pin.Model, tip_frame_id: int) -> FingerChain | None:
+        """The chain ending in frame ``tip_frame_id``, or None if not all revolute."""
+        frame = model.frames[tip_frame_id]
+        jids = []
+        jid = frame.parentJoint
+        while jid > 0:
+            jids.append(jid)
+            jid = model.parents[jid]
+        jids.reverse()
+        if not jids or any(model.joints[j].shortname() not in _REVOLUTE for j in jids):
+            return None
+        data = model.createData()
+        q0 = pin.neutral(model)
+        J = pin.computeJointJacobians(model, data, q0)
+        placements, axes = [], []
+        for j in jids:
+            M = model.jointPlacements[j]
+            placements.append((np.array(M.rotation), np.array(M.translation)))
+            w = J[3:, model.joints[j].idx_v]
+            axes.append(data.oMi[j].rotation.T @ w)
+        axes_arr = np.array(axes)
+        axes_arr /= np.linalg.norm(axes_arr, axis=1, keepdims=True)
+        return cls(placements, axes_arr, np.array(frame.placement.translation))
+
+    def forward(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Forward kinematics of many configurations.
+
+        Args:
+            q: (N, m) joint values.
+
+        Returns:
+            ``tip: (N, 3)`` fingertip centres, ``origins: (N, m, 3)`` joint
+            origins and ``axes: (N, m, 3)`` unit joint axes, world frame.
+        """
+        n = len(q)
+        R = np.broadcast_to(np.eye(3), (n, 3, 3))
+        p = np.zeros((n, 3))
+        origins = np.empty((n, self.m, 3))
+        axes = np.empty((n, self.m, 3))
+        for j, (Rj, tj) in enumerate(self.placements):
+            p = p + R @ tj
+            R = R @ Rj
+            origins[:, j] = p
+            axes[:, j] = R @ self.axes[j]
+            s, c = np.sin(q[:, j]), np.cos(q[:, j])
+            rot = np.eye(3) + s[:, None, None] * self._K[j] + (1.0 - c)[:, None, None] * self._K2[j]
+            R = R @ rot
+        return p + R @ self.tip, origins, axes
+
+    def tips(self, q: FloatArray) -> FloatArray:
+        """Fingertip centres ``(N, 3)`` of configurations ``q: (N, m)``."""
+        return self.forward(q)[0]
+
+    def jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Tip centres ``(N, 3)`` and position Jacobians ``(N, 3, m)`` (world frame)."""
+        tip, origins, axes = self.forward(q)
+        return tip, np.cross(axes, tip[:, None, :] - origins).transpose(0, 2, 1)
+
+
+def batch_dls(
+    chain: FingerChain,
+    targets: FloatArray,
+    q0: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    *,
+    tol: float = 1e-7,
+    max_iter: int = 40,
+) -> tuple[FloatArray, np.ndarray]:
+    """Damped least squares IK for many targets at once, within joint limits.
+
+    Steps ``dq = J^T (J J^T + lambda I)^-1 e`` with ``lambda = |e|^2 + 1e-9``
+    (as :meth:`dexplan.hand.Hand.finger_ik`), clipped to the limits, for all
+    targets together; converged targets stop moving.
+
+    Args:
+        chain: the finger.
+        targets: (N, 3) fingertip-centre targets, world frame.
+        q0: (N, m) or (m,) start configurations (the solution stays near them).
+        lo: (m,) lower joint limits.
+        hi: (m,) upper joint limits.
+        tol: success threshold on the position error (m).
+        max_iter: iterations.
+
+    Returns:
+        ``q: (N, m)`` within limits and ``ok: (N,)`` (error below ``tol``).
+    """
+    targets = np.asarray(targets, dtype=float).reshape(-1, 3)
+    q = np.clip(np.broadcast_to(q0, (len(targets), chain.m)).astype(float), lo, hi)
+    active = np.arange(len(targets))
+    ok = np.zeros(len(targets), dtype=bool)
+    eye = np.eye(3)
+    for _ in range(max_iter):
+        if not len(active):
+            break
+        qa = q[active]
+        p, J = chain.jacobian(qa)
+        e = targets[active] - p
+        err2 = np.einsum("ij,ij->i", e, e)
+        done = err2 < tol * tol
+        ok[active[done]] = True
+        keep = ~done
+        active, qa, J, e, err2 = active[keep], qa[keep], J[keep], e[keep], err2[keep]
+        if not len(active):
+            break
+        A = J @ J.transpose(0, 2, 1) + (err2 + 1e-9)[:, None, None] * eye
+        dq = np.einsum("nji,nj->ni", J, np.linalg.solve(A, e[:, :, None])[:, :, 0])
+        q[active] = np.clip(qa + dq, lo, hi)
+    if len(active):
+        e = targets[active] - chain.tips(q[active])
+        ok[active] = np.einsum("ij,ij->i", e, e) < tol * tol
+    return q, ok
+
+
+_BRANCH = np.array([1.0, -1.0])
+
+
+def _wrap(a: FloatArray) -> FloatArray:
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+class SplitFingerIK:
+    """Closed-form IK of an axis joint + planar 2R chain, with at most one free joint.
+
+    Sub-chain joints ``sub = (a, f1, f2)`` (indices into the finger's
+    joints): ``a`` turns a plane that contains its own axis, ``f1`` and
+    ``f2`` are parallel flexion joints perpendicular to that plane, and the
+    fingertip lies in it. A 4-joint finger has one more joint, ``free``
+    (first or last), whose value is fixed for each closed-form solve.
+    :meth:`detect` checks the structure numerically and verifies the solver
+    against forward kinematics before it is used.
+
+    Args:
+        chain: the finger's forward kinematics.
+        lo: (m,) lower joint limits.
+        hi: (m,) upper joint limits.
+        sub: indices of the axis joint and the two flexion joints.
+        free: index of the free joint, or None for a 3-joint finger.
+    """
+
+    def __init__(
+        self,
+        chain: FingerChain,
+        lo: FloatArray,
+        hi: FloatArray,
+        sub: tuple[int, int, int],
+        free: int | None,
+    ) -> None:
+        self.chain = chain
+        self.lo, self.hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+        self.sub = sub
+        self.free = free
+        self.m = chain.m
+        self.rest = 0.5 * (self.lo + self.hi)
+        if free is None:
+            self.grid = np.zeros(1)
+            self.table = np.zeros(1)
+        else:
+            span = self.hi[free] - self.lo[free]
+            # the fine table holds the sampling grid: sampled solutions track exactly
+            steps = (SAMPLE_GRID - 1) * max(1, int(np.ceil(span / TRACK_RESOLUTION / 6)))
+            self.table = np.linspace(self.lo[free], self.hi[free], steps + 1)
+            self.grid = self.table[:: steps // (SAMPLE_GRID - 1)]
+        self._table_geometry = self.geometry(self.table)
+        self._grid_geometry = self.geometry(self.grid)
+
+    # ------------------------------------------------------------ structure
+    @classmethod
+    def detect(
+        cls, chain: FingerChain | None, lo: FloatArray, hi: FloatArray
+    ) -> SplitFingerIK | None:
+        """The solver for ``chain`` when its structure allows one, else None."""
+        if chain is None or chain.m not in (3, 4):
+            return None
+        # a 4-joint finger: the distal joint free, else the first one
+        options: list[tuple[tuple[int, int, int], int | None]] = (
+            [((0, 1, 2), None)] if chain.m == 3 else [((0, 1, 2), 3), ((1, 2, 3), 0)]
+        )
+        for sub, free in options:
+            solver = cls(chain, lo, hi, sub, free)
+            if solver._verified():
+                return solver
+        return None
+
+    def geometry(self, free_values: FloatArray) -> dict[str, FloatArray]:
+        """Sub-chain geometry with the free joint at each of ``free_values: (K,)``.
+
+        Returns arrays with a leading K axis: axis origin ``o: (K, 3)``,
+        axis ``a``, plane normal ``n`` (the first flexion axis), in-plane
+        direction ``b = n x a``; 2-D plane coordinates ``(u, w)`` (along a,
+        along b) of the first flexion joint ``j1: (K, 2)``, the links
+        ``L1: (K, 2)`` (first to second flexion joint) and ``L2`` (second
+        flexion joint to tip), and the second flexion sign ``s2: (K,)``.
+        """
+        v = np.asarray(free_values, dtype=float).reshape(-1)
+        q = np.zeros((len(v), self.m))
+        if self.free is not None:
+            q[:, self.free] = v
+        tip, origins, axes = self.chain.forward(q)
+        ia, i1, i2 = self.sub
+        o, a, n = origins[:, ia], axes[:, ia], axes[:, i1]
+        b = np.cross(n, a)
+
+        def plane(x: FloatArray) -> FloatArray:
+            d = x - o
+            return np.stack([np.einsum("ij,ij->i", d, a), np.einsum("ij,ij->i", d, b)], axis=1)
+
+        j1, j2, t = plane(origins[:, i1]), plane(origins[:, i2]), plane(tip)
+        off = np.stack(
+            [np.einsum("ij,ij->i", x - o, n) for x in (origins[:, i1], origins[:, i2], tip)]
+        )
+        return {
+            "o": o,
+            "a": a,
+            "n": n,
+            "b": b,
+            "j1": j1,
+            "L1": j2 - j1,
+            "L2": t - j2,
+            "s2": np.sign(np.einsum("ij,ij->i", axes[:, i2], n)),
+            "off": np.abs(off).max(axis=0),
+            "dot": np.abs(np.einsum("ij,ij->i", a, n)),
+            "par": np.linalg.norm(np.cross(axes[:, i2], n), axis=1),
+        }
+
+    def _verified(self) -> bool:
+        g = self._grid_geometry
+        if np.any(g["off"] > 1e-9) or np.any(g["dot"] > 1e-9) or np.any(g["par"] > 1e-9):
+            return False
+        if np.any(np.linalg.norm(g["L1"], axis=1) < 1e-6) or np.any(
+            np.linalg.norm(g["L2"], axis=1) < 1e-6
+        ):
+            return False
+        rng = np.random.default_rng(0)
+        q = rng.uniform(self.lo, self.hi, size=(20, self.m))
+        targets = self.chain.tips(q)
+        for k in range(len(q)):
+            v = None if self.free is None else q[k, self.free : self.free + 1]
+            sol, ok = self.solve(targets[k : k + 1], q[k], v)
+            if not ok[0] or np.linalg.norm(self.chain.tips(sol)[0] - targets[k]) > 1e-9:
+                return False
+        return True
+
+    # --------------------------------------------------------------- solving
+    def candidates(
+        self, targets: FloatArray, free_values: FloatArray | None = None
+    ) -> tuple[FloatArray, np.ndarray]:
+        """Every closed-form solution for each target.
+
+        Args:
+            targets: (N, 3) fingertip-centre targets, world frame.
+            free_values: (K,) free-joint values to solve at (default: the
+                sampling grid, :data:`SAMPLE_GRID` values across its range).
+
+        Returns:
+            ``q: (N, C, m)`` with C = 4 K (two abduction branches, two
+            elbows per free value) and ``ok: (N, C)``, True where the
+            solution exists and lies within the limits.
+        """
+        if free_values is None:
+            g = self._grid_geometry
+            v = self.grid
+        else:
+            v = np.asarray(free_values, dtype=float).reshape(-1)
+            g = self.geometry(v)
+        return self._candidates(targets, v, g)
+
+    def _candidates(
+        self, targets: FloatArray, v: FloatArray, g: dict[str, FloatArray]
+    ) -> tuple[FloatArray, np.ndarray]:
+        t = np.asarray(targets, dtype=float).reshape(-1, 3)
+        N, K = len(t), len(v)
+        p = t[:, None, :] - g["o"][None]  # (N, K, 3)
+        u = np.einsum("nkj,kj->nk", p, g["a"])[:, :, None, None]
+        pb = np.einsum("nkj,kj->nk", p, g["b"])[:, :, None, None]
+        pn = np.einsum("nkj,kj->nk", p, g["n"])[:, :, None, None]
+        rho = np.sqrt(pb * pb + pn * pn)
+        # axes: (N, K, abduction branch, elbow); link data broadcast over (K, 1, 1)
+        L1, L2, j1 = (g[key][:, None, None, :] for key in ("L1", "L2", "j1"))
+        l1s = L1[..., 0] ** 2 + L1[..., 1] ** 2
+        l2s = L2[..., 0] ** 2 + L2[..., 1] ** 2
+        dphi = np.arctan2(L2[..., 1], L2[..., 0]) - np.arctan2(L1[..., 1], L1[..., 0])
+        sgn = _BRANCH[:, None]  # abduction branch: plane coordinate w = +-rho
+        esg = _BRANCH[None, :]  # elbow branch
+        th0 = np.arctan2(sgn * pn, sgn * pb)
+        du = u - j1[..., 0]
+        dw = sgn * rho - j1[..., 1]
+        c = (du * du + dw * dw - l1s - l2s) / (2.0 * np.sqrt(l1s * l2s))
+        reach = np.abs(c) <= 1.0
+        al2 = esg * np.arccos(np.clip(c, -1.0, 1.0)) - dphi
+        ca, sa = np.cos(al2), np.sin(al2)
+        vu = L1[..., 0] + ca * L2[..., 0] - sa * L2[..., 1]
+        vw = L1[..., 1] + sa * L2[..., 0] + ca * L2[..., 1]
+        al1 = np.arctan2(dw, du) - np.arctan2(vw, vu)
+        ia, i1, i2 = self.sub
+        q = np.empty((N, K, 2, 2, self.m))
+        q[..., ia] = th0
+        q[..., i1] = al1
+        q[..., i2] = g["s2"][:, None, None] * al2
+        q = _wrap(q)
+        if self.free is not None:
+            q[..., self.free] = v[:, None, None]
+        inside = np.all((q >= self.lo - 1e-12) & (q <= self.hi + 1e-12), axis=-1)
+        ok = reach & inside
+        q = np.clip(q, self.lo, self.hi)
+        return q.reshape(N, 4 * K, self.m), ok.reshape(N, 4 * K)
+
+    def solve(
+        self,
+        targets: FloatArray,
+        q_ref: FloatArray | None = None,
+        free_values: FloatArray | None = None,
+    ) -> tuple[FloatArray, np.ndarray]:
+        """The solution nearest ``q_ref`` for each target.
+
+        Args:
+            targets: (N, 3) fingertip-centre targets, world frame.
+            q_ref: (N, m) or (m,) reference configurations (default: the
+                middle of the joint ranges).
+            free_values: (K,) free-joint values (default: the sampling grid).
+
+        Returns:
+            ``q: (N, m)`` within limits and ``ok: (N,)``.
+        """
+        q, ok = self.candidates(targets, free_values)
+        return self._nearest(q, ok, q_ref)
+
+    def _nearest(
+        self, q: FloatArray, ok: np.ndarray, q_ref: FloatArray | None
+    ) -> tuple[FloatArray, np.ndarray]:
+        ref = self.rest if q_ref is None else np.asarray(q_ref, dtype=float)
+        ref = np.broadcast_to(ref, (q.shape[0], self.m))
+        d = np.sum((q - ref[:, None, :]) ** 2, axis=2)
+        d[~ok] = np.inf
+        best = np.argmin(d, axis=1)
+        rows = np.arange(len(q))
+        return q[rows, best], ok[rows, best]
+
+    def solve_near(self, target: FloatArray, q_prev: FloatArray) -> FloatArray | None:
+        """The solution nearest ``q_prev: (m,)`` for one target, or None.
+
+        The free joint is searched in a table (:data:`TRACK_RESOLUTION`
+        apart) around the entry nearest its value in ``q_prev``
+        (:data:`TRACK_DELTAS` entries away), so a contact followed in small
+        steps gives joints that change in small steps.
+        """
+        if self.free is None:
+            g, v = self._table_geometry, self.table
+        else:
+            k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
+            ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
+            g = {key: val[ks] for key, val in self._table_geometry.items()}
+            v = self.table[ks]
+        q, ok = self._candidates(np.asarray(target, dtype=float)[None], v, g)
+        q, ok = self._nearest(q, ok, q_prev)
+        return q[0] if ok[0] else None
