@@ -15,6 +15,7 @@ Rejections are counted by reason, for the planner's statistics.
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -65,10 +66,21 @@ class ValidityStats:
     checked: int = 0
     valid: int = 0
     rejected: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
+    #: collision rejections by colliding pair (geometry names, sorted)
+    collision_pairs: Counter[tuple[str, str]] = field(default_factory=Counter)
+
+    def top_collision_pairs(self, k: int = 3) -> list[tuple[tuple[str, str], int]]:
+        """The ``k`` pairs that rejected most states, most frequent first."""
+        return self.collision_pairs.most_common(k)
 
     def as_dict(self) -> dict[str, object]:
         """Plain-dict view for statistics output."""
-        return {"checked": self.checked, "valid": self.valid, "rejected": dict(self.rejected)}
+        return {
+            "checked": self.checked,
+            "valid": self.valid,
+            "rejected": dict(self.rejected),
+            "collision_pairs": [[a, b, n] for (a, b), n in self.top_collision_pairs(5)],
+        }
 
 
 @dataclass(frozen=True)
@@ -139,7 +151,10 @@ class GraspValidity:
         clearance = self.settings.object_clearance
         if clearance > 0.0 and self.world.object_clearance(x[:POSE_DIM]) < clearance:
             return Verdict(False, "collision")
-        if not self.world.is_free(q, x[:POSE_DIM], gsn.contact_fingers):
+        rep = self.world.check(q, x[:POSE_DIM], gsn.contact_fingers)
+        if not rep.free:
+            pair = rep.pair or ("fingertip", "object (penetration)")
+            self.stats.collision_pairs[tuple(sorted(pair))] += 1  # type: ignore[index]
             return Verdict(False, "collision")
         p, n = gsn.contacts(x)
         quality = self.grasp_quality(p, n)
