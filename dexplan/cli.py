@@ -87,6 +87,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def shorten_text(text: str, limit: int = 500) -> str:
+    """``text`` cut to ``limit`` characters (messages echo library detail)."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _err(msg: str) -> None:
     sys.stderr.write(f"dexplan: {msg}\n")
     sys.stderr.flush()
@@ -145,14 +150,22 @@ def cmd_plan(args: argparse.Namespace) -> int:
         if value is not None:
             check_output_path(value, option)
     hand = build_hand(scenario)  # a bad hand model is bad input: one line, before any progress
+    q0 = scenario.start.q
+    if q0 is not None and q0.shape != (hand.nq,):
+        raise InvalidInputError(
+            f"start.q must have {hand.nq} entries (the hand's joints), got {q0.shape[0]}"
+        )
     roadmap = None
     if args.load_roadmap is not None:
         from dexplan.planning.context import build_context
         from dexplan.planning.roadmap import scenario_key
 
-        key = scenario_key(build_context(scenario))
-        roadmap = Roadmap.load(args.load_roadmap, key)
-    _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
+        ctx = build_context(scenario)
+        roadmap = Roadmap.load(
+            args.load_roadmap, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim
+        )
+    if not args.quiet:
+        _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
     result = plan(
         scenario,
         planner=args.planner,
@@ -168,7 +181,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
         result.roadmap.save(args.save_roadmap)
         _err(f"roadmap written to {args.save_roadmap}")
     if not result.solved:
-        _err(f"no plan: {result.status}: {result.message}")
+        _err(f"no plan: {result.status}: {shorten_text(result.message)}")
+        if result.rejections is not None:
+            _err(result.rejections.describe())
+        if result.status == "invalid_plan" and result.segments:
+            # written for inspection, never under the requested name
+            bad = out.with_name(f"{out.stem}.invalid.json")
+            doc = build_plan_document(scenario, hand, result, bad.resolve().parent)
+            doc["stats"]["violations"] = list(result.violations)
+            write_plan(bad, doc)
+            _err(f"the plan that failed verification is in {bad}")
         sys.stdout.write(f"status: {result.status}\ntime_s: {st.get('time_s', 0):.3f}\n")
         return EXIT_FAILED
     doc = build_plan_document(scenario, hand, result, out.resolve().parent)

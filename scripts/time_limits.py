@@ -52,7 +52,7 @@ time_limit = 30.0
 def allegro_urdf() -> Path:
     from dexplan.hand import example_robot_data_file
 
-    return example_robot_data_file("robots/allegro_hand_description/urdf/allegro_right_hand.urdf")
+    return example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
 
 
 def run(scenario: Path, limit: float, planner: str) -> tuple[float, float, int]:

@@ -28,6 +28,7 @@ import numpy as np
 from dexplan.exceptions import InvalidInputError
 from dexplan.plan import build_plan_document, verify_plan
 from dexplan.planning.context import PlanningContext, build_context
+from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl_adapter import check_planner
 from dexplan.planning.path import Segment, count_kinds, object_path_length
@@ -63,6 +64,9 @@ class PlanResult:
         roadmap: the GSn roadmap built or used.
         stats: figures for the plan file and benchmarks.
         message: human-readable detail on failure.
+        rejections: what the sampler and the validity checker rejected, and why.
+        violations: for ``invalid_plan``, the verifier's findings (the
+            segments are kept, so the plan can be inspected).
     """
 
     status: str
@@ -73,6 +77,8 @@ class PlanResult:
     roadmap: Roadmap | None
     stats: dict[str, Any] = field(default_factory=dict)
     message: str = ""
+    rejections: Rejections | None = None
+    violations: tuple[str, ...] = ()
 
     @property
     def solved(self) -> bool:
@@ -204,7 +210,10 @@ def plan(
         kw.setdefault("gsn_path", np.zeros((0, ctx.gsn.ambient_dim)))
         kw.setdefault("roadmap", roadmap)
         kw.setdefault("start_q", None)
-        return PlanResult(status, start_pose=pose0, stats=stats, message=message, **kw)
+        rejections = Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats)
+        return PlanResult(
+            status, start_pose=pose0, stats=stats, message=message, rejections=rejections, **kw
+        )
 
     say("sampling a start grasp")
     x_start = start_state(ctx)
@@ -311,9 +320,11 @@ def plan(
         return result(
             "invalid_plan",
             f"the reduced plan failed verification: {detail}",
+            segments=tuple(segments),
             roadmap=roadmap,
             gsn_path=gsn.path,
             start_q=q_start,
+            violations=tuple(str(v) for v in report.violations),
         )
     stats["time_s"] = time.perf_counter() - t0
     return solved
