@@ -1,99 +1,8 @@
-"""Friction cones, contact wrenches and a force-closure quality with provable bounds.
+"""The force-closure quality ``Q`` and its solver (see :mod:`dexplan.grasp`).
 
-Everything here is expressed in the **object frame**: contact points ``p_c`` (metres)
-and *inward* unit normals ``n_c`` (pointing into the object), one row per contact.
-
-Friction model
---------------
-Point contact with Coulomb friction ``mu``, the cone linearized by ``E = edges`` unit
-edge directions ``u_ce = cos(a) n_c + sin(a) (cos(t_e) t1_c + sin(t_e) t2_c)`` with
-``tan(a) = mu`` and ``t_e = 2 pi e / E``. The tangent basis ``(t1_c, t2_c)`` is a
-deterministic function of ``n_c`` alone (Duff et al. 2017, "Building an orthonormal
-basis, revisited"), never of the world frame, so a grasp expressed in the object
-frame gives the same pyramid wherever the object is in the world (MEASURED.md: a
-world-aligned basis flipped the verdict of 1% of rotated grasps).
-
-The edge wrenches are ``w_ce = [u_ce, (p_c x u_ce) / L]`` with the torque scale ``L``
-(the object's characteristic length; by default the largest ``|p_c|``, or 1 if all
-points are at the origin). ``W`` is the ``(k E, 6)`` matrix of these rows.
-
-Quality
--------
-Let ``G = [G_1 ... G_k]`` with ``G_c = [I_3; [p_c]_x / L]`` (6 x 3) map the stacked
-contact forces ``f = (f_1, ..., f_k)`` to the scaled wrench ``G f``, and ``K_c`` be the
-pyramid spanned by the edges of contact ``c``. For a wrench ``d`` define the minimum
-Euclidean force needed to produce it::
-
-    phi(d) = min { |f|_2 : G f = d, f_c in K_c for every c }   (+inf if infeasible)
-
-and, over the 12 signed unit axes ``d_j = +-e_i`` of the scaled wrench space::
-
-    Q = min_j 1 / phi(d_j)          (0 when some phi(d_j) is infinite).
-
-``Q > 0`` iff the grasp is force closure (FC) with the linearized cones.
-
-Bounds relative to Ferrari-Canny. Let ``H = conv({0} U {w_ce})``,
-``eps = max{r : B(0, r) in H}`` the (L1, ``sum lambda <= 1``) Ferrari-Canny epsilon
-of the unit edge wrenches, ``gamma(d) = min{sum lambda : W^T lambda = d, lambda >= 0}``
-the gauge of ``H``, and ``q = min_j 1 / gamma(d_j)`` the 12-direction LP quality of
-DESIGN.md. With ``k`` contacts::
-
-    eps <= q <= Q <= sqrt(k (1 + mu^2)) q <= sqrt(6 k (1 + mu^2)) eps.
-
-Proof. (i) ``eps <= q <= sqrt(6) eps``: ``B(0, eps)`` in ``H`` gives ``eps d_j`` in ``H``,
-so ``1/gamma(d_j) >= eps``; conversely ``H`` is convex and contains ``q d_j`` for all
-12 ``j``, hence the cross-polytope of radius ``q``, hence the ball of radius
-``q / sqrt(6)``. (ii) Every edge has ``n_c . u_ce = cos(a)``, so any representation
-``f_c = sum_e lambda_ce u_ce`` has ``sum_e lambda_ce = n_c . f_c / cos(a)``: ``gamma(d) =
-min{sum_c n_c . f_c / cos(a) : G f = d, f_c in K_c}``. The pyramid lies inside the
-circular cone of half-angle ``a``, so ``cos(a) |f_c| <= n_c . f_c <= |f_c|`` on it. For
-any feasible ``f``: ``|f|_2 <= sum_c |f_c| <= sum_c n_c . f_c / cos(a)``, so
-``phi <= gamma``; and ``|f|_2 >= sum_c |f_c| / sqrt(k) >= sum_c n_c . f_c / sqrt(k)
->= cos(a) gamma / sqrt(k)``, so ``phi >= gamma / sqrt(k (1 + mu^2))``. Taking ``1/.``
-and the minimum over ``j`` gives ``q <= Q <= sqrt(k (1 + mu^2)) q``. (iii) Adding a
-contact adds variables (its force may be zero), so every ``phi(d_j)`` can only
-decrease: ``Q`` is monotone under adding contacts (with ``L`` fixed).
-
-Computation
------------
-If ``G`` has full rank 6, ``f = G^+ d + f_int`` with ``f_int`` in the null space of ``G``
-(internal forces) and ``G^+ d`` orthogonal to it, so ``phi(d)^2 = |G^+ d|^2 + |z*|^2``
-with ``z* = argmin{|z| : B z <= b(d)}``, ``B = A Pi`` (``A`` the block-diagonal outward
-facet normals of the pyramids, ``Pi = I - G^+ G`` the projector onto the internal
-forces, rows scaled to unit length) and ``b(d) = -A G^+ d``: a least-distance program,
-strongly convex (``P = I``), one per (grasp, direction) "pair". The optimum lies in the
-range of ``Pi``, so no null-space basis is needed. Per call:
-
-1. Screens, exact sign. Fewer than 3 contacts (7 if ``mu = 0``) or ``rank G < 6``:
-   0. Else FC iff some internal force is strictly inside every pyramid, i.e. iff
-   ``B z < 0`` has a solution. The candidate ``Pi n`` (every finger pushing along its
-   normal, made internal) settles most FC grasps; otherwise the least-distance
-   program ``min |z| s.t. B z <= -1``, solved exactly by Lawson-Hanson NNLS, is
-   feasible iff the grasp is FC. Either way ``z0`` with ``B z0 <= -1`` is kept.
-2. Certified bounds for every pair, vectorized over the subgrasps and the 12
-   directions: the relaxation to the most violated halfspace gives ``|z*| >= lo``
-   (exact when one constraint is active); the points ``theta z1 + c z0``
-   (``z1`` the relaxed optimum, ``theta`` on a 5-point grid, ``c`` the smallest
-   feasible) are feasible and give ``|z*| <= hi``. With ``margin``, ``theta = 0``
-   alone is tried first; most validity decisions end here.
-3. Best-first branch and bound over the pairs: the pair with the smallest certified
-   lower bound on its quality is solved, until that bound reaches the best solved
-   value (typically 1-4 of the 48 pairs of a 4-contact ``min_subgrasp_quality``).
-   ``solver="osqp"`` (default): one cached OSQP problem per ``(rows, n)`` shape, i.e.
-   per (contact count, edges), ``P = I``, ``A = B`` with a dense pattern; per pair only
-   ``Ax`` (skipped when the subgrasp has not changed) and ``u`` are updated, warm start
-   from the feasible point, polish on, ``max_iter = 400``. A pair OSQP leaves
-   unsolved (ADMM needs a median of ~170 iterations here and thousands near
-   degenerate active sets) is solved exactly by Lawson-Hanson. ``solver="nnls"``
-   solves every pair exactly by Lawson-Hanson (the least-distance dual is an NNLS),
-   about 3x faster than the OSQP path here. Results are clamped to the certified bounds.
-
-Accuracy: the sign never depends on OSQP or on a tolerance other than the screens'
-(``RANK_TOL``, ``MAX_INTERIOR_NORM``); values are exact to ~1e-9 (NNLS, or OSQP with
-successful polish) or to OSQP's ``eps`` (1e-7 relative) otherwise.
-
-Measured speed and the comparison with a qhull reference: docs/force_closure.md and
-``python scripts/bench_grasp.py``.
+The derivation, the bounds and the algorithm are in the package docstring and
+docs/force_closure.md; the contact models' cones are in
+:mod:`dexplan.grasp.cones`.
 """
 
 from __future__ import annotations
@@ -108,24 +17,27 @@ import scipy.sparse as sp
 from scipy.optimize import nnls
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.typing import FloatArray, as_points, as_positive
+from dexplan.grasp.cones import (
+    ContactModel,
+    _check_grasp,
+    _ellipsoid_facets,
+    _facets,
+    _soft_facets,
+    check_contact_model,
+    min_contacts,
+)
+from dexplan.typing import FloatArray, as_positive
 
 __all__ = [
+    "DEFAULT",
+    "DIRECTIONS",
+    "MAX_INTERIOR_NORM",
+    "RANK_TOL",
     "ForceClosure",
-    "contact_wrenches",
     "force_closure_quality",
-    "friction_cone_edges",
-    "friction_cone_facets",
     "is_force_closure",
     "min_subgrasp_quality",
-    "tangent_basis",
 ]
-
-#: Allowed number of edges of a linearized friction cone (``friction_edges`` in
-#: scenarios and plan files): fewer than 3 spans no cone, more than 64 only
-#: costs time (the round cone is approximated within 0.12%).
-MIN_FRICTION_EDGES = 3
-MAX_FRICTION_EDGES = 64
 
 #: The 12 signed unit axes ``+-e_i`` of the scaled wrench space, shape (12, 6).
 DIRECTIONS: FloatArray = np.vstack([np.eye(6), -np.eye(6)])
@@ -138,204 +50,6 @@ RANK_TOL = 1e-10
 MAX_INTERIOR_NORM = 1e9
 
 Solver = Literal["osqp", "nnls"]
-
-
-# ---------------------------------------------------------------------------
-# Validation
-# ---------------------------------------------------------------------------
-
-
-def _check_mu(mu: object) -> float:
-    return as_positive(mu, "mu", allow_zero=True)
-
-
-def _check_edges(edges: object) -> int:
-    if isinstance(edges, bool) or not isinstance(edges, int | np.integer):
-        raise InvalidInputError(f"edges must be an integer >= 3, got {edges!r}")
-    if edges < 3:
-        raise InvalidInputError(f"edges must be an integer >= 3, got {edges!r}")
-    return int(edges)
-
-
-def _check_normals(normals: object, name: str = "normals") -> FloatArray:
-    arr = as_points(normals, name)
-    n2 = np.einsum("ij,ij->i", arr, arr)
-    if n2.size and not n2.min() >= 1e-24:
-        row = int(np.argmin(n2))
-        raise InvalidInputError(
-            f"{name} must have non-zero length, got row {row} = {arr[row].tolist()}"
-        )
-    return arr / np.sqrt(n2)[:, None]
-
-
-def _check_grasp(
-    points: object, normals: object, mu: object, edges: object, torque_scale: object
-) -> tuple[FloatArray, FloatArray, float, int, float]:
-    pts = as_points(points, "points")
-    if pts.shape[0] == 0:
-        raise InvalidInputError("points must hold at least one contact, got shape (0, 3)")
-    nrm = _check_normals(normals, "normals")
-    if pts.shape != nrm.shape:
-        raise InvalidInputError(
-            f"points and normals must have the same shape, got {pts.shape} and {nrm.shape}"
-        )
-    mu_f = _check_mu(mu)
-    e = _check_edges(edges)
-    if torque_scale is None:
-        scale = math.sqrt(float(np.einsum("ij,ij->i", pts, pts).max()))
-        scale = scale if scale > 0.0 else 1.0
-    else:
-        scale = as_positive(torque_scale, "torque_scale")
-    return pts, nrm, mu_f, e, scale
-
-
-# ---------------------------------------------------------------------------
-# Cones and wrenches
-# ---------------------------------------------------------------------------
-
-
-def tangent_basis(normals: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Orthonormal tangent vectors built from each unit normal alone.
-
-    Duff et al. (2017) branchless basis: ``(t1, t2, n)`` is right-handed and depends
-    only on ``n`` (never on a world axis), so the same object-frame normal always gets
-    the same pyramid.
-
-    Args:
-        normals: (k, 3) unit normals, any frame.
-
-    Returns:
-        ``(t1, t2)``, each (k, 3), in the frame of ``normals``.
-    """
-    t = _tangents(np.asarray(normals, dtype=np.float64))
-    return t[:, 0], t[:, 1]
-
-
-def _tangents(n: FloatArray) -> FloatArray:
-    """(k, 2, 3) rows ``t1, t2`` of :func:`tangent_basis` for unit normals (k, 3)."""
-    x, y, z = n[:, 0], n[:, 1], n[:, 2]
-    s = np.where(z >= 0.0, 1.0, -1.0)
-    a = -1.0 / (s + z)
-    b = x * y * a
-    t = np.empty((n.shape[0], 2, 3))
-    t[:, 0, 0] = 1.0 + s * x * x * a
-    t[:, 0, 1] = s * b
-    t[:, 0, 2] = -s * x
-    t[:, 1, 0] = b
-    t[:, 1, 1] = s + y * y * a
-    t[:, 1, 2] = -y
-    return t
-
-
-_CIRCLES: dict[tuple[int, float], FloatArray] = {}
-
-
-def _circle(edges: int, offset: float) -> FloatArray:
-    """(edges, 2) rows ``(cos, sin)`` of the angles ``2 pi (e + offset) / edges``."""
-    key = (edges, offset)
-    out = _CIRCLES.get(key)
-    if out is None:
-        ang = 2.0 * np.pi * (np.arange(edges) + offset) / edges
-        out = _CIRCLES[key] = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return out
-
-
-def friction_cone_edges(normals_in: object, mu: float, edges: int = 8) -> FloatArray:
-    """Unit edge directions of the linearized friction cones.
-
-    Edge ``e`` of contact ``c`` is ``cos(a) n_c + sin(a) (cos(t_e) t1_c + sin(t_e) t2_c)``
-    with ``tan(a) = mu``, ``t_e = 2 pi e / edges`` and ``(t1_c, t2_c)`` from
-    :func:`tangent_basis` (a function of ``n_c`` only). With ``mu = 0`` every edge is
-    the normal.
-
-    Args:
-        normals_in: (k, 3) inward contact normals (into the object), object frame; they
-            are normalized.
-        mu: Coulomb friction coefficient, >= 0.
-        edges: number of pyramid edges, >= 3.
-
-    Returns:
-        (k, edges, 3) unit edge directions, object frame.
-
-    Raises:
-        InvalidInputError: bad shape, non-finite or zero-length normal, ``mu < 0``,
-            ``edges < 3``.
-    """
-    n = _check_normals(normals_in, "normals_in")
-    mu_f = _check_mu(mu)
-    e = _check_edges(edges)
-    return _edges(n, mu_f, e)
-
-
-def _edges(n: FloatArray, mu: float, edges: int) -> FloatArray:
-    ca = 1.0 / math.sqrt(1.0 + mu * mu)
-    radial = _circle(edges, 0.0) @ _tangents(n)  # (k, edges, 3)
-    return ca * n[:, None, :] + (mu * ca) * radial
-
-
-def friction_cone_facets(normals_in: object, mu: float, edges: int = 8) -> FloatArray:
-    """Outward unit normals of the pyramid facets (H-representation of the cones).
-
-    Facet ``e`` joins edges ``e`` and ``e + 1``; a force ``f`` is in the pyramid of
-    contact ``c`` iff ``a_ce . f <= 0`` for every ``e``. For ``mu > 0`` this is
-    ``a_ce = (m_ce - beta n_c) / sqrt(1 + beta^2)`` with ``m_ce`` the unit tangent at
-    angle ``t_e + pi / edges`` and ``beta = mu cos(pi / edges)``. (With ``mu = 0`` these
-    rows only force the tangential part to zero; the quality code then uses the
-    normal force itself as the variable.)
-
-    Args:
-        normals_in: (k, 3) inward contact normals, object frame.
-        mu: friction coefficient, >= 0.
-        edges: number of pyramid edges, >= 3.
-
-    Returns:
-        (k, edges, 3) outward facet normals, object frame.
-    """
-    n = _check_normals(normals_in, "normals_in")
-    mu_f = _check_mu(mu)
-    e = _check_edges(edges)
-    return _facets(n, mu_f, e)
-
-
-def _facets(n: FloatArray, mu: float, edges: int) -> FloatArray:
-    beta = mu * math.cos(math.pi / edges)
-    inv = 1.0 / math.sqrt(1.0 + beta * beta)
-    radial = _circle(edges, 0.5) @ _tangents(n)  # (k, edges, 3)
-    return inv * radial - (beta * inv) * n[:, None, :]
-
-
-def contact_wrenches(
-    points: object,
-    normals_in: object,
-    mu: float,
-    edges: int = 8,
-    torque_scale: float | None = None,
-) -> FloatArray:
-    """Wrenches of the unit edge forces, torques divided by ``torque_scale``.
-
-    Row ``c * edges + e`` is ``[u_ce, (p_c x u_ce) / torque_scale]``.
-
-    Args:
-        points: (k, 3) contact points, object frame, metres.
-        normals_in: (k, 3) inward contact normals, object frame.
-        mu: friction coefficient, >= 0.
-        edges: pyramid edges per contact, >= 3.
-        torque_scale: length ``L`` dividing the torques (metres); callers pass the
-            object's characteristic length. Default: the largest distance of the
-            points from the object-frame origin, or 1 if all points are at the origin.
-
-    Returns:
-        (k * edges, 6) wrenches ``[force, torque / L]`` in the object frame.
-
-    Raises:
-        InvalidInputError: bad shapes, non-finite values, zero-length normal,
-            ``mu < 0``, ``edges < 3`` or ``torque_scale <= 0``.
-    """
-    pts, nrm, mu_f, e, scale = _check_grasp(points, normals_in, mu, edges, torque_scale)
-    u = _edges(nrm, mu_f, e)
-    torque = np.cross(pts[:, None, :], u) / scale
-    return np.concatenate([u, torque], axis=2).reshape(-1, 6)
-
 
 # ---------------------------------------------------------------------------
 # Per-contact data and per-subset analysis
@@ -354,20 +68,35 @@ _SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
 class _Contacts:
     """Per-contact blocks: ``G_c`` (6 x r) and facet rows ``A_c`` (rows x r).
 
-    ``r = 3`` (force vector) when ``mu > 0``; ``r = 1`` (normal force, one row
-    ``-a <= 0``) when ``mu = 0``.
+    Point contacts (``tau is None``): ``r = 3`` (force vector) when ``mu > 0``;
+    ``r = 1`` (normal force, one row ``-a <= 0``) when ``mu = 0``. Soft contacts
+    (``tau = torsion / L``): ``r = 4``, ``x_c = (f_c, sigma_c)`` with ``G_c = [I, 0;
+    [p_c]_x / L, n_c]`` when ``mu > 0``; ``r = 2``, ``(f_n, sigma)`` when ``mu = 0``.
+    ``rows`` overrides the facet rows (same ``r``), e.g. a dense elliptic polytope.
     """
 
     __slots__ = ("g", "push", "r", "rows")
 
-    def __init__(self, pts: FloatArray, nrm: FloatArray, mu: float, edges: int, scale: float):
+    def __init__(
+        self,
+        pts: FloatArray,
+        nrm: FloatArray,
+        mu: float,
+        edges: int,
+        scale: float,
+        tau: float | None = None,
+        rows: FloatArray | None = None,
+    ):
         k = pts.shape[0]
+        if tau is not None:
+            self._soft(pts, nrm, mu, edges, scale, tau, rows)
+            return
         if mu > 0.0:
             self.r = 3
             g = np.zeros((k, 6, 3))
             g[:, _EYE_R, _EYE_C] = 1.0
             g[:, _SKEW_R, _SKEW_C] = pts[:, _SKEW_P] * (_SKEW_SIGN / scale)
-            self.rows = _facets(nrm, mu, edges)
+            self.rows = _facets(nrm, mu, edges) if rows is None else rows
             self.push = nrm
         else:
             self.r = 1
@@ -377,6 +106,37 @@ class _Contacts:
             self.rows = -np.ones((k, 1, 1))
             self.push = np.ones((k, 1))
         self.g = g
+
+    def _soft(
+        self,
+        pts: FloatArray,
+        nrm: FloatArray,
+        mu: float,
+        edges: int,
+        scale: float,
+        tau: float,
+        rows: FloatArray | None,
+    ) -> None:
+        k = pts.shape[0]
+        if mu > 0.0:
+            self.r = 4
+            g = np.zeros((k, 6, 4))
+            g[:, _EYE_R, _EYE_C] = 1.0
+            g[:, _SKEW_R, _SKEW_C] = pts[:, _SKEW_P] * (_SKEW_SIGN / scale)
+            g[:, 3:, 3] = nrm
+            push = np.zeros((k, 4))
+            push[:, :3] = nrm
+        else:
+            self.r = 2
+            g = np.zeros((k, 6, 2))
+            g[:, :3, 0] = nrm
+            g[:, 3:, 0] = np.cross(pts, nrm) / scale
+            g[:, 3:, 1] = nrm
+            push = np.zeros((k, 2))
+            push[:, 0] = 1.0
+        self.rows = _soft_facets(nrm, mu, edges, tau) if rows is None else rows
+        self.g = g
+        self.push = push
 
 
 class _Subsets:
@@ -576,14 +336,17 @@ class ForceClosure:
         torque_scale: float | None = None,
         margin: float | None = None,
         solve: bool = True,
+        contact_model: ContactModel = "point",
+        torsion: float = 0.0,
     ) -> float:
         """Quality ``Q`` of the grasp (see :func:`force_closure_quality`)."""
         pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
+        tau = _scaled_torsion(contact_model, torsion, scale)
         thr = None if margin is None else as_positive(margin, "margin", allow_zero=True)
         k = pts.shape[0]
-        if k < _min_contacts(mu_f):
+        if k < min_contacts(mu_f, contact_model):
             return 0.0
-        con = _Contacts(pts, nrm, mu_f, e, scale)
+        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
         return self._min_quality(con, np.arange(k)[None, :], thr, solve)
 
     def min_subgrasp_quality(
@@ -596,17 +359,20 @@ class ForceClosure:
         torque_scale: float | None = None,
         margin: float | None = None,
         solve: bool = True,
+        contact_model: ContactModel = "point",
+        torsion: float = 0.0,
     ) -> float:
         """Minimum quality over the grasp and its (k-1)-contact subgrasps.
 
         See :func:`min_subgrasp_quality`.
         """
         pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
+        tau = _scaled_torsion(contact_model, torsion, scale)
         thr = None if margin is None else as_positive(margin, "margin", allow_zero=True)
         k = pts.shape[0]
-        if k - 1 < _min_contacts(mu_f):
+        if k - 1 < min_contacts(mu_f, contact_model):
             return 0.0
-        con = _Contacts(pts, nrm, mu_f, e, scale)
+        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
         return self._min_quality(con, _drop_one(k), thr, solve)
 
     def is_force_closure(
@@ -619,22 +385,69 @@ class ForceClosure:
         torque_scale: float | None = None,
         margin: float = 0.0,
         subgrasps: bool = False,
+        contact_model: ContactModel = "point",
+        torsion: float = 0.0,
     ) -> bool:
         """Whether ``Q > margin`` (of the grasp, or of every (k-1) subgrasp).
 
         See :func:`is_force_closure`.
         """
         pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
+        tau = _scaled_torsion(contact_model, torsion, scale)
         thr = as_positive(margin, "margin", allow_zero=True)
         k = pts.shape[0]
         m = k - 1 if subgrasps else k
-        if m < _min_contacts(mu_f):
+        if m < min_contacts(mu_f, contact_model):
             return False
-        con = _Contacts(pts, nrm, mu_f, e, scale)
+        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
         subsets = _drop_one(k) if subgrasps else np.arange(k)[None, :]
         if thr == 0.0:
             return self._screen(_Subsets(con, subsets)) is not None
         return self._min_quality(con, subsets, thr, True) > thr
+
+    def exact_set_verdict(
+        self,
+        points: object,
+        normals: object,
+        mu: float,
+        *,
+        edges: int = 8,
+        torque_scale: float | None = None,
+        subgrasps: bool = False,
+        contact_model: ContactModel = "point",
+        torsion: float = 0.0,
+    ) -> str:
+        """Force closure judged against the round Coulomb cone or the elliptic set.
+
+        See :func:`exact_force_closure`.
+        """
+        pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
+        tau = _scaled_torsion(contact_model, torsion, scale)
+        k = pts.shape[0]
+        m = k - 1 if subgrasps else k
+        if m < min_contacts(mu_f, contact_model):
+            return "not_fc"
+        subsets = _drop_one(k) if subgrasps else np.arange(k)[None, :]
+
+        def sign(con: _Contacts) -> bool:
+            return self._screen(_Subsets(con, subsets)) is not None
+
+        if sign(_Contacts(pts, nrm, mu_f, e, scale, tau)):
+            return "fc_linear"
+        if mu_f == 0.0:  # both sets are exactly their linearizations
+            return "not_fc"
+        if tau is None:
+            dense = MAX_FRICTION_EDGES_DENSE
+            if sign(_Contacts(pts, nrm, mu_f, dense, scale)):
+                return "fc_dense"
+            outer = mu_f / math.cos(math.pi / dense)
+            return "undecided" if sign(_Contacts(pts, nrm, outer, dense, scale)) else "not_fc"
+        inner = _ellipsoid_facets(nrm, mu_f, tau, outer=False)
+        if sign(_Contacts(pts, nrm, mu_f, e, scale, tau, inner)):
+            return "fc_dense"
+        outer_rows = _ellipsoid_facets(nrm, mu_f, tau, outer=True)
+        outer_con = _Contacts(pts, nrm, mu_f, e, scale, tau, outer_rows)
+        return "undecided" if sign(outer_con) else "not_fc"
 
     # -- internals ----------------------------------------------------------
 
@@ -816,9 +629,16 @@ def _drop_one(k: int) -> np.ndarray:
     return out
 
 
-def _min_contacts(mu: float) -> int:
-    """Fewest contacts that can be FC: 3 with friction, 7 frictionless (6D span)."""
-    return 3 if mu > 0.0 else 7
+def _scaled_torsion(contact_model: object, torsion: object, scale: float) -> float | None:
+    """None for point contacts; ``torsion / L`` for soft ones (validated)."""
+    if contact_model == "point" and torsion == 0.0 and not isinstance(torsion, bool):
+        return None  # the point path: no further work
+    t = check_contact_model(contact_model, torsion)
+    return None if t is None else t / scale
+
+
+#: Edges of the dense pyramids that judge point contacts against the round cone.
+MAX_FRICTION_EDGES_DENSE = 64
 
 
 #: The instance behind the module-level functions (e.g. ``DEFAULT.solver = "nnls"``).
@@ -834,6 +654,8 @@ def force_closure_quality(
     torque_scale: float | None = None,
     margin: float | None = None,
     solve: bool = True,
+    contact_model: ContactModel = "point",
+    torsion: float = 0.0,
 ) -> float:
     """Force-closure quality ``Q`` of a grasp; ``> 0`` iff force closure.
 
@@ -842,7 +664,9 @@ def force_closure_quality(
     cones producing the wrench ``d``; ``0.0`` if not force closure (never negative).
     Bounds (module docstring): ``eps <= Q <= sqrt(6 k (1 + mu^2)) eps`` for the
     Ferrari-Canny epsilon ``eps`` of the unit edge wrenches (L1 hull), and
-    ``q <= Q <= sqrt(k (1 + mu^2)) q`` for the 12-direction LP quality ``q``.
+    ``q <= Q <= sqrt(k (1 + mu^2)) q`` for the 12-direction LP quality ``q``. Soft
+    contacts: ``|x_c|^2 = |f_c|^2 + (tau_c / L)^2`` and the lower bounds divide by
+    ``sqrt(1 + (torsion / L)^2)``: ``q / sqrt(1 + t^2) <= Q``.
 
     Args:
         points: (k, 3) contact points, object frame, metres.
@@ -858,6 +682,10 @@ def force_closure_quality(
         solve: with ``margin``, False never runs the pair solver: undecided grasps
             return their certified lower bound (a "no" may then be a false negative;
             for cheap conservative filtering of many candidates).
+        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
+            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
+        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
+            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
 
     Returns:
         The quality, in (scaled wrench) per (unit contact force).
@@ -867,7 +695,15 @@ def force_closure_quality(
             ``mu < 0``, ``edges < 3``, ``torque_scale <= 0``, ``margin < 0``.
     """
     return DEFAULT.quality(
-        points, normals, mu, edges=edges, torque_scale=torque_scale, margin=margin, solve=solve
+        points,
+        normals,
+        mu,
+        edges=edges,
+        torque_scale=torque_scale,
+        margin=margin,
+        solve=solve,
+        contact_model=contact_model,
+        torsion=torsion,
     )
 
 
@@ -880,6 +716,8 @@ def min_subgrasp_quality(
     torque_scale: float | None = None,
     margin: float | None = None,
     solve: bool = True,
+    contact_model: ContactModel = "point",
+    torsion: float = 0.0,
 ) -> float:
     """Minimum quality over the full grasp and each of its (k-1)-contact subgrasps.
 
@@ -906,6 +744,10 @@ def min_subgrasp_quality(
         solve: with ``margin``, False never runs the pair solver: undecided grasps
             return their certified lower bound (a "no" may then be a false negative;
             for cheap conservative filtering of many candidates).
+        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
+            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
+        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
+            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
 
     Returns:
         The minimum quality (0.0 if some subgrasp is not force closure, or k < 4 with
@@ -915,7 +757,15 @@ def min_subgrasp_quality(
         InvalidInputError: as :func:`force_closure_quality`, or ``margin < 0``.
     """
     return DEFAULT.min_subgrasp_quality(
-        points, normals, mu, edges=edges, torque_scale=torque_scale, margin=margin, solve=solve
+        points,
+        normals,
+        mu,
+        edges=edges,
+        torque_scale=torque_scale,
+        margin=margin,
+        solve=solve,
+        contact_model=contact_model,
+        torsion=torsion,
     )
 
 
@@ -928,6 +778,8 @@ def is_force_closure(
     torque_scale: float | None = None,
     margin: float = 0.0,
     subgrasps: bool = False,
+    contact_model: ContactModel = "point",
+    torsion: float = 0.0,
 ) -> bool:
     """Whether the grasp's quality exceeds ``margin`` (exact screens only if 0).
 
@@ -940,6 +792,10 @@ def is_force_closure(
         margin: threshold, >= 0.
         subgrasps: test every (k-1)-contact subgrasp instead of the full grasp (the
             DESIGN validity rule; with ``margin = 0`` the full grasp is then FC too).
+        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
+            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
+        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
+            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
 
     Returns:
         ``Q > margin`` (``min_subgrasp_quality > margin`` with ``subgrasps``).
@@ -952,4 +808,66 @@ def is_force_closure(
         torque_scale=torque_scale,
         margin=margin,
         subgrasps=subgrasps,
+        contact_model=contact_model,
+        torsion=torsion,
+    )
+
+
+#: Outcomes of :func:`exact_force_closure`.
+VERDICTS: tuple[str, ...] = ("fc_linear", "fc_dense", "undecided", "not_fc")
+
+
+def exact_force_closure(
+    points: object,
+    normals: object,
+    mu: float,
+    *,
+    edges: int = 8,
+    torque_scale: float | None = None,
+    subgrasps: bool = False,
+    contact_model: ContactModel = "point",
+    torsion: float = 0.0,
+) -> str:
+    """Force closure under the exact sets: the round cone, the elliptic soft set.
+
+    The exact sets are the round Coulomb cone (point contacts) and the elliptic
+    soft-finger set (soft contacts); they are judged by inner and outer polytopes.
+
+    Every linearization used here is either inscribed in the exact set (a "yes"
+    for it is a "yes" for the exact set) or circumscribed about it (a "no" for it
+    is a "no"): first the model's own ``edges`` linearization (the planner's), then
+    a dense inscribed one (64-edge pyramid; the hull of a 48 x 12 latitude-longitude
+    grid on the ellipsoid), then the dense circumscribed one (64-edge pyramid of
+    ``mu / cos(pi / 64)``; the grid hull scaled by ``1 / inradius``).
+
+    Args:
+        points: (k, 3) contact points, object frame, metres.
+        normals: (k, 3) inward contact normals, object frame.
+        mu: friction coefficient, >= 0.
+        edges: the model's own pyramid edges, >= 3.
+        torque_scale: torque length (metres); see :func:`force_closure_quality`.
+        subgrasps: judge every (k-1)-contact subgrasp instead of the grasp.
+        contact_model: ``"point"`` or ``"soft"``.
+        torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+
+    Returns:
+        ``"fc_linear"`` (force closure already for the ``edges`` linearization),
+        ``"fc_dense"`` (force closure for the dense inscribed polytope),
+        ``"undecided"`` (within the gap between the dense inner and outer
+        polytopes: 0.12 % of ``mu`` for point contacts, ~3 % for soft ones) or
+        ``"not_fc"`` (not force closure even for the outer polytope, or fewer
+        contacts than :func:`~dexplan.grasp.cones.min_contacts`).
+
+    Raises:
+        InvalidInputError: as :func:`force_closure_quality`.
+    """
+    return DEFAULT.exact_set_verdict(
+        points,
+        normals,
+        mu,
+        edges=edges,
+        torque_scale=torque_scale,
+        subgrasps=subgrasps,
+        contact_model=contact_model,
+        torsion=torsion,
     )
