@@ -140,13 +140,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dexplan.planning.ompl_adapter import check_planner
 
     check_planner(args.planner or scenario.planner.name, scenario.planner.params)
-    if args.rrd is not None:
+    if args.rrd is not None or args.debug_rrd is not None:
         from dexplan.viz import require_rerun
 
         require_rerun()
     # every output is checked before planning: none is written unless all can be
     out = check_output_path(args.output, "-o")
-    for option, value in (("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap)):
+    extra = (("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap))
+    for option, value in (*extra, ("--debug-rrd", args.debug_rrd)):
         if value is not None:
             check_output_path(value, option)
     hand = build_hand(scenario)  # a bad hand model is bad input: one line, before any progress
@@ -177,6 +178,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     )
     _check_interrupted()
     st = result.stats
+    if args.debug_rrd is not None and result.rejections is not None:
+        from dexplan.viz import record_rejections
+
+        n = record_rejections(result.rejections.samples, args.debug_rrd, scenario=scenario)
+        _err(f"{n} rejected samples recorded in {args.debug_rrd}")
     if args.save_roadmap is not None and result.roadmap is not None:
         result.roadmap.save(args.save_roadmap)
         _err(f"roadmap written to {args.save_roadmap}")
@@ -359,6 +365,12 @@ def build_parser() -> argparse.ArgumentParser:
         "edge by edge with bisection, or auto (gaits, then edges) (default: auto)",
     )
     p_plan.add_argument("--rrd", help="write a Rerun recording (needs the viz extra)")
+    p_plan.add_argument(
+        "--debug-rrd",
+        metavar="FILE",
+        help="record the states the validity checker rejected, with the reason "
+        "(the first 32 of each), in a Rerun recording (needs the viz extra)",
+    )
     p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_plan.set_defaults(func=cmd_plan)
 

@@ -94,6 +94,7 @@ _LOOK_AT = [0.0, 0.0, 0.06]
 PLAN_STEP = "plan_step"
 TIME = "time"
 ROADMAP_NODE = "roadmap_node"
+REJECTED_SAMPLE = "rejected_sample"
 
 
 # ------------------------------------------------------------------ rerun
@@ -1155,6 +1156,60 @@ def record_roadmap(
         else:
             rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         return _log_roadmap(rec, roadmap, axis)
+
+
+def record_rejections(samples: Sequence[Any], path: str | Path, *, scenario: Any) -> int:
+    """Write a Rerun recording of states the validity checker rejected (``--debug-rrd``).
+
+    Each sample (a :class:`~dexplan.planning.validity.RejectedSample`) is one
+    step of the ``rejected_sample`` timeline: the hand and the object at that
+    state, with its reason and detail (the colliding pair, the force-closure
+    quality) as a text entry, so the user sees why the sampler's states fail.
+
+    Args:
+        samples: the rejected states, e.g. ``PlanResult.rejections.samples``.
+        path: output ``.rrd`` file.
+        scenario: the :class:`~dexplan.scenario.Scenario` they belong to.
+
+    Returns:
+        The number of samples recorded.
+
+    Raises:
+        DependencyError: rerun-sdk missing.
+        InvalidInputError: the output folder does not exist.
+    """
+    import rerun.blueprint as rrb
+
+    rr = _rerun()
+    models = _scene_from_scenario(scenario)
+    assert models.hand is not None
+    X = np.array([s.x for s in samples], dtype=float).reshape(-1, 7 + models.hand.nq)
+    blueprint = rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(
+                origin="world",
+                name="Rejected samples",
+                eye_controls=rrb.EyeControls3D(
+                    position=_EYE, look_target=_LOOK_AT, eye_up=[0.0, 0.0, 1.0]
+                ),
+            ),
+            rrb.TextLogView(origin="rejected", name="Why"),
+            column_shares=[3, 1],
+        ),
+        rrb.TimePanel(timeline=REJECTED_SAMPLE, state="expanded"),
+        collapse_panels=False,
+    )
+    with _recording(path, "dexplan rejected samples", blueprint) as rec:
+        layout = _log_scene_static(rec, models)
+        if len(X):
+            steps = np.arange(len(X), dtype=np.int64)
+            idx = [rr.TimeColumn(REJECTED_SAMPLE, sequence=steps)]
+            _send_configurations(rec, models, layout, idx, X[:, :7], X[:, 7:])
+            for k, smp in enumerate(samples):
+                rec.set_time(REJECTED_SAMPLE, sequence=k)
+                text = smp.reason + (f": {smp.detail}" if smp.detail else "")
+                rec.log("rejected", rr.TextLog(text, level=rr.TextLogLevel.WARN))
+    return len(X)
 
 
 # ----------------------------------------------------------- files, viewer

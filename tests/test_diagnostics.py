@@ -6,13 +6,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 from cli_contract import run_cli
 
 from dexplan import plan as plan_module
 from dexplan.planning import planner as planner_module
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.sampler import SamplerStats
-from dexplan.planning.validity import ValidityStats
+from dexplan.planning.validity import KEPT_PER_REASON, REASONS, ValidityStats
 
 ROOT = Path(__file__).resolve().parents[1]
 UNSOLVABLE = ROOT / "tests" / "data" / "unsolvable_lid.toml"
@@ -67,3 +68,27 @@ def test_plan_failing_final_verification_is_written_for_inspection(monkeypatch, 
     # the file itself is a well-formed plan that `dexplan verify` can re-check
     code, stdout, _ = run_cli(capfd, "verify", tmp_path / "plan.invalid.json")
     assert code == 0 and stdout.startswith("OK")
+
+
+def test_debug_rrd_records_the_rejected_samples_with_their_reasons(capfd, tmp_path):
+    from test_viz import column, read_rrd
+
+    rrd = tmp_path / "rejected.rrd"
+    args = ("plan", UNSOLVABLE, "--time-limit", "1", "-o", tmp_path / "p.json", "-q")
+    code, _, err = run_cli(capfd, *args, "--debug-rrd", rrd)
+    assert code == 1 and "rejected samples recorded" in err
+    chunks = read_rrd(rrd)
+    texts = column(chunks["/rejected"], "TextLog:text")
+    assert texts and all(t.split(":")[0] in REASONS for t in texts)
+    assert "/world/object" in chunks  # the object (and the hand) at each sample
+
+
+def test_rejected_samples_are_kept_per_reason_up_to_the_cap():
+    v = ValidityStats()
+    x = np.zeros(19)
+    for _ in range(KEPT_PER_REASON + 10):
+        v.keep(x, "collision", "a / b")
+        v.rejected["collision"] += 1
+    v.keep(x, "force_closure")
+    reasons = [s.reason for s in v.samples]
+    assert reasons.count("collision") == KEPT_PER_REASON and reasons[-1] == "force_closure"

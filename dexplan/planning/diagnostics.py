@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from dexplan.planning.sampler import SamplerStats
-from dexplan.planning.validity import ValidityStats
+from dexplan.planning.validity import RejectedSample, ValidityStats
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,7 @@ class Rejections:
         force_closure: rejected: some (n-1)-finger subgrasp not force closure.
         top_pairs: ``((geometry, geometry), count)`` of the pairs that collided
             most often, most frequent first.
+        samples: the first rejected states of each reason (``--debug-rrd``).
     """
 
     attempts: int
@@ -41,6 +42,7 @@ class Rejections:
     collision: int
     force_closure: int
     top_pairs: tuple[tuple[tuple[str, str], int], ...]
+    samples: tuple[RejectedSample, ...] = ()
 
     @classmethod
     def from_stats(cls, sampler: SamplerStats, validity: ValidityStats) -> Rejections:
@@ -56,6 +58,7 @@ class Rejections:
             collision=r.get("collision", 0),
             force_closure=r.get("force_closure", 0),
             top_pairs=tuple(validity.top_collision_pairs(3)),
+            samples=tuple(validity.samples),
         )
 
     def dominant(self) -> list[tuple[str, int]]:

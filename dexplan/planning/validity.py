@@ -27,6 +27,24 @@ from dexplan.typing import FloatArray, as_positive
 
 REASONS: tuple[str, ...] = ("bounds", "joint_limits", "collision", "force_closure")
 
+KEPT_PER_REASON = 32
+"""Rejected states kept per reason (the first ones), for ``--debug-rrd``."""
+
+
+@dataclass(frozen=True)
+class RejectedSample:
+    """A state the checker rejected, kept so the user can look at it.
+
+    Attributes:
+        x: (7 + nq,) the ambient state (object pose XYZW in the world, joints).
+        reason: one of :data:`REASONS`.
+        detail: the colliding pair, or the force-closure quality, as text.
+    """
+
+    x: FloatArray
+    reason: str
+    detail: str = ""
+
 
 @dataclass(frozen=True)
 class ValiditySettings:
@@ -68,6 +86,13 @@ class ValidityStats:
     rejected: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
     #: collision rejections by colliding pair (geometry names, sorted)
     collision_pairs: Counter[tuple[str, str]] = field(default_factory=Counter)
+    #: the first :data:`KEPT_PER_REASON` rejected states of each reason
+    samples: list[RejectedSample] = field(default_factory=list)
+
+    def keep(self, x: FloatArray, reason: str, detail: str = "") -> None:
+        """Record a rejected state while fewer than the cap of its reason are kept."""
+        if self.rejected.get(reason, 0) < KEPT_PER_REASON:  # counted after this call
+            self.samples.append(RejectedSample(np.array(x, dtype=float), reason, detail))
 
     def top_collision_pairs(self, k: int = 3) -> list[tuple[tuple[str, str], int]]:
         """The ``k`` pairs that rejected most states, most frequent first."""
@@ -147,6 +172,7 @@ class GraspValidity:
             return Verdict(False, "bounds")
         q = x[POSE_DIM:]
         if not gsn.hand.within_limits(q):
+            self.stats.keep(x, "joint_limits")
             return Verdict(False, "joint_limits")
         clearance = self.settings.object_clearance
         if clearance > 0.0 and self.world.object_clearance(x[:POSE_DIM]) < clearance:
@@ -155,10 +181,12 @@ class GraspValidity:
         if not rep.free:
             pair = rep.pair or ("fingertip", "object (penetration)")
             self.stats.collision_pairs[tuple(sorted(pair))] += 1  # type: ignore[index]
+            self.stats.keep(x, "collision", f"{pair[0]} / {pair[1]}")
             return Verdict(False, "collision")
         p, n = gsn.contacts(x)
         quality = self.grasp_quality(p, n)
         if quality <= self.settings.fc_margin:
+            self.stats.keep(x, "force_closure", f"quality {quality:.3g}")
             return Verdict(False, "force_closure", quality)
         return Verdict(True, None, quality)
 
