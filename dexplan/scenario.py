@@ -23,7 +23,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError, shorten
-from dexplan.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
+from dexplan.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
 from dexplan.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, check_fields, field_key
 from dexplan.typing import FloatArray
 
@@ -115,6 +115,10 @@ class Scenario:
             centre stays in (m).
         fc_margin: minimum force-closure quality of every (n-1) subgrasp.
         base_dir: folder of the scenario file (relative paths resolve there).
+        contact_model: ``"point"`` (Coulomb friction, the paper) or ``"soft"``
+            (soft finger: also torsional friction about the normal).
+        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
+            in (0, ``MAX_TORSION``] for soft contacts; 0 for point contacts.
     """
 
     name: str
@@ -129,6 +133,8 @@ class Scenario:
     workspace_half_extent: FloatArray
     fc_margin: float
     base_dir: Path
+    contact_model: str = "point"
+    torsion: float = 0.0
 
 
 # ---------------------------------------------------------------- field checks
@@ -450,6 +456,27 @@ def _params(p: Mapping[str, Any]) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------- loading
+def _contact_model(c: Mapping[str, Any]) -> tuple[str, float]:
+    """``[contact] model`` and ``torsion`` (m): required in (0, MAX_TORSION] for soft."""
+    model = c.get("model", "point")
+    if not isinstance(model, str) or model not in CONTACT_MODELS:
+        choices = " or ".join(f'"{m}"' for m in CONTACT_MODELS)
+        _fail(f"contact.model must be {choices}, got {shorten(model)}")
+    if model == "point":
+        if "torsion" in c:
+            _fail(
+                'contact.torsion applies to model = "soft" only (point contacts transmit '
+                f"no torsion), got torsion = {shorten(c['torsion'])}"
+            )
+        return model, 0.0
+    if "torsion" not in c:
+        _fail(
+            'contact.model = "soft" needs contact.torsion, the torsional friction '
+            f"coefficient in metres (|tau_n| <= torsion * f_n), in (0, {MAX_TORSION:g}]"
+        )
+    return model, _number(c, "torsion", "contact", lo=0.0, lo_open=True, hi=MAX_TORSION)
+
+
 def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario") -> Scenario:
     """Validate a parsed TOML document and build a :class:`Scenario`.
 
@@ -471,12 +498,13 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     obj = _shape_fields(_table(doc, "object"), "object", base_dir, max_size=MAX_OBJECT_SIZE)
 
     c = _table(doc, "contact", required=False)
-    _only(c, "contact", {"mu", "friction_edges", "fc_margin"})
+    _only(c, "contact", {"mu", "friction_edges", "fc_margin", "model", "torsion"})
     mu = _number(c, "mu", "contact", 0.8, lo=0.0, hi=MAX_MU)
     edges = _integer(
         c, "friction_edges", "contact", 8, lo=MIN_FRICTION_EDGES, hi=MAX_FRICTION_EDGES
     )
     fc_margin = _number(c, "fc_margin", "contact", 0.005, lo=0.0, hi=MAX_FC_MARGIN)
+    model, torsion = _contact_model(c)
 
     obstacles_raw = doc.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
@@ -554,6 +582,8 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         workspace_half_extent=half,
         fc_margin=fc_margin,
         base_dir=base_dir,
+        contact_model=model,
+        torsion=torsion,
     )
 
 

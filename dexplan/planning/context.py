@@ -19,7 +19,7 @@ from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import GraspSubspace
 from dexplan.planning.sampler import GraspSampler, SamplerSettings
 from dexplan.planning.transitions import Transitions, TransitionSettings
-from dexplan.planning.validity import GraspValidity, ValiditySettings
+from dexplan.planning.validity import GraspValidity, ValiditySettings, let_go_problem
 from dexplan.scenario import Scenario
 
 
@@ -53,18 +53,55 @@ class PlanningContext:
     deadline: Deadline
 
 
-def build_hand(scenario: Scenario) -> Hand:
-    """The scenario's hand (builtin or URDF)."""
+def build_hand(scenario: Scenario, *, check_contacts: bool = True) -> Hand:
+    """The scenario's hand (builtin or URDF).
+
+    Args:
+        scenario: the problem.
+        check_contacts: refuse a hand that could never let a finger go under
+            the scenario's contact model (:func:`validity_settings`), so that
+            the CLI says so before planning; False to build it anyway (to show
+            the scenario).
+
+    Raises:
+        ScenarioError: with ``check_contacts``, no (n-1)-finger subgrasp can be
+            force closure under the scenario's contact model.
+    """
     spec = scenario.hand
     if spec.builtin is not None:
-        return Hand.builtin(spec.builtin)
-    assert spec.urdf is not None and spec.fingertip_radius is not None
-    return Hand.from_urdf_file(
-        spec.urdf,
-        spec.fingertip_frames,
-        spec.fingertip_radius,
-        collision_exclude=spec.collision_exclude,
+        hand = Hand.builtin(spec.builtin)
+    else:
+        assert spec.urdf is not None and spec.fingertip_radius is not None
+        hand = Hand.from_urdf_file(
+            spec.urdf,
+            spec.fingertip_frames,
+            spec.fingertip_radius,
+            collision_exclude=spec.collision_exclude,
+        )
+    if check_contacts:
+        validity_settings(scenario, hand.n_fingers)
+    return hand
+
+
+def validity_settings(scenario: Scenario, n_fingers: int) -> ValiditySettings:
+    """The validity settings of a scenario (friction, contact model, margin).
+
+    Raises:
+        ScenarioError: no (n-1)-finger subgrasp of an ``n_fingers`` hand can be
+            force closure under the scenario's contact model, e.g. 3 fingers with
+            point contacts (:func:`~dexplan.planning.validity.let_go_problem`).
+    """
+    vset = ValiditySettings(
+        mu=scenario.mu,
+        friction_edges=scenario.friction_edges,
+        fc_margin=scenario.fc_margin,
+        contact_model=scenario.contact_model,
+        torsion=scenario.torsion,
     )
+    problem = let_go_problem(n_fingers, vset)
+    if problem is not None:
+        raise ScenarioError(f"scenario {scenario.name!r}: {problem}")
+    return vset
 
 
 def build_obstacles(scenario: Scenario) -> list[Obstacle]:
@@ -96,10 +133,12 @@ def build_context(
         sampler_settings: sampler settings.
 
     Raises:
-        ScenarioError: the models cannot be built from the scenario.
+        ScenarioError: the models cannot be built from the scenario, or no
+            (n-1)-finger subgrasp of the hand can be force closure under the
+            scenario's contact model (:func:`let_go_problem`).
     """
     try:
-        hand = build_hand(scenario)
+        hand = build_hand(scenario, check_contacts=False)
         obj = shape_from_dict(dict(scenario.object), scenario.base_dir)
         world = CollisionWorld(hand, obj, build_obstacles(scenario))
     except ScenarioError:
@@ -119,9 +158,7 @@ def build_context(
         workspace_center=0.5 * (start_pos + goal_pos),
         workspace_half_extent=0.5 * np.abs(goal_pos - start_pos) + scenario.workspace_half_extent,
     )
-    vset = ValiditySettings(
-        mu=scenario.mu, friction_edges=scenario.friction_edges, fc_margin=scenario.fc_margin
-    )
+    vset = validity_settings(scenario, hand.n_fingers)
     validity = GraspValidity(gsn, world, vset)
     deadline = Deadline()
     sampler = GraspSampler(gsn, validity, rng, sampler_settings, deadline)

@@ -204,6 +204,8 @@ class Transitions:
                 torque_scale=self.obj.characteristic_length,
                 margin=v.fc_margin,
                 solve=exact,
+                contact_model=v.contact_model,  # type: ignore[arg-type]
+                torsion=v.torsion,
             )
         )
 

@@ -21,7 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexplan.collision import CollisionWorld
-from dexplan.grasp import force_closure_quality, min_subgrasp_quality
+from dexplan.grasp import (
+    check_contact_model,
+    force_closure_quality,
+    min_contacts,
+    min_subgrasp_quality,
+)
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.typing import FloatArray, as_positive
 
@@ -55,6 +60,10 @@ class ValiditySettings:
         friction_edges: edges of the linearized friction cone.
         fc_margin: minimum force-closure quality (see ``dexplan.grasp``) of
             every (k-1)-finger subgrasp.
+        contact_model: ``"point"`` (Coulomb friction, the paper) or ``"soft"``
+            (plus torsional friction about the normal).
+        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``;
+            0 for point contacts.
         subgrasps: require force closure of every (k-1) subgrasp (GSn
             validity); False checks the k-finger grasp only.
         object_clearance: GSn states keep the object this far (m) from the
@@ -70,11 +79,60 @@ class ValiditySettings:
     fc_margin: float = 0.005
     subgrasps: bool = True
     object_clearance: float = 0.0005
+    contact_model: str = "point"
+    torsion: float = 0.0
 
     def __post_init__(self) -> None:
         as_positive(self.mu, "contact.mu", allow_zero=True)
+        check_contact_model(self.contact_model, self.torsion)
         as_positive(self.fc_margin, "fc_margin", allow_zero=True)
         as_positive(self.object_clearance, "object_clearance", allow_zero=True)
+
+
+def let_go_problem(n_fingers: int, settings: ValiditySettings) -> str | None:
+    """Why no grasp of this hand can be valid under the settings, or None.
+
+    Validity needs every (n-1)-finger subgrasp force closure (the regrasp's
+    holding grasp has n-1 fingers too), and no grasp of fewer contacts than
+    :func:`dexplan.grasp.min_contacts` is: 3 point contacts with friction (two
+    leave the torque about the line through them free), 2 soft ones, 7 or 4
+    without friction. A hand with too few fingers can then never let one go.
+
+    Args:
+        n_fingers: fingers of the hand.
+        settings: the contact model and friction.
+
+    Returns:
+        A one-line explanation with what to change, or None if some grasp may be
+        valid.
+    """
+    model, mu = settings.contact_model, settings.mu
+    need = min_contacts(mu, model)
+    k = n_fingers - 1 if settings.subgrasps else n_fingers
+    if k >= need:
+        return None
+    what = f"{k}-finger subgrasp" if settings.subgrasps else f"{k}-finger grasp"
+    if mu == 0.0:
+        return (
+            f"without friction (contact.mu = 0) no {what} is force closure with {model} "
+            f"contacts (force closure needs {need} of them): a {n_fingers}-finger hand needs "
+            "contact.mu > 0"
+        )
+    if model == "point" and k == 2:
+        why = "the torque about the line through the two contacts is free"
+    elif model == "point":
+        why = "force closure needs 3 point contacts with friction"
+    else:
+        why = "force closure needs 2 soft contacts"
+    fix = (
+        '[contact] model = "soft" (with torsion > 0), or a fourth finger'
+        if model == "point" and n_fingers == 3
+        else f"at least {need + 1} fingers"
+    )
+    return (
+        f"with {model} contacts no {what} is force closure ({why}): "
+        f"a {n_fingers}-finger hand needs {fix}"
+    )
 
 
 @dataclass
@@ -150,9 +208,17 @@ class GraspValidity:
                 edges=s.friction_edges,
                 torque_scale=self.torque_scale,
                 margin=s.fc_margin,
+                contact_model=s.contact_model,  # type: ignore[arg-type]
+                torsion=s.torsion,
             )
         return force_closure_quality(
-            p_obj, n_in_obj, s.mu, edges=s.friction_edges, torque_scale=self.torque_scale
+            p_obj,
+            n_in_obj,
+            s.mu,
+            edges=s.friction_edges,
+            torque_scale=self.torque_scale,
+            contact_model=s.contact_model,  # type: ignore[arg-type]
+            torsion=s.torsion,
         )
 
     def check(self, x: FloatArray) -> Verdict:
