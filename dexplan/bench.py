@@ -330,10 +330,15 @@ def scenario_description(scenario: Scenario) -> dict[str, Any]:
 
     The folder of the file, and the planner name, seed and time limit (a sweep
     sets them) are left out; files the scenario refers to (URDF, meshes) enter
-    by their SHA-256.
+    by their SHA-256. The contact model and its torsion enter when the model is
+    not the default ``point`` (whose torsion is 0), so the hashes of point-contact
+    scenarios are those they had before contact models existed.
     """
     doc = _canonical(scenario)
     doc.pop("base_dir", None)
+    if doc.get("contact_model", "point") == "point":
+        doc.pop("contact_model", None)
+        doc.pop("torsion", None)
     doc["planner"] = {k: v for k, v in doc["planner"].items() if k in ("params", "space")}
     if scenario.hand.urdf is not None:
         doc["hand"]["urdf"] = _file_digest(Path(scenario.base_dir) / scenario.hand.urdf)

@@ -58,6 +58,8 @@ MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
 CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
 STILL_TOL = 1e-9  # "does not move" (m, rad)
 FC_MIN = 0.0  # force-closure quality must exceed this
+#: Verdicts of :func:`dexplan.grasp.exact_force_closure` that pass.
+FC_PASS = ("fc_linear", "fc_dense")
 GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
 GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
 
@@ -247,16 +249,17 @@ class _Checker:
         self.world = CollisionWorld(self.hand, self.obj, obstacles)
         self.mu = float(doc["mu"])
         self.edges = int(doc.get("friction_edges", 8))
+        self.contact_model = str(doc.get("contact_model", "point"))
+        self.torsion = float(doc.get("torsion", 0.0))
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
-        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[float, float]] = {}
+        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
         self.violations.append(Violation(seg, wp, rule, message))
 
     # -- per waypoint ------------------------------------------------------
     def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
-        from dexplan.grasp import force_closure_quality, min_subgrasp_quality
         from dexplan.pose import inverse_transform_points
 
         hand, obj = self.hand, self.obj
@@ -329,32 +332,52 @@ class _Checker:
             return
         P, N = np.array(pts), np.array(nrm)
         ts = obj.characteristic_length
-        # The rules are signs: certified lower bounds above 0 settle them. The
-        # same contacts give the same answer, and along a transfer or a regrasp
-        # the holding contacts repeat: remember answers by exact contact values.
+        # The rules are signs, judged under the plan's contact model against the
+        # exact sets (round Coulomb cone, elliptic soft-finger set): the file's
+        # own linearization, then dense inner and outer polytopes. The same
+        # contacts give the same answer, and along a transfer or a regrasp the
+        # holding contacts repeat: remember answers by exact contact values.
         key = (P.tobytes(), N.tobytes(), subgrasps)
         if key not in self._fc_memo:
-            fc = force_closure_quality(
-                P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN
-            )
-            sub = (
-                min_subgrasp_quality(
-                    P, N, self.mu, edges=self.edges, torque_scale=ts, margin=FC_MIN
-                )
-                if subgrasps and fc > FC_MIN
-                else np.inf
-            )
+            fc = self._fc_verdict(P, N, ts, subgrasps=False)
+            sub = self._fc_verdict(P, N, ts, subgrasps=True) if subgrasps else "fc_linear"
             self._fc_memo[key] = (fc, sub)
         fc, sub = self._fc_memo[key]
-        if fc <= FC_MIN:
-            self.add(si, wi, "force_closure", f"holding grasp is not force closure ({fc:.3g})")
-        elif subgrasps and sub <= FC_MIN:
+        if fc not in FC_PASS:
+            self.add(si, wi, "force_closure", f"holding grasp is {self._fc_text(fc)}")
+        elif subgrasps and sub not in FC_PASS:
             self.add(
                 si,
                 wi,
                 "subgrasp_force_closure",
-                f"some {len(pts) - 1}-finger subgrasp is not force closure ({sub:.3g})",
+                f"some {len(pts) - 1}-finger subgrasp is {self._fc_text(sub)}",
             )
+
+    def _fc_verdict(self, P: np.ndarray, N: np.ndarray, ts: float, *, subgrasps: bool) -> str:
+        from dexplan.grasp import exact_force_closure
+
+        return exact_force_closure(
+            P,
+            N,
+            self.mu,
+            edges=self.edges,
+            torque_scale=ts,
+            subgrasps=subgrasps,
+            contact_model=self.contact_model,  # type: ignore[arg-type]
+            torsion=self.torsion,
+        )
+
+    def _fc_text(self, verdict: str) -> str:
+        if self.contact_model == "soft":
+            where = f"soft contacts, mu {self.mu:g}, torsion {self.torsion:g} m"
+        else:
+            where = f"point contacts, mu {self.mu:g}"
+        if verdict == "undecided":
+            return (
+                f"not provably force closure ({where}): within the gap between the "
+                "dense inner and outer polytopes of the exact contact sets"
+            )
+        return f"not force closure ({where})"
 
     # -- per segment -------------------------------------------------------
     def steps(self, si: int, seg: Segment) -> None:
@@ -550,6 +573,8 @@ def build_plan_document(
         "object": _portable_shape(scenario.object, base, out_dir),
         "mu": scenario.mu,
         "friction_edges": scenario.friction_edges,
+        "contact_model": scenario.contact_model,
+        "torsion": scenario.torsion,
         "obstacles": [_portable_shape(o, base, out_dir) for o in scenario.obstacles],
         "start": {
             "object_pose_xyzquat": [float(v) for v in result.start_pose],

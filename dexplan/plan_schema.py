@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from dexplan.exceptions import DexplanError, PlanFileError, shorten, unknown_field
-from dexplan.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
+from dexplan.grasp import MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
 
 __all__ = [
     "CONTACT_MODELS",
@@ -322,8 +322,15 @@ def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
     model = doc.get("contact_model", "point")
     if not isinstance(model, str) or model not in CONTACT_MODELS:
         _fail("contact_model", "must be 'point' or 'soft'", model)
-    if "torsion" in doc:
-        _number(doc["torsion"], "torsion", lo=0.0)
+    torsion = _number(doc["torsion"], "torsion", lo=0.0) if "torsion" in doc else 0.0
+    if model == "point" and torsion != 0.0:
+        _fail("torsion", "must be 0 with point contacts (contact_model 'point')", doc["torsion"])
+    if model == "soft" and not 0.0 < torsion <= MAX_TORSION:
+        _fail(
+            "torsion",
+            f"must be in (0, {MAX_TORSION:g}] m with soft contacts (contact_model 'soft')",
+            doc.get("torsion"),
+        )
     _obstacles(doc.get("obstacles", []), base)
 
     start = _table(doc["start"], "start", _START)

@@ -173,6 +173,8 @@ class _Scene:
     obstacles: list[tuple[str, Shape, FloatArray]] = field(default_factory=list)
     mu: float = 0.8
     friction_edges: int = 8
+    contact_model: str = "point"
+    torsion: float = 0.0
     goal_pose: FloatArray | None = None
     start_pose: FloatArray | None = None
     start_q: FloatArray | None = None
@@ -233,6 +235,8 @@ def _scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> _Scene:
         obstacles=obstacles,
         mu=float(doc.get("mu", 0.8)),
         friction_edges=int(doc.get("friction_edges", 8)),
+        contact_model=str(doc.get("contact_model", "point")),
+        torsion=float(doc.get("torsion", 0.0)),
         goal_pose=_pose_or_none(goal.get("object_pose_xyzquat")),
         start_pose=_pose_or_none(start.get("object_pose_xyzquat")),
         start_q=None if start.get("q") is None else np.asarray(start["q"], dtype=float),
@@ -246,11 +250,13 @@ def _scene_from_scenario(scenario: Any) -> _Scene:
 
     base = Path(scenario.base_dir)
     return _Scene(
-        hand=build_hand(scenario),
+        hand=build_hand(scenario, check_contacts=False),
         obj=shape_from_dict(scenario.object, base),
         obstacles=_obstacles(scenario.obstacles, base),
         mu=float(scenario.mu),
         friction_edges=int(scenario.friction_edges),
+        contact_model=str(scenario.contact_model),
+        torsion=float(scenario.torsion),
         goal_pose=_pose_or_none(scenario.goal.object_pose_xyzquat),
         start_pose=_pose_or_none(scenario.start.object_pose_xyzquat),
         start_q=None if scenario.start.q is None else np.asarray(scenario.start.q, dtype=float),
@@ -704,6 +710,23 @@ def _friction_cone(
     return strips
 
 
+def _contact_strips(
+    apex: FloatArray, axis: FloatArray, scene: _Scene, height: float
+) -> list[FloatArray]:
+    """The friction cone's strips, and for soft contacts the torsion ring.
+
+    The ring is a circle of radius ``torsion`` about the contact in its tangent
+    plane: the lever arm of the largest torsional moment per unit normal force
+    (``|tau_n| <= torsion f_n``), drawn at scale.
+    """
+    strips = _friction_cone(apex, axis, scene.mu, scene.friction_edges, height)
+    if scene.contact_model == "soft":
+        a = axis / np.linalg.norm(axis)
+        rim = _friction_cone(np.zeros(3), a, 1.0, 24, 1.0)[-1]  # a + unit circle
+        strips.append(apex + scene.torsion * (rim - a))
+    return strips
+
+
 def _fc_functions() -> tuple[Any, Any] | None:
     try:
         from dexplan.grasp import (
@@ -764,7 +787,9 @@ def _plan_summary_markdown(doc: Mapping[str, Any], n_steps: int, segments: Seque
         f"- segments: **{len(segments)}** ({n_tr} transfers, {n_rg} regrasps)",
         f"- waypoints (`plan_step` steps): **{n_steps}**, "
         f"{STEP_SECONDS:g} s each on the `time` timeline",
-        f"- friction: mu = {doc.get('mu')}, {doc.get('friction_edges', 8)} cone edges",
+        f"- friction: mu = {doc.get('mu')}, {doc.get('friction_edges', 8)} cone edges, "
+        f"{doc.get('contact_model', 'point')} contacts"
+        + (f" (torsion {doc.get('torsion')} m)" if doc.get("contact_model") == "soft" else ""),
     ]
     if stats:
         lines += ["", "| stat | value |", "|---|---|"]
@@ -920,6 +945,8 @@ def _log_contacts_and_fc(
     ts = obj.characteristic_length
     cone_h = min(0.025, 0.5 * ts)
     n_edges = scene.friction_edges
+    # generators (2 points each), then the rim, then the soft torsion ring
+    strip_sizes = [2] * n_edges + ([n_edges + 1] if scene.contact_model == "soft" else [])
     for i in range(n):
         col = [_rgba(_FINGERS[i % len(_FINGERS)])]
         path = f"world/contacts/finger_{i}"
@@ -976,21 +1003,21 @@ def _log_contacts_and_fc(
                     p_s, n_s = obj.closest_point(c)
                     p_s = np.asarray(p_s, dtype=float).reshape(3)
                     n_s = np.asarray(n_s, dtype=float).reshape(3)
-                    cone = np.vstack(_friction_cone(c, n_s, scene.mu, n_edges, cone_h))
+                    cone = np.vstack(_contact_strips(c, n_s, scene, cone_h))
                     local[key_c] = (p_s, n_s, np.vstack([c[None], cone]))
                 p_s, n_s, pts_local = local[key_c]
                 if np.linalg.norm(p_s + r * n_s - tips[i]) > 1e-3:
                     # a fingertip on a box edge: it pushes along the normal at
                     # its own closest point (as the verifier reads it)
                     n_s = np.asarray(obj.closest_point(tips[i])[1], dtype=float).reshape(3)
-                    cone = np.vstack(_friction_cone(c, n_s, scene.mu, n_edges, cone_h))
+                    cone = np.vstack(_contact_strips(c, n_s, scene, cone_h))
                     pts_local = np.vstack([c[None], cone])
                 pts_obj.append(p_s)
                 nrm_in.append(-n_s)
                 pts_w = transform_points(pose, pts_local)
                 points[i].append(pts_w[:1])
-                strips[i].extend(np.split(pts_w[1:], np.cumsum([2] * n_edges)))
-                n_strips[i].append(n_edges + 1)
+                strips[i].extend(np.split(pts_w[1:], np.cumsum(strip_sizes)))
+                n_strips[i].append(len(strip_sizes) + 1)
             full, sub = None, None
             if fc is not None:
                 key = b"".join(p.tobytes() for p in pts_obj) + bytes(w.contact_mask())
@@ -1049,7 +1076,12 @@ def _fc_values(
     if len(pts) < 2:
         return None, None
     P, N = np.array(pts), np.array(nrm)
-    kw = {"edges": scene.friction_edges, "torque_scale": ts}
+    kw = {
+        "edges": scene.friction_edges,
+        "torque_scale": ts,
+        "contact_model": scene.contact_model,
+        "torsion": scene.torsion,
+    }
     try:
         full = float(quality(P, N, scene.mu, **kw))
         sub = float(min_sub(P, N, scene.mu, **kw)) if len(pts) == n else None
