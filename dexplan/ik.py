@@ -364,7 +364,7 @@ class SplitFingerIK:
         vw = L1[..., 1] + sa * L2[..., 0] + ca * L2[..., 1]
         al1 = np.arctan2(dw, du) - np.arctan2(vw, vu)
         ia, i1, i2 = self.sub
-        q = np.empty((N, K, 2, 2, self.m))
+        q = np.zeros((N, K, 2, 2, self.m))
         q[..., ia] = th0
         q[..., i1] = al1
         q[..., i2] = g["s2"][:, None, None] * al2

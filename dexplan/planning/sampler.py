@@ -12,6 +12,17 @@ surface (the contacts) close them. Here:
 3. the free fingers (GSk, k < n) get random joint values;
 4. check validity (limits, collisions, force closure of every subgrasp).
 
+**Per-finger pools** (:attr:`SamplerSettings.per_finger`; by default for
+hands with fingers of more than 3 joints, whose links mostly collide when
+the fingers are placed one after the other): step 2 becomes, at the object
+pose, per contact finger, candidate contacts, every IK solution to them
+(branches and, for redundant fingers, the free-joint grid), each checked for
+joint limits and for collisions of that finger's links against the palm, the
+object and the obstacles alone; a pool of good per-finger solutions is kept.
+Grasps are then combined from the pools (spread normals for force closure,
+fingertips apart) and the rest (finger-finger collisions, full validity with
+every (n-1) subgrasp force closure) is checked, several combinations per pose.
+
 IK puts the fingertips on the surface to solver precision, so the state lies
 on GSk without a projection step. All randomness comes from the
 ``numpy.random.Generator`` given by the caller: same seed, same samples.
@@ -23,12 +34,19 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
+from dexplan.collision import pose_to_se3
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_to_matrix, random_quaternion, slerp
 from dexplan.typing import FloatArray
+
+#: Random configurations whose fingertips fill a finger's reach voxels.
+REACH_SAMPLES = 20000
+#: Reach voxel edge (m).
+REACH_VOXEL = 0.004
 
 
 @dataclass(frozen=True)
@@ -42,6 +60,17 @@ class SamplerSettings:
         min_facing: minimum cosine between a candidate's outward normal and
             the direction to the finger's base (links stay clear of the object).
         balance_pool: reachable candidates compared for normal balance.
+        per_finger: sample per finger first (pools of collision-free
+            per-finger IK solutions, then combinations); None: when some
+            finger has more than 3 joints.
+        pool_size: per-finger solutions kept in a pool.
+        pool_candidates: surface points drawn per finger for a pool.
+        solutions_per_contact: IK solutions (random among those within
+            limits) collision-checked per candidate contact.
+        combinations: grasps combined from one set of pools and checked
+            before a new object pose is drawn (sample() returns at the first
+            valid one).
+        combination_draws: random combinations ranked to choose those.
     """
 
     candidates: int = 48
@@ -49,16 +78,29 @@ class SamplerSettings:
     tip_clearance: float = 0.004
     min_facing: float = -0.3
     balance_pool: int = 6
+    per_finger: bool | None = None
+    pool_size: int = 24
+    pool_candidates: int = 256
+    solutions_per_contact: int = 3
+    combinations: int = 40
+    combination_draws: int = 4000
 
 
 @dataclass
 class SamplerStats:
-    """Counters of the sampler: attempts, valid samples, IK failures, time."""
+    """Counters of the sampler: attempts, valid samples, IK failures, time.
+
+    With per-finger pools an attempt is one combined grasp (or one pose whose
+    pools came out empty); ``pools`` counts the poses pools were built at and
+    ``finger_rejections`` the per-finger IK solutions dropped for a collision.
+    """
 
     attempts: int = 0
     valid: int = 0
     ik_failures: int = 0
     time_s: float = 0.0
+    pools: int = 0
+    finger_rejections: int = 0
 
     @property
     def valid_fraction(self) -> float:
@@ -76,6 +118,8 @@ class SamplerStats:
             "attempts": self.attempts,
             "valid": self.valid,
             "ik_failures": self.ik_failures,
+            "pools": self.pools,
+            "finger_rejections": self.finger_rejections,
             "valid_fraction": self.valid_fraction,
             "samples_per_second": self.samples_per_second,
         }
@@ -108,6 +152,73 @@ class GraspSampler:
         self.settings = settings or SamplerSettings()
         self.stats = SamplerStats()
         self._reach = [self._reach_shell(i) for i in range(gsn.hand.n_fingers)]
+        hand = gsn.hand
+        per_finger = self.settings.per_finger
+        if per_finger is None:
+            per_finger = any(len(idx) > 3 for idx in hand.finger_q_index)
+        self.per_finger = bool(per_finger)
+        self._finger_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
+        self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
+
+    def _reach_voxels(self, finger: int) -> tuple[FloatArray, float, np.ndarray]:
+        """Voxels (world frame) the fingertip centre reaches: ``(origin, size, occupied)``.
+
+        Filled by forward kinematics of ``REACH_SAMPLES`` random configurations
+        (fixed seed) and dilated by one voxel; ``occupied`` is a 3-D boolean grid.
+        """
+        hand = self.gsn.hand
+        idx = hand.finger_q_index[finger]
+        rng = np.random.default_rng(1000 + finger)
+        qf = rng.uniform(hand.lower[idx], hand.upper[idx], size=(REACH_SAMPLES, len(idx)))
+        chain = hand._chains[finger]
+        if chain is not None:
+            tips = chain.tips(qf)
+        else:
+            q = hand.neutral.copy()
+            tips = np.empty((len(qf), 3))
+            for k, v in enumerate(qf[:2000]):
+                q[idx] = v
+                tips[k] = hand.fingertip_positions(q)[finger]
+            tips = tips[:2000]
+        size = REACH_VOXEL
+        origin = tips.min(axis=0) - 2 * size
+        ijk = np.floor((tips - origin) / size).astype(np.int64)
+        grid = np.zeros(tuple(ijk.max(axis=0) + 3), dtype=bool)
+        for d in np.ndindex(3, 3, 3):
+            grid[tuple((ijk + np.array(d) - 1).T)] = True
+        return origin, size, grid
+
+    def _reachable(self, finger: int, tips: FloatArray) -> np.ndarray:
+        """(N,) True where fingertip centres ``tips: (N, 3)`` lie in a reached voxel."""
+        origin, size, grid = self._voxels[finger]
+        ijk = np.floor((tips - origin) / size).astype(np.int64)
+        inside = np.all((ijk >= 0) & (ijk < np.array(grid.shape)), axis=1)
+        out = np.zeros(len(tips), dtype=bool)
+        out[inside] = grid[tuple(ijk[inside].T)]
+        return out
+
+    def _pairs_of_finger(self, finger: int) -> list[int]:
+        """Collision pairs of a finger's links against the palm, object and obstacles.
+
+        The palm is every hand geometry on no finger; the fingertip-object
+        pair is left out (that is the contact).
+        """
+        world = self.validity.world
+        mine = set(world.finger_geoms[finger])
+        on_fingers = {g for geoms in world.finger_geoms for g in geoms}
+        n_hand = len(self.gsn.hand.geom_model.geometryObjects)
+        tip = world.tip_geoms[finger]
+        out = []
+        for k, cp in enumerate(world.geom_model.collisionPairs):
+            a, b = cp.first, cp.second
+            for g, other in ((a, b), (b, a)):
+                if g not in mine:
+                    continue
+                if other == world.object_geom and g == tip:
+                    continue
+                if other >= n_hand or other not in on_fingers:
+                    out.append(k)
+        return out
 
     def _reach_shell(self, finger: int) -> tuple[FloatArray, float, float]:
         """Centre (first joint origin), min and max reach of a fingertip, estimated by FK."""
@@ -147,6 +258,8 @@ class GraspSampler:
         return self._run(np.asarray(pose_xyzquat, dtype=float))
 
     def _run(self, pose: FloatArray | None) -> FloatArray | None:
+        if self.per_finger:
+            return self._run_pools(pose)
         t0 = time.perf_counter()
         try:
             for _ in range(self.settings.max_attempts):
@@ -228,3 +341,193 @@ class GraspSampler:
                 self.stats.ik_failures += 1
                 return None
         return np.concatenate([pose_xyzquat[:POSE_DIM], q])
+
+    # ------------------------------------------------------ per-finger pools
+    def _run_pools(self, pose: FloatArray | None) -> FloatArray | None:
+        """:meth:`_run` with per-finger pools: ``max_attempts`` combined grasps at most."""
+        t0 = time.perf_counter()
+        s = self.settings
+        try:
+            budget = s.max_attempts
+            while budget > 0:
+                if self.deadline.expired():
+                    return None
+                pose_k = self.sample_pose() if pose is None else pose
+                if self.validity.world.object_collides(pose_k):
+                    self.stats.attempts += 1
+                    budget -= 1
+                    continue
+                pools = self.finger_pools(pose_k)
+                if pools is None:
+                    self.stats.attempts += 1
+                    budget -= 1
+                    continue
+                combos = self.combinations(pose_k, pools)
+                if not combos:
+                    self.stats.attempts += 1
+                    budget -= 1
+                    continue
+                for x in combos[:budget]:
+                    if self.deadline.expired():
+                        return None
+                    self.stats.attempts += 1
+                    budget -= 1
+                    if self.validity.is_valid(x):
+                        self.stats.valid += 1
+                        return x
+            return None
+        finally:
+            self.stats.time_s += time.perf_counter() - t0
+
+    def finger_pools(
+        self, pose_xyzquat: FloatArray
+    ) -> dict[int, tuple[FloatArray, FloatArray, FloatArray]] | None:
+        """Per contact finger, collision-free IK solutions to sampled contacts.
+
+        Args:
+            pose_xyzquat: (7,) object pose, world frame, XYZW.
+
+        Returns:
+            ``{finger: (tips, normals, q)}`` with ``tips: (P, 3)`` fingertip
+            centres and ``normals: (P, 3)`` outward surface normals (world
+            frame) and ``q: (P, m)`` the finger's joints; None when some
+            contact finger has an empty pool.
+        """
+        gsn, hand, s = self.gsn, self.gsn.hand, self.settings
+        world = self.validity.world
+        rng = self.rng
+        self.stats.pools += 1
+        R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
+        t = pose_xyzquat[:3]
+        r = hand.fingertip_radius
+        q = hand.neutral.copy()
+        M_obj = pose_to_se3(pose_xyzquat)
+        gm, gd = world.geom_model, world.geom_data
+        pools = {}
+        for i in gsn.contact_ids:
+            pts, n_out = gsn.obj.sample_surface(s.pool_candidates, rng)
+            n_w = n_out @ R.T
+            tips = (pts + r * n_out) @ R.T + t
+            centre, dmin, dmax = self._reach[i]
+            to_base = centre - tips
+            d = np.linalg.norm(to_base, axis=1)
+            ok = (d >= dmin) & (d <= dmax)
+            ok &= np.einsum("ij,ij->i", n_w, to_base) > s.min_facing * d
+            ok[ok] = self._reachable(i, tips[ok])
+            cand = np.flatnonzero(ok)
+            if not len(cand):
+                self.stats.ik_failures += 1
+                return None
+            q_sol, solved = hand.finger_ik_candidates(i, tips[cand])
+            idx = hand.finger_q_index[i]
+            clearance = self._link_clearance(i, q_sol, solved, R, t)
+            keep_c, keep_q = [], []
+            for row in rng.permutation(len(cand)):
+                options = np.flatnonzero(solved[row])
+                if not len(options):
+                    continue
+                # the solutions whose links stay farthest from the object first
+                options = options[np.argsort(-clearance[row, options], kind="stable")]
+                for opt in options[: s.solutions_per_contact]:
+                    q[idx] = q_sol[row, opt]
+                    pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
+                    gd.oMg[world.object_geom] = M_obj  # the update reset it
+                    if any(pin.computeCollision(gm, gd, k) for k in self._finger_pairs[i]):
+                        self.stats.finger_rejections += 1
+                        continue
+                    keep_c.append(cand[row])
+                    keep_q.append(q_sol[row, opt].copy())
+                    break
+                if len(keep_c) >= s.pool_size:
+                    break
+            if not keep_c:
+                self.stats.ik_failures += 1
+                return None
+            c = np.array(keep_c)
+            pools[i] = (tips[c], n_w[c], np.array(keep_q))
+        return pools
+
+    def _link_clearance(
+        self, finger: int, q_sol: FloatArray, solved: np.ndarray, R: FloatArray, t: FloatArray
+    ) -> FloatArray:
+        """Signed distance from the object to a finger's joint axes and link midpoints.
+
+        Args:
+            finger: the finger.
+            q_sol: (N, C, m) IK solutions.
+            solved: (N, C) which of them exist.
+            R: (3, 3) object rotation (world frame).
+            t: (3,) object position (world frame).
+
+        Returns:
+            (N, C) the smallest signed distance (m) over the finger's joint
+            origins after the first and the midpoints of its links (-inf
+            where not solved; 0 where the finger has no vectorised chain).
+        """
+        out = np.full(solved.shape, -np.inf)
+        chain = self.gsn.hand._chains[finger]
+        if chain is None:
+            out[solved] = 0.0
+            return out
+        q = q_sol[solved]
+        if not len(q):
+            return out
+        tip, origins, _ = chain.forward(q)
+        pts = np.concatenate([origins[:, 1:], tip[:, None]], axis=1)
+        mids = 0.5 * (pts[:, 1:] + pts[:, :-1])
+        probe = np.concatenate([origins[:, 1:], mids], axis=1)
+        sd = self.gsn.obj.signed_distance((probe.reshape(-1, 3) - t) @ R)
+        out[solved] = np.asarray(sd).reshape(len(q), -1).min(axis=1)
+        return out
+
+    def combinations(
+        self, pose_xyzquat: FloatArray, pools: dict[int, tuple[FloatArray, FloatArray, FloatArray]]
+    ) -> list[FloatArray]:
+        """Grasps combined from per-finger pools, most promising first (validity not checked).
+
+        Draws ``combination_draws`` random combinations (one pool entry per
+        contact finger), drops those whose fingertips come closer than
+        ``2 r + tip_clearance``, and sorts the rest by normal balance: the
+        largest, over the grasp's (k-1)-finger subgrasps, length of the mean
+        outward normal (0 when the normals of every subgrasp cancel, which
+        force closure of every subgrasp needs on a sphere). Free fingers get
+        random joint values.
+
+        Returns:
+            Up to ``combinations`` ambient states ``(7 + nq,)``.
+        """
+        hand, s, rng = self.gsn.hand, self.settings, self.rng
+        fingers = list(pools)
+        sizes = np.array([len(pools[i][0]) for i in fingers])
+        M = s.combination_draws
+        pick = (rng.random((M, len(fingers))) * sizes).astype(np.int64)
+        tips = np.stack([pools[i][0][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
+        normals = np.stack([pools[i][1][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
+        gap = 2 * hand.fingertip_radius + s.tip_clearance
+        ok = np.ones(len(pick), dtype=bool)
+        for a in range(len(fingers)):
+            for b in range(a + 1, len(fingers)):
+                ok &= np.linalg.norm(tips[:, a] - tips[:, b], axis=1) >= gap
+        pick, normals = pick[ok], normals[ok]
+        k = len(fingers)
+        total = normals.sum(axis=1)
+        if k >= 3:
+            # subgrasp without finger j: (total - n_j) / (k - 1)
+            sub = np.linalg.norm(total[:, None, :] - normals, axis=2) / (k - 1)
+            score = sub.max(axis=1)
+        else:
+            score = np.linalg.norm(total, axis=1) / max(k, 1)
+        out: list[FloatArray] = []
+        seen: set[bytes] = set()
+        for row in np.argsort(score, kind="stable"):
+            key = pick[row].tobytes()
+            if key in seen:
+                continue
+            seen.add(key)
+            if len(out) >= s.combinations:
+                break
+            q = rng.uniform(hand.lower, hand.upper)
+            for j, i in enumerate(fingers):
+                q[hand.finger_q_index[i]] = pools[i][2][pick[row, j]]
+            out.append(np.concatenate([pose_xyzquat[:POSE_DIM], q]))
+        return out

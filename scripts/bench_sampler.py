@@ -1,0 +1,94 @@
+"""Benchmark the RLG-style GSn sampler: valid samples per second and rejection reasons.
+
+For each scenario, builds the planning context, calls ``GraspSampler.sample()``
+(random object poses in the workspace, as PRM does) until ``--seconds`` of
+sampling time have passed, and prints one Markdown table row per scenario:
+valid samples per second, valid samples per attempt, validity checks and how
+they were rejected (``GraspValidity`` counts reasons), IK failures, and the
+sampler's own counters.
+
+Run with -j 1 discipline (one process, nothing else heavy on the machine)::
+
+    python scripts/bench_sampler.py                      # paper and Allegro spheres
+    python scripts/bench_sampler.py dexplan/data/scenarios/allegro_cube.toml --seconds 20
+
+It only uses the public planning context, so it also runs against older
+checkouts (``PYTHONPATH=/path/to/old/checkout python scripts/bench_sampler.py``),
+which is how the "before" figures in the closing note were taken.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from dexplan.planning.context import build_context
+from dexplan.scenario import load_scenario
+
+DEFAULT = ("dexplan/data/scenarios/paper_sphere.toml", "dexplan/data/scenarios/allegro_sphere.toml")
+
+
+def bench(path: str, seconds: float, seed: int) -> dict[str, object]:
+    """Sample for ``seconds`` of sampler time; return the figures."""
+    scenario = load_scenario(Path(path))
+    ctx = build_context(scenario, seed)
+    sampler = ctx.sampler
+    t0 = time.perf_counter()
+    calls = 0
+    while sampler.stats.time_s < seconds and time.perf_counter() - t0 < 3 * seconds:
+        sampler.sample()
+        calls += 1
+    st = sampler.stats
+    vs = ctx.validity.stats
+    return {
+        "scenario": scenario.name,
+        "seed": seed,
+        "calls": calls,
+        "time_s": round(st.time_s, 3),
+        "valid": st.valid,
+        "attempts": st.attempts,
+        "valid_per_s": round(st.samples_per_second, 1),
+        "valid_per_attempt": round(st.valid_fraction, 4),
+        "validity_checked": vs.checked,
+        "valid_per_check": round(vs.valid / vs.checked, 4) if vs.checked else 0.0,
+        "rejected": dict(vs.rejected),
+        "sampler": st.as_dict(),
+    }
+
+
+def main() -> None:
+    """Command-line entry point."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("scenarios", nargs="*", default=list(DEFAULT))
+    ap.add_argument("--seconds", type=float, default=10.0, help="sampling time per scenario")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
+    args = ap.parse_args()
+    rows = [bench(p, args.seconds, args.seed) for p in args.scenarios]
+    if args.json:
+        for r in rows:
+            print(json.dumps(r))
+        return
+    print(
+        "| scenario | valid/s | valid/attempt | attempts | checks | valid/check "
+        "| rejected: joint_limits / collision / force_closure / bounds | IK failures |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        rej = r["rejected"]
+        assert isinstance(rej, dict)
+        sampler = r["sampler"]
+        assert isinstance(sampler, dict)
+        print(
+            f"| {r['scenario']} | {r['valid_per_s']} | {r['valid_per_attempt']} | {r['attempts']} "
+            f"| {r['validity_checked']} | {r['valid_per_check']} "
+            f"| {rej.get('joint_limits', 0)} / {rej.get('collision', 0)} / "
+            f"{rej.get('force_closure', 0)} / {rej.get('bounds', 0)} "
+            f"| {sampler.get('ik_failures', 0)} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,92 @@
+"""The RLG-style sampler with per-finger pools (many-DOF hands)."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dexplan.collision import pose_to_se3
+from dexplan.planning.context import build_context
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.sampler import SamplerSettings
+from dexplan.scenario import default_scenario, load_scenario
+
+ALLEGRO = "dexplan/data/scenarios/allegro_sphere.toml"
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    return build_context(load_scenario(ALLEGRO), seed=3)
+
+
+def test_per_finger_is_the_default_for_four_joint_fingers(ctx) -> None:
+    assert ctx.sampler.per_finger
+    assert not build_context(default_scenario(), seed=1).sampler.per_finger
+    paper = build_context(
+        default_scenario(), seed=1, sampler_settings=SamplerSettings(per_finger=True)
+    )
+    assert paper.sampler.per_finger
+
+
+def test_pools_hold_collision_free_in_limit_solutions_on_the_surface(ctx) -> None:
+    sampler, hand, world = ctx.sampler, ctx.hand, ctx.world
+    pose = ctx.scenario.start.object_pose_xyzquat
+    pools = sampler.finger_pools(pose)
+    assert pools is not None and set(pools) == set(range(hand.n_fingers))
+    gm, gd = world.geom_model, world.geom_data
+    M = pose_to_se3(pose)
+    r = hand.fingertip_radius
+    for i, (tips, normals, qs) in pools.items():
+        idx = hand.finger_q_index[i]
+        assert len(tips) == len(normals) == len(qs) >= 1
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
+        # tip centres one radius off the surface
+        sd = world.object_signed_distance(tips, pose)
+        np.testing.assert_allclose(sd, r, atol=1e-6)
+        for t, q_f in zip(tips, qs, strict=True):
+            assert np.all(q_f >= hand.lower[idx]) and np.all(q_f <= hand.upper[idx])
+            q = hand.neutral.copy()
+            q[idx] = q_f
+            np.testing.assert_allclose(hand.fingertip_positions(q)[i], t, atol=1e-6)
+            pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
+            gd.oMg[world.object_geom] = M
+            assert not any(pin.computeCollision(gm, gd, k) for k in sampler._finger_pairs[i])
+
+
+def test_combinations_keep_fingertips_apart(ctx) -> None:
+    sampler, hand = ctx.sampler, ctx.hand
+    pose = ctx.scenario.start.object_pose_xyzquat
+    pools = sampler.finger_pools(pose)
+    assert pools is not None
+    combos = sampler.combinations(pose, pools)
+    assert 1 <= len(combos) <= sampler.settings.combinations
+    gap = 2 * hand.fingertip_radius + sampler.settings.tip_clearance
+    for x in combos:
+        np.testing.assert_array_equal(x[:POSE_DIM], pose)
+        assert ctx.gsn.residual(x) < 1e-6
+        tips = hand.fingertip_positions(x[POSE_DIM:])
+        d = np.linalg.norm(tips[:, None] - tips[None], axis=2)
+        assert np.all(d[np.triu_indices(len(tips), 1)] >= gap - 1e-9)
+
+
+def test_allegro_sampler_finds_valid_grasps_deterministically() -> None:
+    states = []
+    for _ in range(2):
+        c = build_context(load_scenario(ALLEGRO), seed=5)
+        xs = [c.sampler.sample() for _ in range(4)]
+        states.append(xs)
+        found = [x for x in xs if x is not None]
+        assert found, c.sampler.stats.as_dict()
+        for x in found:
+            assert c.validity.check(x).valid
+        assert c.sampler.stats.pools >= 1
+    for a, b in zip(*states, strict=True):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_array_equal(a, b)
+
+
+def test_allegro_start_grasp_at_the_start_pose(ctx) -> None:
+    x = ctx.sampler.sample_at_pose(ctx.scenario.start.object_pose_xyzquat)
+    assert x is not None
+    np.testing.assert_array_equal(x[:POSE_DIM], ctx.scenario.start.object_pose_xyzquat)
+    assert ctx.validity.check(x).valid
