@@ -54,6 +54,7 @@ from typing import Any
 
 from dexplan.exceptions import DependencyError, InvalidInputError, PlannerError, ScenarioError
 from dexplan.files import atomic_output
+from dexplan.planning.progress import ProgressEvent, Stage
 from dexplan.scenario import Scenario, builtin_scenario_path, load_scenario
 
 __all__ = [
@@ -145,7 +146,8 @@ _OMPL_STATUS_OF: dict[str, int] = {
     "killed": 7,  # OMPL's Benchmark calls an overrunning planner a crash too
 }
 
-# Progress stages (the ``stage`` column of the ``progress`` table).
+# Progress stages (the ``stage`` column of the ``progress`` table), by
+# dexplan.planning.progress.Stage value.
 STAGES: tuple[str, ...] = (
     "setup",
     "start grasp",
@@ -154,13 +156,6 @@ STAGES: tuple[str, ...] = (
     "reduction",
     "verification",
     "done",
-)
-_STAGE_PREFIXES: tuple[tuple[str, int], ...] = (
-    ("sampling a start grasp", 1),
-    ("module 1", 2),
-    ("module 2", 3),
-    ("GSn path", 4),
-    ("reduction", 4),
 )
 
 # ------------------------------------------------------------------ columns
@@ -502,13 +497,6 @@ def failure_record(task: RunTask, status: str, message: str) -> dict[str, Any]:
     return rec
 
 
-def _stage_of(message: str, current: int) -> int:
-    for prefix, stage in _STAGE_PREFIXES:
-        if message.startswith(prefix):
-            return stage
-    return current
-
-
 def segments_sha256(segments: Sequence[Mapping[str, Any]]) -> str:
     """SHA-256 of a plan's segments (plan-file dicts): equal plans, equal hashes."""
     text = json.dumps(list(segments), sort_keys=True, separators=(",", ":"))
@@ -584,15 +572,15 @@ def execute_run(task: RunTask) -> dict[str, Any]:
 
         t0 = time.perf_counter()
 
-        def on_message(message: str) -> None:
-            events.append((time.perf_counter() - t0, _stage_of(message, events[-1][1])))
+        def on_event(event: ProgressEvent) -> None:
+            events.append((time.perf_counter() - t0, int(event.stage)))
 
         result = plan(
             task.scenario,
             planner=task.planner,
             seed=task.seed,
             time_limit=task.time_limit,
-            progress=on_message,
+            progress=on_event,
         )
         stats = dict(result.stats)
         rec["stats"] = _jsonable(stats)
@@ -600,7 +588,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
         _fill_stats(rec, stats)
         _set_status(rec, result.status if result.status in PLAN_STATUSES else "error")
         if result.solved:
-            events.append((time.perf_counter() - t0, 5))
+            events.append((time.perf_counter() - t0, int(Stage.VERIFICATION)))
             base = task.scenario.base_dir
             hand = build_hand(task.scenario)
             doc = build_plan_document(task.scenario, hand, result, base)
@@ -620,7 +608,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
                 write_plan(
                     out_dir / name, build_plan_document(task.scenario, hand, result, out_dir)
                 )
-        events.append((time.perf_counter() - t0, 6))
+        events.append((time.perf_counter() - t0, int(Stage.DONE)))
     except Exception as exc:  # a run that raises is a data point, not the end of a sweep
         _set_status(rec, "error")
         rec["message"] = f"{type(exc).__name__}: {exc}"

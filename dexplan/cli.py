@@ -36,7 +36,7 @@ import argparse  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
 import warnings  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
+from collections.abc import Callable, Sequence  # noqa: E402
 from typing import Any  # noqa: E402
 
 from dexplan.exceptions import DexplanError, InvalidInputError  # noqa: E402
@@ -102,13 +102,13 @@ def _check_interrupted() -> None:
         raise KeyboardInterrupt
 
 
-def _progress(quiet: bool):
-    """The planner's progress callback: a stderr line, and the interrupt check."""
+def _progress(quiet: bool) -> Callable[[Any], None]:
+    """The planner's progress callback: a stderr line per event, and the interrupt check."""
 
-    def say(message: str) -> None:
+    def say(event: Any) -> None:  # a dexplan.planning.progress.ProgressEvent
         _check_interrupted()
         if not quiet:
-            _err(message)
+            _err(event.message)
 
     return say
 

@@ -19,6 +19,7 @@ from dexplan import bench, cli
 from dexplan.planning.context import build_context
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.planner import plan, start_state
+from dexplan.planning.progress import PlanStatus
 from dexplan.planning.reduction import grasp_from_state, reduce_object_path
 from dexplan.scenario import default_scenario, load_scenario
 
@@ -173,9 +174,14 @@ def test_deadline_helpers():
 
 
 def test_unsolvable_query_ends_with_a_status_at_its_limit():
-    """An unsolvable query returns a result (not an exception), having used its limit."""
+    """An unsolvable query returns a result (not an exception), having used its limit.
+
+    The goal pose puts the sphere through the lid: the goal was sampled, no
+    valid grasp was ever found there, and the status says so.
+    """
     res = plan(load_scenario(UNSOLVABLE), time_limit=1.0)
-    assert res.status == "no_gsn_path" and not res.solved
+    assert res.status == PlanStatus.NO_GOAL_GRASP and not res.solved
+    assert res.stats["goal_samples"] == 0
     assert res.stats["time_s"] >= 0.9  # it searched until the deadline; no upper bound here
 
 

@@ -43,7 +43,7 @@ def test_failed_query_reports_its_rejections(capfd, tmp_path):
     code, _, err = run_cli(capfd, "plan", UNSOLVABLE, "--time-limit", "1", "-o", out, "-q")
     assert code == 1
     lines = err.strip().splitlines()
-    assert lines[0].startswith("dexplan: no plan: no_gsn_path")
+    assert lines[0].startswith("dexplan: no plan: no_goal_grasp")
     assert "sampler attempts" in lines[1] and "rejections:" in lines[1]
     assert not out.exists()
 

@@ -19,7 +19,7 @@ A query runs in three stages:
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,6 +32,7 @@ from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl_adapter import check_planner
 from dexplan.planning.path import Segment, count_kinds, object_path_length
+from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
 from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
@@ -39,8 +40,6 @@ from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.scenario import Scenario
 from dexplan.typing import FloatArray
-
-Progress = Callable[[str], None]
 
 REDUCTIONS = ("auto", "gaits", "edges")
 """Reduction methods accepted by :func:`plan`."""
@@ -56,8 +55,7 @@ class PlanResult:
     """Outcome of :func:`plan`.
 
     Attributes:
-        status: ``solved``, ``no_start_grasp``, ``no_goal_grasp``, ``no_gsn_path``,
-            ``reduction_failed`` or ``invalid_plan``.
+        status: how the query ended (a :class:`PlanStatus`, equal to its string).
         segments: transfer/regrasp segments (empty unless solved).
         start_pose: (7,) start object pose. start_q: (nq,) start hand joints.
         gsn_path: (K, 7 + nq) the GSn path the plan reduces (may be empty).
@@ -69,7 +67,7 @@ class PlanResult:
             segments are kept, so the plan can be inspected).
     """
 
-    status: str
+    status: PlanStatus
     segments: tuple[Segment, ...]
     start_pose: FloatArray
     start_q: FloatArray | None
@@ -83,7 +81,7 @@ class PlanResult:
     @property
     def solved(self) -> bool:
         """True when a verified plan was found."""
-        return self.status == "solved"
+        return self.status == PlanStatus.SOLVED
 
 
 def goal_reached(scenario: Scenario, pose: FloatArray) -> tuple[bool, float]:
@@ -168,7 +166,7 @@ def plan(
         time_limit: seconds for the whole query (defaults to the scenario's).
         roadmap: a roadmap from an earlier run (multi-query); it is extended
             only when it cannot answer.
-        progress: called with short progress messages.
+        progress: called with a :class:`ProgressEvent` at each stage.
         reduction: how the GSn path becomes transfers and regrasps: ``gaits``
             (follow the object trajectory with finger gaits,
             :func:`~dexplan.planning.reduction.reduce_object_path`), ``edges``
@@ -187,7 +185,11 @@ def plan(
         raise InvalidInputError(
             f"reduction must be one of {', '.join(REDUCTIONS)}, got {reduction!r}"
         )
-    say = progress or (lambda _msg: None)
+
+    def say(stage: Stage, message: str, **counts: int) -> None:
+        if progress is not None:
+            progress(ProgressEvent(stage, message, time.perf_counter() - t0, counts))
+
     spec = scenario.planner
     planner = planner or spec.name
     seed = spec.seed if seed is None else seed
@@ -202,7 +204,7 @@ def plan(
     stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
     pose0 = scenario.start.object_pose_xyzquat
 
-    def result(status: str, message: str = "", **kw: Any) -> PlanResult:
+    def result(status: PlanStatus, message: str = "", **kw: Any) -> PlanResult:
         stats["time_s"] = time.perf_counter() - t0
         stats["sampler"] = ctx.sampler.stats.as_dict()
         stats["validity"] = ctx.validity.stats.as_dict()
@@ -215,19 +217,27 @@ def plan(
             status, start_pose=pose0, stats=stats, message=message, rejections=rejections, **kw
         )
 
-    say("sampling a start grasp")
+    say(Stage.START_GRASP, "sampling a start grasp")
     x_start = start_state(ctx)
     if x_start is None:
         why = " within the time limit" if ctx.deadline.expired() else ""
-        return result("no_start_grasp", f"no valid grasp found at the start pose{why}")
+        return result(PlanStatus.NO_START_GRASP, f"no valid grasp found at the start pose{why}")
     q_start = x_start[POSE_DIM:]
+
+    goal_draws = [0, 0]  # calls, valid states: tells "no goal grasp" from "no path"
+
+    def goal_sampler() -> FloatArray | None:
+        x = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
+        goal_draws[0] += 1
+        goal_draws[1] += x is not None
+        return x
 
     query = GsnQuery(
         start=x_start,
         goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
-        goal_sampler=lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
+        goal_sampler=goal_sampler,
     )
-    say(f"module 1: exploring GSn with {planner}")
+    say(Stage.MODULE1, f"module 1: exploring GSn with {planner}")
     if roadmap is None:
         gsn = explore_gsn(
             ctx, query, planner, params=spec.params, space=spec.space, seed=seed, deadline=deadline
@@ -236,10 +246,18 @@ def plan(
         gsn = query_roadmap(ctx, roadmap, query, deadline=deadline)
     stats.update(gsn.stats)
     roadmap = gsn.roadmap
+    stats["goal_samples"] = goal_draws[1]
     if gsn.path is None:
-        return result("no_gsn_path", gsn.message, roadmap=roadmap, start_q=q_start)
+        if goal_draws[0] and not goal_draws[1]:
+            msg = f"no valid grasp found at the goal pose ({goal_draws[0]} sampler calls)"
+            return result(PlanStatus.NO_GOAL_GRASP, msg, roadmap=roadmap, start_q=q_start)
+        return result(PlanStatus.NO_GSN_PATH, gsn.message, roadmap=roadmap, start_q=q_start)
 
-    say(f"GSn path with {len(gsn.path)} states; reducing to transfers and regrasps")
+    say(
+        Stage.REDUCTION,
+        f"GSn path with {len(gsn.path)} states; reducing to transfers and regrasps",
+        states=len(gsn.path),
+    )
     t_red = time.perf_counter()
     poses = gsn.path[:, :POSE_DIM].copy()
     # projected states meet |quat| = 1 to the projection tolerance only
@@ -289,14 +307,22 @@ def plan(
             break
         if red.final:
             hopeless.add(source)
-        say(f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}")
+        say(
+            Stage.REDUCTION,
+            f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}",
+            attempt=attempt,
+        )
     stats["reduction_attempts"] = attempt
     stats["reduction_time_s"] = time.perf_counter() - t_red
     stats["object_poses_shortcut"] = len(short)
     if red is None or not red.success:
         msg = red.reason if red is not None else "time limit reached before the reduction"
         return result(
-            "reduction_failed", msg or "", roadmap=roadmap, gsn_path=gsn.path, start_q=q_start
+            PlanStatus.REDUCTION_FAILED,
+            msg or "",
+            roadmap=roadmap,
+            gsn_path=gsn.path,
+            start_q=q_start,
         )
     stats.update({f"local_{k}": v for k, v in red.stats.items()})
     segments = drop_regrasps(ctx.transitions, merge_regrasps(ctx.transitions, list(red.segments)))
@@ -307,10 +333,15 @@ def plan(
     stats["object_path_m"] = trans_m
     stats["object_path_rad"] = rot_rad
     solved = result(
-        "solved", segments=tuple(segments), roadmap=roadmap, gsn_path=gsn.path, start_q=q_start
+        PlanStatus.SOLVED,
+        segments=tuple(segments),
+        roadmap=roadmap,
+        gsn_path=gsn.path,
+        start_q=q_start,
     )
     # re-check the whole plan with the independent verifier, as OMPL checks
     # simplified paths: a plan that fails it is never returned as solved
+    say(Stage.VERIFICATION, "verifying the plan")
     t_ver = time.perf_counter()
     doc = build_plan_document(scenario, ctx.hand, solved, scenario.base_dir)
     report = verify_plan(doc, scenario.base_dir)
@@ -318,7 +349,7 @@ def plan(
     if not report.ok:
         detail = "; ".join(str(v) for v in report.violations[:5])
         return result(
-            "invalid_plan",
+            PlanStatus.INVALID_PLAN,
             f"the reduced plan failed verification: {detail}",
             segments=tuple(segments),
             roadmap=roadmap,

@@ -1,0 +1,33 @@
+"""Typed statuses and progress events of a query."""
+
+from __future__ import annotations
+
+import json
+
+from dexplan import bench
+from dexplan.planning.planner import plan
+from dexplan.planning.progress import PlanStatus, ProgressEvent, Stage
+from dexplan.scenario import default_scenario
+
+
+def test_status_is_its_string_in_json_and_comparisons():
+    assert PlanStatus.SOLVED == "solved"
+    assert json.dumps({"s": PlanStatus.NO_GOAL_GRASP}) == '{"s": "no_goal_grasp"}'
+    assert set(bench.PLAN_STATUSES) >= {s.value for s in PlanStatus}
+
+
+def test_bench_stage_names_follow_the_stage_enum():
+    assert len(bench.STAGES) == len(Stage)
+    assert bench.STAGES[Stage.VERIFICATION] == "verification"
+
+
+def test_a_solved_query_reports_each_stage_in_order():
+    events: list[ProgressEvent] = []
+    res = plan(default_scenario(), seed=3, progress=events.append)
+    assert res.solved and res.status is PlanStatus.SOLVED
+    stages = [e.stage for e in events]
+    assert stages == sorted(stages)
+    assert stages[0] is Stage.START_GRASP and stages[-1] is Stage.VERIFICATION
+    assert Stage.MODULE1 in stages and Stage.REDUCTION in stages
+    assert all(e.message and e.elapsed_s >= 0 for e in events)
+    assert [e.elapsed_s for e in events] == sorted(e.elapsed_s for e in events)
