@@ -35,7 +35,7 @@ from dexplan import plan_schema
 from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, shorten
 from dexplan.files import atomic_output
 from dexplan.plan_schema import FORMAT, validate_plan
-from dexplan.planning.path import Segment, Waypoint
+from dexplan.segments import Segment, Waypoint
 
 __all__ = [
     "FORMAT",

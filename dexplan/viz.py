@@ -46,8 +46,8 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
     from dexplan.hand import Hand
     from dexplan.objects import Shape
-    from dexplan.planning.path import Segment
     from dexplan.planning.roadmap import Roadmap
+    from dexplan.segments import Segment
 
 #: Oldest rerun-sdk whose API and ``.rrd`` format this module is written for.
 MIN_RERUN_VERSION: tuple[int, int] = (0, 41)

@@ -5,11 +5,11 @@ import itertools
 import numpy as np
 
 from dexplan.planning.context import build_context
-from dexplan.planning.path import Segment
 from dexplan.planning.reduction import grasp_from_state
 from dexplan.planning.smoothing import drop_regrasps
 from dexplan.planning.transitions import TransitionSettings, densify_poses
 from dexplan.scenario import default_scenario
+from dexplan.segments import Segment
 
 
 def test_blocked_free_finger_move_falls_back_to_ompl() -> None:

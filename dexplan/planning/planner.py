@@ -31,7 +31,6 @@ from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl_adapter import check_planner
-from dexplan.planning.path import Segment, count_kinds, object_path_length
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
@@ -39,6 +38,7 @@ from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_o
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.scenario import Scenario
+from dexplan.segments import Segment, count_kinds, object_path_length
 from dexplan.typing import FloatArray
 
 REDUCTIONS = ("auto", "gaits", "edges")

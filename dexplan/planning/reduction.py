@@ -35,9 +35,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.planning.path import Segment
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
 from dexplan.pose import interpolate_pose, inverse_transform_points
+from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
 

@@ -21,8 +21,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dexplan.planning.path import Segment, Waypoint
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
+from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
 

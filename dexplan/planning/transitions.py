@@ -38,9 +38,9 @@ from dexplan.hand import Hand
 from dexplan.objects import Shape
 from dexplan.planning import ompl_adapter
 from dexplan.planning.deadline import Deadline
-from dexplan.planning.path import Segment, Waypoint
 from dexplan.planning.validity import ValiditySettings
 from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
 
