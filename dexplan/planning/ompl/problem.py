@@ -1,0 +1,673 @@
+"""The constrained planning problem: one OMPL geometric planner on a manifold.
+
+:class:`PlanningProblem` ties together a constrained state space
+(:mod:`~dexplan.planning.ompl.spaces`), the Python callbacks
+(:mod:`~dexplan.planning.ompl.callbacks`) and a planner of the registry
+(:mod:`~dexplan.planning.ompl.registry`); it solves queries, grows PRM roadmaps,
+re-checks paths in travel direction and reads the planner's graph
+(:mod:`~dexplan.planning.ompl.results`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+
+from dexplan.exceptions import InvalidInputError, PlannerError
+from dexplan.planning.ompl._checks import as_int, as_pos
+from dexplan.planning.ompl.callbacks import (
+    Accept,
+    ErrorSink,
+    GoalSpec,
+    draw_goal,
+    make_goal_region,
+    make_sampler_allocator,
+    make_validity,
+    termination,
+)
+from dexplan.planning.ompl.registry import (
+    MULTI_QUERY_PLANNERS,
+    PLANNERS,
+    PROJECTION_PLANNERS,
+    check_planner_name,
+    declared_params,
+    set_planner_param,
+    settable_params,
+)
+from dexplan.planning.ompl.results import STATUS_NAMES, PathCheck, RoadmapData, SolveResult
+from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
+from dexplan.planning.ompl.spaces import (
+    ConstraintSpec,
+    Frame,
+    ProjectionSpec,
+    constrained_space,
+    make_constraint,
+    make_projection,
+)
+from dexplan.typing import FloatArray, as_vector
+
+__all__ = ["PlanningProblem"]
+
+
+class PlanningProblem:
+    """A constrained planning problem solved by one OMPL geometric planner.
+
+    Typical use::
+
+        problem = PlanningProblem(spec, is_valid, planner="RRTConnect", seed=1)
+        problem.set_start(x0)
+        problem.set_goal(GoalSpec(distance, 0.01, sample=sample_goal))
+        result = problem.solve(5.0)
+
+    Multi-query (PRM family): :meth:`grow_roadmap` builds the roadmap without a
+    query; each :meth:`solve` after a new start/goal reuses it (``clearQuery``).
+    Other planners start a fresh tree for a new query; calling :meth:`solve` again
+    on the same query continues the search (anytime behaviour).
+
+    Determinism. OMPL has one global seed generator per process; every OMPL RNG
+    (planner, state samplers, atlas) takes its seed from it when created, and
+    ``RNG.setSeed`` re-seeds the generator even after use (OMPL logs an error that
+    the adapter silences). With ``seed`` given, the adapter re-seeds it with a value
+    derived from ``(seed, 0)`` before building the space and planner, and from
+    ``(seed, k)`` before the k-th :meth:`solve` / :meth:`grow_roadmap` call (a new
+    query also recreates a single-query planner, so its RNG is seeded then).
+    Hence, in one process and across processes: the same problem with the
+    same seed and the same call sequence gives the same path for planners that stop
+    at their first solution and are single-threaded (RRT, RRTConnect, the KPIECE
+    family, and roadmaps grown with :meth:`grow_roadmap` ``(max_milestones=...)``),
+    provided the Python callbacks are deterministic (seed the ``valid_sampler``'s and
+    goal sampler's own ``np.random.Generator``). Not deterministic: anything
+    time-limited (optimizing planners, growth stopped by time), PRM's ``solve``
+    (its checker thread races the roadmap growth), and a solve interleaved with
+    other OMPL objects being created in another thread. Without ``seed`` OMPL's
+    time-based seed is left alone.
+
+    Args:
+        constraint: the manifold and its bounds.
+        is_valid: ``is_valid(x) -> bool`` for an ambient ``(n,)`` state.
+        planner: a name of :data:`PLANNERS`.
+        params: planner parameters by OMPL ParamSet name (``{"range": 0.1}``).
+        valid_sampler: ``() -> (n,) | None``: a valid state on the manifold, or
+            None; becomes the space information's ``ValidStateSampler`` (used by
+            the PRM family and ``searchValidNearby``).
+        valid_sampler_near: ``(x_near (n,), distance) -> (n,) | None`` for
+            ``sampleNear``; without it ``sampleNear`` reports failure.
+        check_sampled_states: re-check ``is_valid`` on the valid sampler's states
+            (turn off when the sampler already does).
+        projection: grid projection for the KPIECE family (ignored by others).
+        seed: see Determinism; None leaves OMPL's seed alone.
+
+    Raises:
+        PlannerError: unknown planner, unknown parameter or rejected value.
+        InvalidInputError: malformed arguments.
+
+    """
+
+    def __init__(
+        self,
+        constraint: ConstraintSpec,
+        is_valid: Callable[[FloatArray], Any],
+        *,
+        planner: str = "PRM",
+        params: Mapping[str, object] | None = None,
+        valid_sampler: Callable[[], Any] | None = None,
+        valid_sampler_near: Callable[[FloatArray, float], Any] | None = None,
+        check_sampled_states: bool = True,
+        projection: ProjectionSpec | None = None,
+        seed: int | None = None,
+    ) -> None:
+        if not isinstance(constraint, ConstraintSpec):
+            raise InvalidInputError(f"constraint must be a ConstraintSpec, got {constraint!r}")
+        if not callable(is_valid):
+            raise InvalidInputError(f"is_valid must be callable, got {is_valid!r}")
+        check_planner_name(planner)
+        if seed is not None:
+            seed = as_int(seed, "seed", 0)
+        self._spec = constraint
+        self._planner_name = planner
+        self._seed = seed
+        self._solve_count = 0
+        self._is_valid = is_valid
+        self._projection_spec = projection
+        self._sink = ErrorSink()
+        self._frame = Frame(constraint.ambient_dim, constraint.scale)
+        self._samplers: list[Any] = []
+        if seed is not None:
+            reseed_ompl(derived_seed(seed, 0))
+
+        self._constraint = make_constraint(constraint, self._frame, self._sink)
+        self._ambient, css, si = constrained_space(constraint, self._frame, self._constraint)
+        si.setStateValidityChecker(make_validity(is_valid, self._frame, self._sink))
+        self._accept = Accept(constraint, self._frame, self._constraint, is_valid, True)
+        if valid_sampler is not None:
+            if not callable(valid_sampler):
+                raise InvalidInputError(f"valid_sampler must be callable, got {valid_sampler!r}")
+            accept = Accept(
+                constraint, self._frame, self._constraint, is_valid, bool(check_sampled_states)
+            )
+            si.setValidStateSamplerAllocator(
+                make_sampler_allocator(
+                    valid_sampler,
+                    valid_sampler_near,
+                    accept,
+                    self._frame,
+                    self._sink,
+                    self._samplers,
+                )
+            )
+        css.setup()
+        si.setup()
+        self._css = css
+        self._si = si
+        self._projection = (
+            make_projection(projection, css, self._frame, self._sink)
+            if projection is not None
+            else None
+        )
+        self._params: dict[str, object] = {}
+        self._starts: list[FloatArray] = []
+        self._goal: GoalSpec | None = None
+        self._goal_state: tuple[FloatArray, float] | None = None
+        self._query_dirty = True
+        self._pdef = ob.ProblemDefinition(si)
+        self._planner = self._new_planner()
+        for name, value in (params or {}).items():
+            self.set_param(name, value)
+
+    # ----------------------------------------------------------------- properties
+
+    @property
+    def planner_name(self) -> str:
+        """Name of the planner."""
+        return self._planner_name
+
+    @property
+    def constraint(self) -> ConstraintSpec:
+        """The constraint specification."""
+        return self._spec
+
+    @property
+    def delta(self) -> float:
+        """Discrete geodesic step of the space, in planning (scaled) units."""
+        return float(self._css.getDelta())
+
+    @property
+    def lambda_(self) -> float:
+        """Maximum wandering ratio of a discrete geodesic."""
+        return float(self._css.getLambda())
+
+    @property
+    def is_multi_query(self) -> bool:
+        """Whether the planner keeps its roadmap across queries (PRM family)."""
+        return self._planner_name in MULTI_QUERY_PLANNERS
+
+    # ----------------------------------------------------------------- planner
+
+    def _new_planner(self) -> Any:
+        planner = PLANNERS[self._planner_name](self._si)
+        if self._projection is not None and self._planner_name in PROJECTION_PLANNERS:
+            planner.setProjectionEvaluator(self._projection)
+        if self._spec.space != "projected" and callable(getattr(planner, "setRange", None)):
+            planner.setRange(float(self._css.getRho_s()))  # as OMPL's demos; params override
+        for name, value in self._params.items():
+            set_planner_param(planner, self._planner_name, name, value)
+        planner.setProblemDefinition(self._pdef)
+        return planner
+
+    def set_param(self, name: str, value: object) -> None:
+        """Set a planner parameter by its OMPL ParamSet name.
+
+        The value is converted to the parameter's type (bool, int or float; strings
+        are parsed), must be finite and >= 0 (and <= 1 for ``*bias*``/``*fraction*``),
+        and must read back unchanged.
+
+        Raises:
+            PlannerError: unknown name (the message lists the valid ones), a name the
+                binding cannot set, or a value that is malformed or rejected.
+
+        """
+        set_planner_param(self._planner, self._planner_name, name, value)
+        self._params[name] = value
+
+    def parameters(self) -> dict[str, str]:
+        """Return the planner's settable parameters and their current values (text)."""
+        declared = declared_params(self._planner)
+        return {name: declared[name] for name in settable_params(self._planner)}
+
+    # ----------------------------------------------------------------- query
+
+    def _checked_state(self, x: object, name: str) -> FloatArray:
+        xv = as_vector(x, name, self._spec.ambient_dim)
+        residual = float(np.linalg.norm(np.asarray(self._spec.function(xv), dtype=np.float64)))
+        if residual > self._spec.tolerance:
+            raise InvalidInputError(
+                f"{name} is off the manifold: |f(x)| = {residual:.3g} > tolerance "
+                f"{self._spec.tolerance:.3g}"
+            )
+        return xv
+
+    def set_start(self, x: object) -> None:
+        """Replace the start states by ``x`` ``(n,)`` (on the manifold)."""
+        self._starts = [self._checked_state(x, "start")]
+        self._query_dirty = True
+
+    def add_start(self, x: object) -> None:
+        """Add a start state ``x`` ``(n,)`` (on the manifold)."""
+        self._starts.append(self._checked_state(x, "start"))
+        self._query_dirty = True
+
+    def set_goal(self, goal: GoalSpec) -> None:
+        """Set a goal region (replaces any goal)."""
+        if not isinstance(goal, GoalSpec):
+            raise InvalidInputError(f"goal must be a GoalSpec, got {goal!r}")
+        self._goal = goal
+        self._goal_state = None
+        self._query_dirty = True
+
+    def set_goal_state(self, x: object, threshold: float = 1e-6) -> None:
+        """Set a single goal state ``x`` ``(n,)``; ``threshold`` is a planning distance.
+
+        Implemented with OMPL's C++ ``GoalStates``: the fastest goal, safe for every
+        planner.
+        """
+        xv = self._checked_state(x, "goal")
+        thr = float(threshold)
+        if not math.isfinite(thr) or thr < 0.0:
+            raise InvalidInputError(f"threshold must be finite and >= 0, got {threshold!r}")
+        self._goal_state = (xv, thr)
+        self._goal = None
+        self._query_dirty = True
+
+    def _alloc(self, y: FloatArray, *, anchor: bool = False) -> Any:
+        state = self._css.allocState()
+        state.copy(np.asarray(y, dtype=np.float64).tolist())
+        if anchor and self._spec.space != "projected":
+            self._css.anchorChart(state)
+        return state
+
+    def _anchor(self) -> Callable[[Any], None] | None:
+        if self._spec.space == "projected":
+            return None
+        css = self._css
+
+        def anchor(state: Any) -> None:
+            css.anchorChart(state)
+
+        return anchor
+
+    def _build_query(self) -> str | None:
+        """Build a fresh ProblemDefinition; return a status name if impossible."""
+        pdef = ob.ProblemDefinition(self._si)
+        for x in self._starts:
+            pdef.addStartState(self._alloc(self._frame.to_y(x), anchor=True))
+        if self._goal_state is not None:
+            goal = ob.GoalStates(self._si)
+            goal.addState(self._alloc(self._frame.to_y(self._goal_state[0]), anchor=True))
+            goal.setThreshold(self._goal_state[1])
+        else:
+            spec = self._goal
+            assert spec is not None
+            first = draw_goal(
+                spec.sample,
+                spec.sample_attempts,
+                self._accept,
+                spec.distance,
+                spec.threshold,
+                self._frame,
+            )
+            if self._sink.error is not None:
+                return None
+            if self.is_multi_query:
+                if first is None:
+                    return "invalid_goal"
+                goal = ob.GoalStates(self._si)  # C++ goal: PRM's checker thread stays C++
+                goal.addState(self._alloc(first, anchor=True))
+                goal.setThreshold(1e-9)
+            else:
+                goal = make_goal_region(
+                    self._si, spec, self._frame, self._accept, self._sink, first, self._anchor()
+                )
+        pdef.setGoal(goal)
+        self._pdef = pdef
+        if self.is_multi_query:
+            self._planner.setProblemDefinition(pdef)
+            self._planner.clearQuery()
+        else:
+            self._planner = self._new_planner()
+        self._planner.setup()
+        self._query_dirty = False
+        return None
+
+    # ----------------------------------------------------------------- solving
+
+    def _raise_callback_error(self) -> None:
+        error = self._sink.error
+        if error is not None:
+            self._sink.error = None
+            raise PlannerError(
+                f"a callback raised during planning with {self._planner_name}: "
+                f"{type(error).__name__}: {error}"
+            ) from error
+
+    def grow_roadmap(self, time_limit: float, max_milestones: int | None = None) -> int:
+        """Grow a PRM-family roadmap without a query (single-threaded).
+
+        Args:
+            time_limit: seconds.
+            max_milestones: stop once the roadmap has this many vertices (then growth
+                is deterministic with a seed, unless the time limit stops it first).
+
+        Returns:
+            The number of roadmap vertices (milestones).
+
+        Raises:
+            PlannerError: the planner is not multi-query, or a callback raised.
+
+        """
+        if not self.is_multi_query:
+            raise PlannerError(
+                "grow_roadmap needs a multi-query planner "
+                f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {self._planner_name}"
+            )
+        limit = as_pos(time_limit, "time_limit")
+        self._solve_count += 1
+        if self._seed is not None:
+            reseed_ompl(derived_seed(self._seed, self._solve_count))
+        reached = None
+        if max_milestones is not None:
+            target = as_int(max_milestones, "max_milestones", 1)
+            planner = self._planner
+            sink = self._sink
+
+            def reached() -> bool:
+                return sink.error is not None or planner.milestoneCount() >= target
+
+        with self._sink.watching(termination(limit, stop=reached)) as ptc:
+            self._planner.growRoadmapPtc(ptc)
+        self._raise_callback_error()
+        return int(self._planner.milestoneCount())
+
+    def solve(
+        self,
+        time_limit: float,
+        *,
+        max_iterations: int | None = None,
+        interpolate: bool = True,
+        check_path: bool = True,
+    ) -> SolveResult:
+        """Run the planner on the current query.
+
+        Args:
+            time_limit: seconds (a C++ timed termination condition).
+            max_iterations: also stop after this many planner iterations
+                (termination-condition checks). A search stopped this way, not by
+                the clock, depends on the seed only: deterministic. Single-query
+                planners only (the PRM family checks the condition from a
+                second thread; use :meth:`grow_roadmap` with ``max_milestones``).
+            interpolate: densify the path along the space's discrete geodesics
+                (steps <= ``lambda_ * delta`` in planning units).
+            check_path: re-check the path in travel direction (motions, constraint,
+                bounds, validity); with False, ``path_valid`` is False.
+
+        Returns:
+            The :class:`SolveResult`; "no path" is a status, not an exception.
+
+        Raises:
+            PlannerError: no start or goal set, or a callback raised during planning.
+
+        """
+        limit = as_pos(time_limit, "time_limit")
+        if not self._starts:
+            raise PlannerError("no start state: call set_start() before solve()")
+        if self._goal is None and self._goal_state is None:
+            raise PlannerError("no goal: call set_goal() or set_goal_state() before solve()")
+        t0 = time.perf_counter()
+        self._solve_count += 1
+        if self._seed is not None:
+            reseed_ompl(derived_seed(self._seed, self._solve_count))
+        if self._query_dirty:
+            early = self._build_query()
+            self._raise_callback_error()
+            if early is not None:
+                return SolveResult(
+                    status=early,
+                    solved=False,
+                    path=None,
+                    waypoints=None,
+                    time_s=time.perf_counter() - t0,
+                    planner=self._planner_name,
+                    path_valid=False,
+                    message="no acceptable goal sample",
+                )
+        budget = None
+        if max_iterations is not None:
+            if self.is_multi_query:
+                raise PlannerError(
+                    f"max_iterations is for single-query planners, not {self._planner_name} "
+                    "(its solution checker runs in a second thread)"
+                )
+            budget = as_int(max_iterations, "max_iterations", 1)
+        with self._sink.watching(termination(limit, budget)) as ptc:
+            status = self._planner.solve(ptc)
+        self._raise_callback_error()
+        name = STATUS_NAMES.get(status.getStatus().value, "unknown")
+        if name not in ("exact", "approximate") or not self._pdef.hasSolution():
+            return SolveResult(
+                status=name,
+                solved=False,
+                path=None,
+                waypoints=None,
+                time_s=time.perf_counter() - t0,
+                planner=self._planner_name,
+                path_valid=False,
+                message=status.asString(),
+            )
+        path = og.PathGeometric(self._pdef.getSolutionPath())
+        checked = self._post_process(path, interpolate=interpolate, check=check_path)
+        self._raise_callback_error()
+        goal_distance = 0.0 if name == "exact" else float(self._pdef.getSolutionDifference())
+        valid = checked.path_valid
+        final = "path_invalid" if (name == "exact" and check_path and not valid) else name
+        return SolveResult(
+            status=final,
+            solved=final == "exact" and valid,
+            path=checked.path,
+            waypoints=checked.waypoints,
+            time_s=time.perf_counter() - t0,
+            planner=self._planner_name,
+            path_valid=valid,
+            repaired_segments=checked.repaired_segments,
+            invalid_segments=checked.invalid_segments,
+            max_step=checked.max_step,
+            goal_distance=goal_distance,
+            message=status.asString(),
+        )
+
+    def _geodesic(self, a: Any, b: Any) -> list[FloatArray]:
+        """Planning-coordinate states of the discrete geodesic a -> b (a and b included)."""
+        segment = og.PathGeometric(self._si, a, b)
+        segment.interpolate()
+        read = self._frame.read
+        return [read(segment.getState(i)) for i in range(segment.getStateCount())]
+
+    def _post_process(self, path: Any, *, interpolate: bool, check: bool) -> PathCheck:
+        read = self._frame.read
+        m = path.getStateCount()
+        states = [path.getState(i) for i in range(m)]
+        waypoints = np.array([read(s) for s in states]).reshape(m, self._spec.ambient_dim)
+        repaired: list[int] = []
+        invalid: list[int] = []
+        dense: list[FloatArray] = [waypoints[0]]
+        # OMPL's ConstrainedMotionValidator does not check a motion's end state (lazy
+        # planners such as LBKPIECE1 then return invalid waypoints): check states too.
+        ok = [bool(self._si.isValid(s)) for s in states] if check else [True] * m
+        for i in range(m - 1):
+            a, b = states[i], states[i + 1]
+            ends = ok[i] and ok[i + 1]
+            forward = (not check) or (ends and bool(self._si.checkMotion(a, b)))
+            if forward:
+                piece = self._geodesic(a, b) if interpolate else [waypoints[i], waypoints[i + 1]]
+            elif ends and self._si.checkMotion(b, a):
+                repaired.append(i)
+                piece = (
+                    self._geodesic(b, a)[::-1] if interpolate else [waypoints[i], waypoints[i + 1]]
+                )
+            else:
+                invalid.append(i)
+                piece = [waypoints[i], waypoints[i + 1]]
+            dense.extend(piece[1:])
+        if len(dense) > 1:
+            arr = np.array(dense)
+            keep = np.ones(arr.shape[0], dtype=bool)
+            keep[1:] = np.linalg.norm(np.diff(arr, axis=0), axis=1) > 1e-12
+            arr = arr[keep]
+        else:
+            arr = np.array(dense)
+        steps = np.linalg.norm(np.diff(arr, axis=0), axis=1) if arr.shape[0] > 1 else np.zeros(1)
+        max_step = float(steps.max()) if steps.size else 0.0
+        valid = check and not invalid and self._states_ok(arr)
+        to_x = self._frame.to_x
+        return PathCheck(
+            path=to_x(arr),
+            waypoints=to_x(waypoints),
+            path_valid=bool(valid),
+            repaired_segments=tuple(repaired),
+            invalid_segments=tuple(invalid),
+            max_step=max_step,
+        )
+
+    def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
+        """Re-check (and densify) any path of ambient states in travel direction.
+
+        Each segment ``i -> i+1`` must be a valid motion along the space's discrete
+        geodesic; when only the reverse motion is valid (projection is
+        direction-dependent) the reversed reverse geodesic replaces it. Every
+        resulting state must satisfy the constraint within tolerance, the bounds and
+        ``is_valid``.
+
+        Args:
+            waypoints: ``(M, n)`` ambient states, M >= 1.
+            interpolate: return the densified geodesic states rather than the
+                waypoints.
+
+        Returns:
+            The :class:`PathCheck`.
+
+        Raises:
+            InvalidInputError: wrong shape or non-finite values.
+            PlannerError: a callback raised.
+
+        """
+        arr = np.asarray(waypoints, dtype=np.float64)
+        n = self._spec.ambient_dim
+        if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
+            raise InvalidInputError(f"waypoints must have shape (M, {n}), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError("waypoints must be finite")
+        path = og.PathGeometric(self._si)
+        for x in arr:
+            path.append(self._alloc(self._frame.to_y(x)))
+        result = self._post_process(path, interpolate=interpolate, check=True)
+        self._raise_callback_error()
+        return result
+
+    def _states_ok(self, ys: FloatArray) -> bool:
+        """Whether every planning-coordinate state is on the manifold, in bounds, valid."""
+        spec = self._spec
+        lo = self._frame.to_y(spec.lower)
+        up = self._frame.to_y(spec.upper)
+        if np.any(ys < lo) or np.any(ys > up):
+            return False
+        xs = self._frame.to_x(ys)
+        tol = spec.tolerance * (1.0 + 1e-9)
+        for x in xs:
+            if float(np.linalg.norm(np.asarray(spec.function(x), dtype=np.float64))) > tol:
+                return False
+            if not bool(self._is_valid(x)):
+                return False
+        return True
+
+    # ----------------------------------------------------------------- data
+
+    def planner_data(self) -> RoadmapData:
+        """Return the planner's current graph (roadmap or trees) in ambient coordinates."""
+        pd = ob.PlannerData(self._si)
+        self._planner.getPlannerData(pd)
+        n = self._spec.ambient_dim
+        count = int(pd.numVertices())
+        read = self._frame.read
+        vertices = np.empty((count, n), dtype=np.float64)
+        pairs: list[tuple[int, int]] = []
+        for i in range(count):
+            vertices[i] = read(pd.getVertex(i).getState())
+            pairs.extend((i, int(j)) for j in pd.getEdges(i))
+        edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        starts = np.array(
+            [pd.getStartIndex(k) for k in range(pd.numStartVertices())], dtype=np.int64
+        )
+        goals = np.array([pd.getGoalIndex(k) for k in range(pd.numGoalVertices())], dtype=np.int64)
+        return RoadmapData(
+            vertices=self._frame.to_x(vertices), edges=edges, start_ids=starts, goal_ids=goals
+        )
+
+    def clear(self) -> None:
+        """Forget everything the planner built (roadmap, trees, atlas charts)."""
+        self._planner.clear()
+        self._css.clear()
+        self._query_dirty = True
+
+    def project(self, x: object) -> FloatArray | None:
+        """Project an ambient ``(n,)`` point onto the manifold with OMPL's projection.
+
+        Returns:
+            The projected ``(n,)`` ambient point, or None if projection failed.
+
+        """
+        xv = as_vector(x, "x", self._spec.ambient_dim)
+        y = np.array(self._frame.to_y(xv), dtype=np.float64)
+        ok = self._constraint.project(y)
+        self._raise_callback_error()
+        return self._frame.to_x(y) if ok else None
+
+    def check_motion(self, a: object, b: object) -> bool:
+        """Whether the discrete geodesic from ``a`` to ``b`` (ambient ``(n,)``) is valid."""
+        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
+        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
+        ok = bool(self._si.checkMotion(self._alloc(ya), self._alloc(yb)))
+        self._raise_callback_error()
+        return ok
+
+    def distance(self, a: object, b: object) -> float:
+        """OMPL's state-space distance of two ambient ``(n,)`` states (planning units)."""
+        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
+        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
+        return float(self._css.distance(self._alloc(ya), self._alloc(yb)))
+
+    def interpolate(self, a: object, b: object, t: float) -> FloatArray:
+        """OMPL's geodesic interpolation from ``a`` (t = 0) to ``b`` (t = 1), ambient."""
+        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
+        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
+        out = self._alloc(ya)
+        self._css.interpolate(self._alloc(ya), self._alloc(yb), float(t), out)
+        self._raise_callback_error()
+        return self._frame.state_x(out)
+
+    def round_trip(self, x: object) -> FloatArray:
+        """A state written into an OMPL state of this space and read back, ambient.
+
+        (The binding's ``serialize`` takes a raw capsule and ``copyFromReals`` a
+        ``std::vector`` that Python lists do not convert to, so this is the
+        state I/O the binding offers.)
+        """
+        y = self._frame.to_y(as_vector(x, "x", self._spec.ambient_dim))
+        return self._frame.state_x(self._alloc(y))
+
+    def valid_sampler_count(self) -> int:
+        """Return how many Python valid-state samplers OMPL allocated (diagnostics)."""
+        return len(self._samplers)

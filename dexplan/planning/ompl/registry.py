@@ -1,0 +1,295 @@
+"""The planner registry: OMPL geometric planners by name, and their parameters.
+
+Binding facts (ompl 2.0.1 PyPI wheel, nanobind):
+
+- ``Planner.params()`` (``ompl::base::ParamSet``) is not bound: parameters are
+  read from ``printSettings()`` and set through the planner's bound ``setX``
+  methods, with their OMPL ParamSet names (``range``, ``goal_bias``...).
+- ``AORRTC`` hangs in ``solve`` on a constrained space (ignores the termination
+  condition) and returns a zero-length "solution" on a plain R^2 problem: it is
+  not registered.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+
+from dexplan.exceptions import PlannerError
+from dexplan.planning.ompl.spaces import real_vector_space
+
+__all__ = [
+    "MULTI_QUERY_PLANNERS",
+    "PLANNERS",
+    "PLANNER_NOTES",
+    "PROJECTION_PLANNERS",
+    "UNSUPPORTED_PLANNERS",
+    "available_planners",
+    "check_planner",
+    "check_planner_name",
+    "declared_params",
+    "set_planner_param",
+    "settable_params",
+]
+
+
+def _factory(name: str) -> Callable[[Any], Any]:
+    """Return a factory ``make(si)`` of the ``ompl.geometric`` planner ``name``."""
+    cls = getattr(og, name)
+
+    def make(si: Any) -> Any:
+        return cls(si)
+
+    make.__name__ = f"make_{name}"
+    make.__doc__ = f"Return a new ``ompl.geometric.{name}`` on ``si``."
+    return make
+
+
+PLANNERS: dict[str, Callable[[Any], Any]] = {
+    name: _factory(name)
+    for name in (
+        "BFMT",
+        "BITstar",
+        "BKPIECE1",
+        "FMT",
+        "InformedRRTstar",
+        "KPIECE1",
+        "LBKPIECE1",
+        "PRM",
+        "PRMstar",
+        "RRT",
+        "RRTConnect",
+        "RRTstar",
+        "SORRTstar",
+    )
+    if hasattr(og, name)
+}
+"""Planner name -> factory ``f(space_information) -> ompl planner``.
+
+Every entry solved the unit-sphere test problem on the projected, atlas and
+tangent-bundle spaces (FMT/BFMT only timed out on the tangent bundle, cleanly)."""
+
+UNSUPPORTED_PLANNERS: dict[str, str] = {
+    "AORRTC": (
+        "hangs inside solve() on a constrained state space, ignoring the termination "
+        "condition, and returns a zero-length path on a plain R^2 problem (ompl 2.0.1 wheel)"
+    ),
+}
+"""Geometric planners of the wheel that are deliberately not registered, with the reason."""
+
+PLANNER_NOTES: dict[str, str] = {
+    "BITstar": "optimizing: uses the whole time limit; informed sampling treats the "
+    "constrained space as R^n (states are re-checked on the returned path)",
+    "InformedRRTstar": "optimizing: uses the whole time limit; informed sampling treats the "
+    "constrained space as R^n (states are re-checked on the returned path)",
+    "SORRTstar": "optimizing: uses the whole time limit; informed sampling treats the "
+    "constrained space as R^n (states are re-checked on the returned path)",
+    "RRTstar": "optimizing: uses the whole time limit",
+    "PRMstar": "optimizing: uses the whole time limit; multi-query roadmap",
+    "PRM": "multi-query roadmap; uses the custom valid state sampler",
+    "LBKPIECE1": "lazy: OMPL's ConstrainedMotionValidator does not check a motion's end "
+    "state, so it can return invalid waypoints; the re-check reports them as path_invalid",
+    "FMT": "batch of num_samples states; timed out on the tangent-bundle space",
+    "BFMT": "batch of num_samples states; timed out on the tangent-bundle space",
+}
+"""Caveats per registered planner (informational)."""
+
+MULTI_QUERY_PLANNERS: frozenset[str] = frozenset({"PRM", "PRMstar"})
+"""Planners whose roadmap survives a new start/goal (``clearQuery``); they run a
+solution-checking thread, so their goal is always one C++ goal state."""
+
+PROJECTION_PLANNERS: frozenset[str] = frozenset({"KPIECE1", "BKPIECE1", "LBKPIECE1"})
+"""Planners that use a :class:`~dexplan.planning.ompl.spaces.ProjectionSpec`
+(``setProjectionEvaluator``)."""
+
+
+def available_planners() -> list[str]:
+    """Return the sorted names of the registered planners (keys of :data:`PLANNERS`)."""
+    return sorted(PLANNERS)
+
+
+def check_planner_name(name: str) -> None:
+    """Raise unless ``name`` is a registered planner.
+
+    Raises:
+        PlannerError: unsupported (the message says why) or unknown planner; the
+            message lists the valid ones.
+
+    """
+    if name in PLANNERS:
+        return
+    if name in UNSUPPORTED_PLANNERS:
+        raise PlannerError(
+            f"planner {name!r} is not supported: {UNSUPPORTED_PLANNERS[name]}; "
+            f"valid planners: {', '.join(available_planners())}"
+        )
+    raise PlannerError(
+        f"unknown planner {name!r}; valid planners: {', '.join(available_planners())}"
+    )
+
+
+# ------------------------------------------------------------------- parameters
+
+# OMPL ParamSet names whose setter is not "set" + CamelCase(name); candidates in order.
+_SETTER_ALIASES: dict[str, tuple[str, ...]] = {
+    "failed_expansion_score_factor": ("FailedExpansionCellScoreFactor",),
+    "use_k_nearest": ("KNearest", "NearestK", "UseKNearest"),
+    "nearest_k": ("NearestK",),
+    "number_sampling_attempts": ("NumSamplingAttempts",),
+    "ordering_batch_size": ("BatchSize",),
+    "delay_collision_checking": ("DelayCC",),
+    "use_admissible_heuristic": ("AdmissibleCostToCome",),
+    "cache_cc": ("CacheCC",),
+    "extended_fmt": ("ExtendedFMT",),
+    "drop_unconnected_samples_on_prune": ("DropSamplesOnPrune",),
+    "find_approximate_solutions": ("ConsiderApproximateSolutions",),
+    "prune_threshold_as_fractional_cost_change": ("PruneThresholdFraction",),
+    "stop_on_each_solution_improvement": ("StopOnSolnImprovement",),
+    "use_graph_pruning": ("Pruning",),
+    "use_just_in_time_sampling": ("JustInTimeSampling",),
+    "use_strict_queue_ordering": ("StrictQueueOrdering",),
+    "delay_rewiring_to_first_solution": ("DelayRewiringUntilInitialSolution",),
+}
+
+_TRUE_WORDS = frozenset({"1", "true", "yes", "on"})
+_FALSE_WORDS = frozenset({"0", "false", "no", "off"})
+
+
+def declared_params(planner: Any) -> dict[str, str]:
+    """Return OMPL's declared parameters of ``planner`` as ``{name: value text}``."""
+    params: dict[str, str] = {}
+    for line in planner.printSettings().splitlines()[1:]:
+        name, sep, value = line.partition(" = ")
+        if sep:
+            params[name.strip()] = value.strip()
+    return params
+
+
+def _accessors(planner: Any, name: str) -> tuple[Callable[..., Any], Callable[[], Any]] | None:
+    """Return the bound ``(setter, getter)`` for the ParamSet name, or None."""
+    camel = "".join(part[:1].upper() + part[1:] for part in name.split("_"))
+    for suffix in (*_SETTER_ALIASES.get(name, ()), camel):
+        setter = getattr(planner, "set" + suffix, None)
+        getter = getattr(planner, "get" + suffix, None)
+        if callable(setter) and callable(getter):
+            return setter, getter
+    return None
+
+
+def settable_params(planner: Any) -> list[str]:
+    """Return the sorted declared parameters of ``planner`` the binding can set."""
+    return sorted(n for n in declared_params(planner) if _accessors(planner, n) is not None)
+
+
+def _coerce_param(planner_name: str, name: str, value: object, current: object) -> object:
+    """Convert ``value`` to the type of the parameter's current value, or raise."""
+    where = f"parameter {name!r} of planner {planner_name}"
+    if isinstance(current, bool):
+        if isinstance(value, bool | np.bool_):
+            return bool(value)
+        if isinstance(value, int | np.integer) and int(value) in (0, 1):
+            return bool(value)
+        if isinstance(value, str) and value.strip().lower() in _TRUE_WORDS | _FALSE_WORDS:
+            return value.strip().lower() in _TRUE_WORDS
+        raise PlannerError(f"{where} must be a boolean, got {value!r}")
+    if isinstance(current, int):
+        number: float
+        if isinstance(value, bool | np.bool_):
+            raise PlannerError(f"{where} must be an integer, got {value!r}")
+        if isinstance(value, int | np.integer) or (
+            isinstance(value, float | np.floating) and float(value).is_integer()
+        ):
+            number = int(value)
+        elif isinstance(value, str):
+            try:
+                number = int(value.strip())
+            except ValueError as exc:
+                raise PlannerError(f"{where} must be an integer, got {value!r}") from exc
+        else:
+            raise PlannerError(f"{where} must be an integer, got {value!r}")
+        if number < 0:
+            raise PlannerError(f"{where} must be >= 0, got {value!r}")
+        return number
+    if isinstance(value, bool | np.bool_):
+        raise PlannerError(f"{where} must be a number, got {value!r}")
+    try:
+        real = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise PlannerError(f"{where} must be a number, got {value!r}") from exc
+    if not math.isfinite(real) or real < 0.0:
+        raise PlannerError(f"{where} must be finite and >= 0, got {value!r}")
+    if ("bias" in name or "fraction" in name) and real > 1.0:
+        raise PlannerError(f"{where} must be in [0, 1], got {value!r}")
+    return real
+
+
+def set_planner_param(planner: Any, planner_name: str, name: str, value: object) -> None:
+    """Set a parameter of ``planner`` by its OMPL ParamSet name, checked.
+
+    The value is converted to the parameter's type (see :func:`_coerce_param`) and
+    must read back unchanged.
+
+    Args:
+        planner: an OMPL planner.
+        planner_name: its registry name (for messages).
+        name: the ParamSet name (``range``, ``goal_bias``...).
+        value: the new value (bool, int, float or text).
+
+    Raises:
+        PlannerError: unknown name, a name without a bound setter, or a value that
+            is malformed, rejected or ignored by OMPL.
+
+    """
+    declared = declared_params(planner)
+    if name not in declared:
+        raise PlannerError(
+            f"unknown parameter {name!r} for planner {planner_name}; valid parameters: "
+            f"{', '.join(settable_params(planner)) or '(none)'}"
+        )
+    access = _accessors(planner, name)
+    if access is None:
+        raise PlannerError(
+            f"parameter {name!r} of planner {planner_name} is declared by OMPL but has no "
+            f"setter in the ompl Python binding; settable parameters: "
+            f"{', '.join(settable_params(planner)) or '(none)'}"
+        )
+    setter, getter = access
+    wanted = _coerce_param(planner_name, name, value, getter())
+    try:
+        setter(wanted)
+    except (RuntimeError, ValueError, TypeError) as exc:
+        raise PlannerError(
+            f"OMPL rejected {value!r} for parameter {name!r} of planner {planner_name}: {exc}"
+        ) from exc
+    got = getter()
+    same = (
+        math.isclose(got, wanted, rel_tol=1e-12, abs_tol=0.0)
+        if isinstance(got, float)
+        else (got == wanted)
+    )
+    if not same:
+        raise PlannerError(
+            f"OMPL ignored {value!r} for parameter {name!r} of planner {planner_name} "
+            f"(value is {got!r})"
+        )
+
+
+def check_planner(name: str, params: Mapping[str, object] | None = None) -> None:
+    """Fail fast on an unknown planner or parameter, before any planning work.
+
+    The planner is built on a throwaway 2-D space and given ``params``, so the
+    same checks as :class:`~dexplan.planning.ompl.problem.PlanningProblem` apply.
+
+    Raises:
+        PlannerError: unknown or unsupported planner, unknown parameter, bad value.
+    """
+    check_planner_name(name)
+    space = real_vector_space(-np.ones(2), np.ones(2))
+    planner = PLANNERS[name](ob.SpaceInformation(space))
+    for key, value in (params or {}).items():
+        set_planner_param(planner, name, str(key), value)

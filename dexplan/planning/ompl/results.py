@@ -1,0 +1,124 @@
+"""What planning returns: solve results, re-checked paths, planner graphs.
+
+Plain frozen dataclasses of NumPy arrays in ambient coordinates (no OMPL objects),
+and OMPL's ``PlannerStatus`` values by name.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from dexplan.typing import FloatArray, IntArray
+
+__all__ = ["STATUS_NAMES", "PathCheck", "RoadmapData", "SolveResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class RoadmapData:
+    """A planner's graph, extracted from ``ob.PlannerData``.
+
+    Attributes:
+        vertices: ``(N, n)`` ambient states.
+        edges: ``(E, 2)`` int64 vertex indices ``(from, to)`` as OMPL reports them
+            (the PRM family reports each undirected edge in both directions).
+        start_ids: ``(S,)`` int64 indices of start vertices.
+        goal_ids: ``(G,)`` int64 indices of goal vertices.
+
+    """
+
+    vertices: FloatArray
+    edges: IntArray
+    start_ids: IntArray
+    goal_ids: IntArray
+
+    @property
+    def num_vertices(self) -> int:
+        """N, the number of vertices."""
+        return int(self.vertices.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class PathCheck:
+    """A path re-checked in travel direction.
+
+    See :meth:`~dexplan.planning.ompl.problem.PlanningProblem.check_path`.
+
+    Attributes:
+        path: ``(K, n)`` ambient states: the densified discrete geodesics when
+            interpolating, else the waypoints.
+        waypoints: ``(M, n)`` ambient waypoints that were checked.
+        path_valid: every state of ``path`` is on the manifold (within tolerance), in
+            bounds and valid, and every segment is a valid motion in travel direction
+            (directly or after repair).
+        repaired_segments: segments ``i`` (``i -> i+1``) whose forward motion failed
+            but whose reverse motion was valid; their states are the reversed reverse
+            geodesic.
+        invalid_segments: segments that failed both ways, or with an invalid end.
+        max_step: largest planning-space distance between consecutive path states.
+
+    """
+
+    path: FloatArray
+    waypoints: FloatArray
+    path_valid: bool
+    repaired_segments: tuple[int, ...]
+    invalid_segments: tuple[int, ...]
+    max_step: float
+
+
+@dataclass(frozen=True, eq=False)
+class SolveResult:
+    """Outcome of :meth:`~dexplan.planning.ompl.problem.PlanningProblem.solve`.
+
+    Attributes:
+        status: ``"exact"``, ``"approximate"``, ``"timeout"``, ``"invalid_start"``,
+            ``"invalid_goal"``, ``"unrecognized_goal"``, ``"crash"``, ``"abort"``,
+            ``"infeasible"``, ``"unknown"`` (OMPL's statuses), or ``"path_invalid"``:
+            OMPL reported an exact solution that fails the travel-direction re-check.
+        solved: exact solution whose every state and segment passed the re-check.
+        path: ``(K, n)`` ambient states in travel order (densified along the
+            discrete geodesics when ``interpolate``), or None without a path.
+        waypoints: ``(M, n)`` ambient states the planner returned, or None.
+        time_s: wall time of the call.
+        planner: planner name.
+        path_valid: every path state satisfies the constraint within tolerance, the
+            bounds and ``is_valid``, and every segment is a valid motion in travel
+            direction (directly or after repair). False without a path.
+        repaired_segments: waypoint segments ``i`` (``i -> i+1``) whose forward motion
+            failed but whose reverse motion was valid; their states are the reversed
+            geodesic (direction-dependent projection).
+        invalid_segments: waypoint segments that failed both ways.
+        max_step: largest planning-space distance between consecutive path states.
+        goal_distance: OMPL's solution difference (0 for exact), NaN without a path.
+        message: short human-readable detail.
+
+    """
+
+    status: str
+    solved: bool
+    path: FloatArray | None
+    waypoints: FloatArray | None
+    time_s: float
+    planner: str
+    path_valid: bool
+    repaired_segments: tuple[int, ...] = ()
+    invalid_segments: tuple[int, ...] = ()
+    max_step: float = math.nan
+    goal_distance: float = math.nan
+    message: str = ""
+
+
+STATUS_NAMES: dict[int, str] = {
+    0: "unknown",
+    1: "invalid_start",
+    2: "invalid_goal",
+    3: "unrecognized_goal",
+    4: "timeout",
+    5: "approximate",
+    6: "exact",
+    7: "crash",
+    8: "abort",
+    9: "infeasible",
+}
+"""OMPL ``PlannerStatus`` values by name (the ``status`` of :class:`SolveResult`)."""
