@@ -36,8 +36,8 @@ from dexplan.collision import CollisionWorld
 from dexplan.grasp import min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Shape
-from dexplan.planning import ompl_adapter
 from dexplan.planning.deadline import Deadline
+from dexplan.planning.ompl import plan_joint_path
 from dexplan.planning.validity import ValiditySettings
 from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
 from dexplan.segments import Segment, Waypoint
@@ -555,7 +555,7 @@ class Transitions:
             q[idx] = q_f
             return self.world.is_free(q, pose, free_mask)
 
-        via = ompl_adapter.plan_joint_path(
+        via = plan_joint_path(
             qa[idx],
             qb[idx],
             self.hand.lower[idx],
