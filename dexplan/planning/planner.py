@@ -30,7 +30,7 @@ from dexplan.plan import build_plan_document, verify_plan
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
-from dexplan.planning.ompl_adapter import check_planner
+from dexplan.planning.ompl import check_planner
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
