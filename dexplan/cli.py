@@ -137,7 +137,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--seed must be in [0, {SEED_LIMIT - 1}], got {args.seed}")
     if args.planner is not None and not args.planner.strip():
         raise InvalidInputError("--planner: empty planner name")
-    from dexplan.planning.ompl_adapter import check_planner
+    from dexplan.planning.ompl import check_planner
 
     check_planner(args.planner or scenario.planner.name, scenario.planner.params)
     if args.rrd is not None or args.debug_rrd is not None:
