@@ -24,7 +24,7 @@ whichever backend ran it, for the planners that are deterministic (see
 ``docs/benchmarks.md``).
 
 This module never prints: progress goes to a callback and the CLI owns output.
-It does not import ``ompl`` (only :mod:`dexplan.planning.ompl_adapter` does).
+It does not import ``ompl`` (only the :mod:`dexplan.planning.ompl` package does).
 """
 
 from __future__ import annotations
@@ -418,7 +418,7 @@ def validate_sweep(
         raise InvalidInputError(f"--time-limit must be a finite number > 0, got {time_limit!r}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InvalidInputError(f"--jobs must be an integer >= 1, got {jobs!r}")
-    from dexplan.planning.ompl_adapter import available_planners
+    from dexplan.planning.ompl import available_planners
 
     valid = available_planners()
     for name in [*planners, *([baseline] if baseline else [])]:
@@ -1462,7 +1462,7 @@ def run_benchmark(
                 f"two different scenarios are both named {s.name!r}; rename one of them"
             )
         seen[s.name] = digest
-    from dexplan.planning.ompl_adapter import check_planner
+    from dexplan.planning.ompl import check_planner
 
     for s in loaded:  # planner parameters of the scenario must suit every planner
         for name in names:
