@@ -7,10 +7,11 @@ import time
 import numpy as np
 import pytest
 
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, try_link
+from dexplan.planning.roadmap import GsnQuery, Roadmap, connected_components, explore_gsn, try_link
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
 from dexplan.scenario import default_scenario
@@ -75,6 +76,24 @@ def test_roadmap_components_and_links() -> None:
     assert rm.shortest_path(0, [3]) == [0, 1, 2, 3]
 
 
+def test_connected_components_known_graphs():
+    labels, sizes = connected_components(5, [[0, 1], [3, 2], [1, 0]])
+    np.testing.assert_array_equal(labels, [0, 0, 1, 1, 2])
+    np.testing.assert_array_equal(sizes, [2, 2, 1])
+    labels, sizes = connected_components(3, np.zeros((0, 2), dtype=int))
+    np.testing.assert_array_equal(labels, [0, 1, 2])
+    np.testing.assert_array_equal(sizes, [1, 1, 1])
+    labels, sizes = connected_components(4, [[3, 2], [2, 1], [1, 0], [0, 0]])
+    np.testing.assert_array_equal(labels, [0, 0, 0, 0])
+    np.testing.assert_array_equal(sizes, [4])
+    labels, sizes = connected_components(0, [])
+    assert labels.shape == (0,) and sizes.shape == (0,)
+    with pytest.raises(InvalidInputError):
+        connected_components(2, [[0, 2]])
+    with pytest.raises(InvalidInputError):
+        connected_components(2, [[0.0, 1.0]])
+
+
 def test_module2_link_turns_the_object(scenario) -> None:
     ctx = build_context(scenario, seed=5)
     x0 = start_state(ctx)
@@ -85,11 +104,11 @@ def test_module2_link_turns_the_object(scenario) -> None:
 
 def test_gsn_state_space_properties(scenario) -> None:
     """In the spirit of OMPL's StateSpaceTest, on GSn itself."""
-    from dexplan.planning import ompl_adapter
+    from dexplan.planning.ompl import PlanningProblem
     from dexplan.planning.roadmap import constraint_spec
 
     ctx = build_context(scenario, seed=6)
-    problem = ompl_adapter.PlanningProblem(
+    problem = PlanningProblem(
         constraint_spec(ctx, "projected"), ctx.validity.is_valid, planner="PRM"
     )
     xs = [ctx.sampler.sample() for _ in range(8)]

@@ -1,7 +1,7 @@
 """GSn roadmaps: module 1 (explore GSn with OMPL) and module 2 (link components).
 
 Module 1 hands the GSn constraint, validity checker and RLG-style sampler to an
-OMPL planner (through :mod:`dexplan.planning.ompl_adapter`, the only module
+OMPL planner (through :mod:`dexplan.planning.ompl`, the only package
 that imports OMPL) and keeps what it explored as a :class:`Roadmap`: vertices
 (ambient GSn states), edges and connected components.
 
@@ -32,14 +32,15 @@ from typing import Any
 
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.sparse.csgraph import connected_components as _csgraph_components
+from scipy.sparse.csgraph import dijkstra
 
-from dexplan.exceptions import RoadmapFileError, shorten, unknown_field
+from dexplan.exceptions import InvalidInputError, RoadmapFileError, shorten, unknown_field
 from dexplan.files import atomic_output
 from dexplan.objects.factory import field_key
-from dexplan.planning import ompl_adapter
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.ompl import ConstraintSpec, GoalSpec, PlanningProblem, ProjectionSpec
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_object_path
 from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
@@ -47,6 +48,51 @@ from dexplan.pose import quat_angle
 from dexplan.typing import FloatArray
 
 ROADMAP_FORMAT = "dexplan-roadmap/1"
+
+
+def connected_components(n: int, edges: object) -> tuple[np.ndarray, np.ndarray]:
+    """Label the connected components of an undirected graph.
+
+    Args:
+        n: number of vertices N (vertices are ``0..N-1``).
+        edges: ``(E, 2)`` integer vertex pairs; direction is ignored, self-loops and
+            duplicates are allowed.
+
+    Returns:
+        ``(labels, sizes)``: ``labels`` ``(N,)`` int64, the component of each vertex,
+        numbered ``0..C-1`` by first appearance; ``sizes`` ``(C,)`` int64 vertex counts.
+
+    Raises:
+        InvalidInputError: negative ``n``, wrong edge shape or an index out of range.
+
+    """
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+        raise InvalidInputError(f"n must be an integer >= 0, got {n!r}")
+    n = int(n)
+    arr = np.asarray(edges)
+    if arr.size == 0:
+        arr = np.zeros((0, 2), dtype=np.int64)
+    if arr.ndim != 2 or arr.shape[1] != 2 or not np.issubdtype(arr.dtype, np.integer):
+        raise InvalidInputError(f"edges must be an (E, 2) integer array, got shape {arr.shape}")
+    arr = arr.astype(np.int64, copy=False)
+    if arr.size and (arr.min() < 0 or arr.max() >= n):
+        raise InvalidInputError(
+            f"edges index vertices outside 0..{n - 1}: min {arr.min()}, max {arr.max()}"
+        )
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    graph = coo_matrix(
+        (np.ones(arr.shape[0], dtype=np.int8), (arr[:, 0], arr[:, 1])), shape=(n, n)
+    ).tocsr()
+    _, raw = _csgraph_components(graph, directed=False)
+    # renumber by first appearance so labels do not depend on scipy's internals
+    _, first, inverse = np.unique(raw, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    labels = rank[inverse].astype(np.int64)
+    sizes = np.bincount(labels, minlength=order.size).astype(np.int64)
+    return labels, sizes
 
 
 @dataclass(frozen=True)
@@ -88,17 +134,13 @@ class Roadmap:
         return len(self.vertices)
 
     def components(self, with_links: bool = True) -> tuple[int, np.ndarray]:
-        """Connected components: ``(count, labels (N,))``."""
+        """Connected components (:func:`connected_components`): ``(count, labels (N,))``."""
         pairs = [self.edges]
         if with_links and len(self.links):
             pairs.append(self.links)
-        e = np.vstack(pairs) if pairs else np.zeros((0, 2), dtype=int)
-        n = self.n_vertices
-        if n == 0:
-            return 0, np.zeros(0, dtype=int)
-        g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-        count, labels = connected_components(g, directed=False)
-        return int(count), labels
+        e = np.vstack(pairs).astype(np.int64).reshape(-1, 2)
+        labels, sizes = connected_components(self.n_vertices, e)
+        return len(sizes), labels
 
     def add_vertex(self, x: FloatArray) -> int:
         """Append a vertex; returns its index."""
@@ -501,7 +543,7 @@ def scenario_key(ctx: PlanningContext) -> str:
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.ConstraintSpec:
+def constraint_spec(ctx: PlanningContext, space: str) -> ConstraintSpec:
     """The GSn constraint for OMPL, with coordinates scaled so steps mean something.
 
     Positions are scaled by ``1 / (2 * characteristic length)``: an object move
@@ -510,7 +552,7 @@ def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.Constraint
     gsn = ctx.gsn
     scale = np.ones(gsn.ambient_dim)
     scale[:3] = 1.0 / (2.0 * ctx.obj.characteristic_length)
-    return ompl_adapter.ConstraintSpec(
+    return ConstraintSpec(
         ambient_dim=gsn.ambient_dim,
         co_dim=gsn.co_dim,
         function=gsn.function,
@@ -524,7 +566,7 @@ def constraint_spec(ctx: PlanningContext, space: str) -> ompl_adapter.Constraint
     )
 
 
-def orientation_projection() -> ompl_adapter.ProjectionSpec:
+def orientation_projection() -> ProjectionSpec:
     """KPIECE grid projection: the object's orientation (canonical quaternion x, y, z).
 
     Reorientation is what the task is about, so cells split the rotation group;
@@ -535,7 +577,7 @@ def orientation_projection() -> ompl_adapter.ProjectionSpec:
         q = x[3:7]
         return -q[:3] if q[3] < 0 else q[:3]
 
-    return ompl_adapter.ProjectionSpec(
+    return ProjectionSpec(
         3, project, cell_sizes=np.full(3, 0.1), lower=-np.ones(3), upper=np.ones(3)
     )
 
@@ -568,7 +610,7 @@ def explore_gsn(
     roadmap is searched.
     """
     t0 = time.perf_counter()
-    problem = ompl_adapter.PlanningProblem(
+    problem = PlanningProblem(
         constraint_spec(ctx, space),
         ctx.validity.is_valid,
         planner=planner,
@@ -580,9 +622,7 @@ def explore_gsn(
     )
     problem.set_start(query.start)
     problem.set_goal(
-        ompl_adapter.GoalSpec(
-            distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler
-        )
+        GoalSpec(distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler)
     )
     key = scenario_key(ctx)
     stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
@@ -638,7 +678,7 @@ def explore_gsn(
 
 
 def _roadmap_path(
-    problem: ompl_adapter.PlanningProblem, roadmap: Roadmap, start: int, query: GsnQuery
+    problem: PlanningProblem, roadmap: Roadmap, start: int, query: GsnQuery
 ) -> FloatArray | None:
     """Shortest roadmap path from ``start`` into the goal region, densified on GSn.
 
@@ -653,7 +693,7 @@ def _roadmap_path(
     return np.asarray(checked.path) if checked.path_valid else None
 
 
-def _geodesic(problem: ompl_adapter.PlanningProblem) -> Geodesic:
+def _geodesic(problem: PlanningProblem) -> Geodesic:
     """GSn motions of a roadmap's edges, re-checked in travel direction."""
 
     def states(a: FloatArray, b: FloatArray) -> FloatArray | None:
