@@ -146,21 +146,7 @@ class PlanningProblem:
         si.setStateValidityChecker(make_validity(is_valid, self._frame, self._sink))
         self._accept = Accept(constraint, self._frame, self._constraint, is_valid, True)
         if valid_sampler is not None:
-            if not callable(valid_sampler):
-                raise InvalidInputError(f"valid_sampler must be callable, got {valid_sampler!r}")
-            accept = Accept(
-                constraint, self._frame, self._constraint, is_valid, bool(check_sampled_states)
-            )
-            si.setValidStateSamplerAllocator(
-                make_sampler_allocator(
-                    valid_sampler,
-                    valid_sampler_near,
-                    accept,
-                    self._frame,
-                    self._sink,
-                    self._samplers,
-                )
-            )
+            self._use_valid_sampler(si, valid_sampler, valid_sampler_near, check_sampled_states)
         css.setup()
         si.setup()
         self._css = css
@@ -179,6 +165,36 @@ class PlanningProblem:
         self._planner = self._new_planner()
         for name, value in (params or {}).items():
             self.set_param(name, value)
+
+    def _use_valid_sampler(
+        self,
+        si: Any,
+        valid_sampler: Callable[[], Any],
+        valid_sampler_near: Callable[[FloatArray, float], Any] | None,
+        check_sampled_states: bool,
+    ) -> None:
+        """Make the Python samplers the space information's ``ValidStateSampler``.
+
+        Raises:
+            InvalidInputError: ``valid_sampler`` is not callable.
+
+        """
+        if not callable(valid_sampler):
+            raise InvalidInputError(f"valid_sampler must be callable, got {valid_sampler!r}")
+        spec = self._spec
+        accept = Accept(
+            spec, self._frame, self._constraint, self._is_valid, bool(check_sampled_states)
+        )
+        si.setValidStateSamplerAllocator(
+            make_sampler_allocator(
+                valid_sampler,
+                valid_sampler_near,
+                accept,
+                self._frame,
+                self._sink,
+                self._samplers,
+            )
+        )
 
     # ----------------------------------------------------------------- properties
 
@@ -435,16 +451,7 @@ class PlanningProblem:
             early = self._build_query()
             self._raise_callback_error()
             if early is not None:
-                return SolveResult(
-                    status=early,
-                    solved=False,
-                    path=None,
-                    waypoints=None,
-                    time_s=time.perf_counter() - t0,
-                    planner=self._planner_name,
-                    path_valid=False,
-                    message="no acceptable goal sample",
-                )
+                return self._no_path(early, t0, "no acceptable goal sample")
         budget = None
         if max_iterations is not None:
             if self.is_multi_query:
@@ -458,16 +465,7 @@ class PlanningProblem:
         self._raise_callback_error()
         name = STATUS_NAMES.get(status.getStatus().value, "unknown")
         if name not in ("exact", "approximate") or not self._pdef.hasSolution():
-            return SolveResult(
-                status=name,
-                solved=False,
-                path=None,
-                waypoints=None,
-                time_s=time.perf_counter() - t0,
-                planner=self._planner_name,
-                path_valid=False,
-                message=status.asString(),
-            )
+            return self._no_path(name, t0, status.asString())
         path = og.PathGeometric(self._pdef.getSolutionPath())
         checked = self._post_process(path, interpolate=interpolate, check=check_path)
         self._raise_callback_error()
@@ -487,6 +485,19 @@ class PlanningProblem:
             max_step=checked.max_step,
             goal_distance=goal_distance,
             message=status.asString(),
+        )
+
+    def _no_path(self, status: str, t0: float, message: str) -> SolveResult:
+        """Return the :class:`SolveResult` of a solve started at ``t0`` without a path."""
+        return SolveResult(
+            status=status,
+            solved=False,
+            path=None,
+            waypoints=None,
+            time_s=time.perf_counter() - t0,
+            planner=self._planner_name,
+            path_valid=False,
+            message=message,
         )
 
     def _geodesic(self, a: Any, b: Any) -> list[FloatArray]:
