@@ -2,12 +2,31 @@
 
 After Saut, Sahbani and Perdereau, "A Global Approach for Dexterous Manipulation
 Planning Using Paths in n-fingers Grasp Subspace" (ICARCV 2006).
+
+Front door (:mod:`dexplan.api`): ``dexplan.plan(scenario, planner=..., params=...,
+seed=..., time_limit=...)`` returns a :class:`~dexplan.api.Plan` with
+``.save(path)`` and ``.to_document()``; ``dexplan.load_scenario(path)``;
+``dexplan.verify(path)``.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from dexplan.exceptions import DexplanError
 
 __version__ = "0.1.0"
 
-__all__ = ["DexplanError", "__version__"]
+__all__ = ["DexplanError", "Plan", "__version__", "load_scenario", "plan", "verify"]
+
+_API = ("Plan", "load_scenario", "plan", "verify")
+
+
+def __getattr__(name: str) -> Any:
+    # the front door (dexplan.api) loads OMPL, Pinocchio and coal: only on use,
+    # so that `import dexplan` (and the CLI's start) stays light
+    if name in _API:
+        from dexplan import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'dexplan' has no attribute {name!r}")

@@ -566,48 +566,40 @@ def execute_run(task: RunTask) -> dict[str, Any]:
     rec = _empty_record(task)
     events: list[tuple[float, int]] = [(0.0, 0)]
     try:
-        from dexplan.plan import build_plan_document, verify_plan, write_plan
-        from dexplan.planning.context import build_hand
-        from dexplan.planning.planner import plan
+        from dexplan.api import plan
 
         t0 = time.perf_counter()
 
         def on_event(event: ProgressEvent) -> None:
             events.append((time.perf_counter() - t0, int(event.stage)))
 
-        result = plan(
+        # the planner runs the plan-file verifier itself (once): a plan that
+        # fails it comes back as invalid_plan, with its violations
+        planned = plan(
             task.scenario,
             planner=task.planner,
             seed=task.seed,
             time_limit=task.time_limit,
             progress=on_event,
         )
+        result = planned.result
         stats = dict(result.stats)
         rec["stats"] = _jsonable(stats)
         rec["message"] = result.message
         _fill_stats(rec, stats)
         _set_status(rec, result.status if result.status in PLAN_STATUSES else "error")
-        if result.solved:
-            events.append((time.perf_counter() - t0, int(Stage.VERIFICATION)))
-            base = task.scenario.base_dir
-            hand = build_hand(task.scenario)
-            doc = build_plan_document(task.scenario, hand, result, base)
-            t_ver = time.perf_counter()
-            report = verify_plan(doc, base)
-            rec["verify_time"] = time.perf_counter() - t_ver
-            rec["correct_solution"] = int(report.ok)
-            rec["verify_violations"] = len(report.violations)
-            if rec["verify_time"] > 0 and rec["time"] is not None:
+        if result.solved or result.violations:
+            rec["verify_time"] = stats.get("verify_time_s")
+            rec["correct_solution"] = int(result.solved)
+            rec["verify_violations"] = len(result.violations)
+            if rec["verify_time"] and rec["time"] is not None:
                 rec["plan_verify_ratio"] = rec["time"] / rec["verify_time"]
-            rec["plan_sha256"] = segments_sha256(doc["segments"])
-            if not report.ok:
-                rec["message"] = "; ".join(str(v) for v in report.violations[:3])
+        if result.solved:
+            base = task.scenario.base_dir
+            rec["plan_sha256"] = segments_sha256(planned.to_document(base)["segments"])
             if task.plan_dir is not None:
-                out_dir = Path(task.plan_dir)
                 name = f"{task.scenario.name}_{task.planner}_seed{task.seed}.json"
-                write_plan(
-                    out_dir / name, build_plan_document(task.scenario, hand, result, out_dir)
-                )
+                planned.save(Path(task.plan_dir) / name)
         events.append((time.perf_counter() - t0, int(Stage.DONE)))
     except Exception as exc:  # a run that raises is a data point, not the end of a sweep
         _set_status(rec, "error")

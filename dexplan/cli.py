@@ -121,10 +121,10 @@ def _load_scenario(arg: str | None):
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """Plan a scenario; write the plan (and optionally roadmap and recording)."""
+    from dexplan.api import plan
     from dexplan.files import check_output_path
-    from dexplan.plan import build_plan_document, write_plan
+    from dexplan.plan import write_plan
     from dexplan.planning.context import build_hand
-    from dexplan.planning.planner import plan
     from dexplan.planning.roadmap import Roadmap
     from dexplan.scenario import MAX_TIME_LIMIT, SEED_LIMIT
 
@@ -161,13 +161,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dexplan.planning.context import build_context
         from dexplan.planning.roadmap import scenario_key
 
-        ctx = build_context(scenario)
+        ctx = build_context(scenario, hand=hand)
         roadmap = Roadmap.load(
             args.load_roadmap, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim
         )
     if not args.quiet:
         _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
-    result = plan(
+    planned = plan(
         scenario,
         planner=args.planner,
         seed=args.seed,
@@ -175,7 +175,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         roadmap=roadmap,
         progress=_progress(args.quiet),
         reduction=args.reduction,
+        hand=hand,
     )
+    result = planned.result
     _check_interrupted()
     st = result.stats
     if args.debug_rrd is not None and result.rejections is not None:
@@ -193,13 +195,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         if result.status == "invalid_plan" and result.segments:
             # written for inspection, never under the requested name
             bad = out.with_name(f"{out.stem}.invalid.json")
-            doc = build_plan_document(scenario, hand, result, bad.resolve().parent)
+            doc = planned.to_document(bad.resolve().parent)
             doc["stats"]["violations"] = list(result.violations)
             write_plan(bad, doc)
             _err(f"the plan that failed verification is in {bad}")
         sys.stdout.write(f"status: {result.status}\ntime_s: {st.get('time_s', 0):.3f}\n")
         return EXIT_FAILED
-    doc = build_plan_document(scenario, hand, result, out.resolve().parent)
+    doc = planned.to_document(out.resolve().parent)
     write_plan(out, doc)
     if args.rrd is not None:
         from dexplan.viz import record_plan

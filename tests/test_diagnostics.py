@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 from cli_contract import run_cli
 
+from dexplan import api
 from dexplan import plan as plan_module
-from dexplan.planning import planner as planner_module
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.sampler import SamplerStats
 from dexplan.planning.validity import KEPT_PER_REASON, REASONS, ValidityStats
@@ -57,7 +57,7 @@ def test_plan_failing_final_verification_is_written_for_inspection(monkeypatch, 
         bad = plan_module.Violation(0, 1, "collision", "link_1 touches object (injected)")
         return plan_module.VerifyReport((bad,), rep.waypoints, rep.segments)
 
-    monkeypatch.setattr(planner_module, "verify_plan", failing)
+    monkeypatch.setattr(api, "verify_plan", failing)
     out = tmp_path / "plan.json"
     code, _, err = run_cli(capfd, "plan", "-o", out, "-q")
     assert code == 1

@@ -123,6 +123,7 @@ def build_context(
     *,
     transition_settings: TransitionSettings | None = None,
     sampler_settings: SamplerSettings | None = None,
+    hand: Hand | None = None,
 ) -> PlanningContext:
     """Build hand, object, world, GSn, validity, sampler and local planners.
 
@@ -131,6 +132,8 @@ def build_context(
         seed: random seed (defaults to the scenario's planner seed).
         transition_settings: local-planner settings.
         sampler_settings: sampler settings.
+        hand: the scenario's hand if the caller has built it already
+            (:func:`build_hand`); built here otherwise.
 
     Raises:
         ScenarioError: the models cannot be built from the scenario, or no
@@ -138,7 +141,7 @@ def build_context(
             scenario's contact model (:func:`let_go_problem`).
     """
     try:
-        hand = build_hand(scenario, check_contacts=False)
+        hand = hand or build_hand(scenario, check_contacts=False)
         obj = shape_from_dict(dict(scenario.object), scenario.base_dir)
         world = CollisionWorld(hand, obj, build_obstacles(scenario))
     except ScenarioError:

@@ -19,14 +19,14 @@ A query runs in three stages:
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.plan import build_plan_document, verify_plan
+from dexplan.hand import Hand
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
@@ -40,6 +40,9 @@ from dexplan.pose import quat_angle
 from dexplan.scenario import Scenario
 from dexplan.segments import Segment, count_kinds, object_path_length
 from dexplan.typing import FloatArray
+
+Verifier = Callable[["PlanResult"], Sequence[str]]
+"""Checks a finished plan; returns its violations (empty: the plan is valid)."""
 
 REDUCTIONS = ("auto", "gaits", "edges")
 """Reduction methods accepted by :func:`plan`."""
@@ -156,6 +159,8 @@ def plan(
     roadmap: Roadmap | None = None,
     progress: Progress | None = None,
     reduction: str = "auto",
+    verify: Verifier | None = None,
+    hand: Hand | None = None,
 ) -> PlanResult:
     """Plan a manipulation path for a scenario.
 
@@ -173,9 +178,14 @@ def plan(
             (the reduction property edge by edge with bisection,
             :func:`~dexplan.planning.reduction.reduce_gsn_path`) or ``auto``
             (gaits, then edges when gaits fail).
+        verify: the independent check of the finished plan (the plan-file
+            verifier, which lives in a layer below planning: the caller passes
+            it, see :func:`dexplan.api.plan`); a plan it finds violations in is
+            returned as ``invalid_plan``, never as solved. None: not checked.
+        hand: the scenario's hand, if the caller has built it already.
 
     Returns:
-        A :class:`PlanResult`; every solved plan has passed the verifier.
+        A :class:`PlanResult`; with ``verify``, every solved plan has passed it.
 
     Raises:
         InvalidInputError: unknown ``reduction`` or planner name.
@@ -196,7 +206,7 @@ def plan(
     time_limit = spec.time_limit if time_limit is None else time_limit
     if roadmap is None:
         check_planner(planner, spec.params)  # bad names fail before any work
-    ctx = build_context(scenario, seed)
+    ctx = build_context(scenario, seed, hand=hand)
     # every stage watches one deadline (the sampler, goal sampling and the
     # local planners read it too), keeping a reserve for the verification
     deadline = t0 + (1.0 - VERIFY_RESERVE) * time_limit
@@ -341,21 +351,21 @@ def plan(
     )
     # re-check the whole plan with the independent verifier, as OMPL checks
     # simplified paths: a plan that fails it is never returned as solved
+    if verify is None:
+        return solved
     say(Stage.VERIFICATION, "verifying the plan")
     t_ver = time.perf_counter()
-    doc = build_plan_document(scenario, ctx.hand, solved, scenario.base_dir)
-    report = verify_plan(doc, scenario.base_dir)
+    violations = tuple(verify(solved))
     stats["verify_time_s"] = time.perf_counter() - t_ver
-    if not report.ok:
-        detail = "; ".join(str(v) for v in report.violations[:5])
+    if violations:
         return result(
             PlanStatus.INVALID_PLAN,
-            f"the reduced plan failed verification: {detail}",
+            f"the reduced plan failed verification: {'; '.join(violations[:5])}",
             segments=tuple(segments),
             roadmap=roadmap,
             gsn_path=gsn.path,
             start_q=q_start,
-            violations=tuple(str(v) for v in report.violations),
+            violations=violations,
         )
     stats["time_s"] = time.perf_counter() - t0
     return solved

@@ -1,0 +1,163 @@
+"""The Python front door: plan a scenario, save the plan, verify plan files.
+
+Everything a script needs, re-exported by ``dexplan`` itself::
+
+    import dexplan
+
+    p = dexplan.plan("scenarios/paper_sphere.toml", planner="KPIECE1", seed=3)
+    if p.solved:
+        for seg in p.segments:
+            print(seg.kind, seg.finger, len(seg.waypoints))
+        p.save("plan.json")
+        assert dexplan.verify("plan.json").ok
+
+This is the layer above planning and the plan file: the planner never imports
+the plan-file module; :func:`plan` hands it the plan-file verifier, so a plan
+that fails the independent check is returned as ``invalid_plan``, never as
+solved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dexplan.hand import Hand
+from dexplan.plan import VerifyReport, build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.planning.context import build_hand
+from dexplan.planning.planner import PlanResult
+from dexplan.planning.planner import plan as _plan
+from dexplan.planning.progress import PlanStatus, Progress
+from dexplan.planning.roadmap import Roadmap
+from dexplan.scenario import Scenario, default_scenario, load_scenario
+from dexplan.segments import Segment
+
+__all__ = ["Plan", "load_scenario", "plan", "verify"]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A query's outcome with the models it was made for.
+
+    Attributes:
+        result: the planner's :class:`~dexplan.planning.planner.PlanResult`
+            (status, segments, statistics, roadmap, diagnostics).
+        scenario: the scenario planned.
+        hand: the hand model used.
+    """
+
+    result: PlanResult
+    scenario: Scenario
+    hand: Hand
+
+    @property
+    def status(self) -> PlanStatus:
+        """How the query ended."""
+        return self.result.status
+
+    @property
+    def solved(self) -> bool:
+        """True when a verified plan was found."""
+        return self.result.solved
+
+    @property
+    def segments(self) -> tuple[Segment, ...]:
+        """The transfer and regrasp segments (empty unless solved or invalid)."""
+        return self.result.segments
+
+    def to_document(self, out_dir: str | Path = ".") -> dict[str, Any]:
+        """The ``dexplan-plan/1`` document (mesh paths relative to ``out_dir``)."""
+        return build_plan_document(self.scenario, self.hand, self.result, Path(out_dir))
+
+    def save(self, path: str | Path) -> Path:
+        """Write the plan file atomically; return its path.
+
+        Raises:
+            PlanFileError: the folder does not exist or is not writable.
+        """
+        path = Path(path)
+        write_plan(path, self.to_document(path.resolve().parent))
+        return path
+
+
+def _scenario(scenario: Scenario | str | Path | None) -> Scenario:
+    if scenario is None:
+        return default_scenario()
+    if isinstance(scenario, Scenario):
+        return scenario
+    return load_scenario(scenario)
+
+
+def plan(
+    scenario: Scenario | str | Path | None = None,
+    *,
+    planner: str | None = None,
+    params: Mapping[str, Any] | None = None,
+    seed: int | None = None,
+    time_limit: float | None = None,
+    reduction: str = "auto",
+    roadmap: Roadmap | None = None,
+    progress: Progress | None = None,
+    hand: Hand | None = None,
+) -> Plan:
+    """Plan a scenario and check the plan with the independent verifier.
+
+    Args:
+        scenario: a :class:`~dexplan.scenario.Scenario`, a scenario TOML path,
+            or None for the paper's experiment.
+        planner: OMPL planner name (default: the scenario's).
+        params: OMPL planner parameters, e.g. ``{"range": 0.05}`` (default:
+            the scenario's ``[planner] params``).
+        seed: random seed (default: the scenario's).
+        time_limit: seconds for the whole query (default: the scenario's).
+        reduction: ``auto``, ``gaits`` or ``edges`` (see
+            :func:`dexplan.planning.planner.plan`).
+        roadmap: a saved roadmap to answer the query on (multi-query).
+        progress: called with a :class:`~dexplan.planning.progress.ProgressEvent`
+            at each stage.
+        hand: the scenario's hand, if already built (saves loading it again).
+
+    Returns:
+        A :class:`Plan`; "no plan" is a status, not an exception.
+
+    Raises:
+        DexplanError: bad input (scenario, planner name or parameter, ...).
+    """
+    scen = _scenario(scenario)
+    if params is not None:
+        spec = dataclasses.replace(scen.planner, params=dict(params))
+        scen = dataclasses.replace(scen, planner=spec)
+    hand = hand or build_hand(scen)
+
+    def check(result: PlanResult) -> list[str]:
+        doc = build_plan_document(scen, hand, result, scen.base_dir)
+        return [str(v) for v in verify_plan(doc, scen.base_dir).violations]
+
+    result = _plan(
+        scen,
+        planner=planner,
+        seed=seed,
+        time_limit=time_limit,
+        roadmap=roadmap,
+        progress=progress,
+        reduction=reduction,
+        verify=check,
+        hand=hand,
+    )
+    return Plan(result, scen, hand)
+
+
+def verify(plan_file: str | Path | Mapping[str, Any]) -> VerifyReport:
+    """Re-check a plan file (or a plan document) from its content alone.
+
+    Raises:
+        PlanFileError: the file is missing, not JSON, or not a well-formed
+            ``dexplan-plan/1`` document.
+    """
+    if isinstance(plan_file, Mapping):
+        return verify_plan(plan_file, ".")
+    path = Path(plan_file)
+    return verify_plan(read_plan(path), path.resolve().parent)
