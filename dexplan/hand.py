@@ -324,7 +324,11 @@ class Hand:
         }
 
     def finger_ik_fast(
-        self, finger: int, p_target_world: FloatArray, q_hand: FloatArray
+        self,
+        finger: int,
+        p_target_world: FloatArray,
+        q_hand: FloatArray,
+        approach: FloatArray | None = None,
     ) -> FloatArray | None:
         """:meth:`finger_ik` for inner loops: no input checks, None on failure.
 
@@ -335,6 +339,10 @@ class Hand:
             finger: finger index.
             p_target_world: (3,) fingertip-centre target, world frame.
             q_hand: (nq,) configuration whose finger values break branch ties.
+            approach: (3,) unit direction the fingertip presses in (inward
+                surface normal, world frame): redundant fingers use it to keep
+                the last link pointing into the surface (see
+                ``dexplan.ik.SplitFingerIK.solve_near``); others ignore it.
 
         Returns:
             ``q_finger: (m,)`` within limits, or None.
@@ -344,9 +352,31 @@ class Hand:
             return analytic.solve(p_target_world, q_hand[self.finger_q_index[finger]])
         split = self._split_ik[finger]
         if split is not None:
-            return split.solve_near(p_target_world, q_hand[self.finger_q_index[finger]])
+            return split.solve_near(p_target_world, q_hand[self.finger_q_index[finger]], approach)
         res = self.finger_ik(finger, p_target_world, q_hand)
         return res.q_finger if res.success else None
+
+    def finger_ik_alternatives(
+        self, finger: int, p_target_world: FloatArray, q_hand: FloatArray, approach: FloatArray
+    ) -> FloatArray:
+        """IK solutions one tracking step from ``q_hand``, best posture first.
+
+        For redundant closed-form fingers, the solutions with every joint
+        within ``dexplan.ik.TRACK_MAX_STEP`` of ``q_hand``'s, sorted as
+        ``dexplan.ik.SplitFingerIK.options_near`` does; other fingers have
+        none (an empty ``(0, m)`` array).
+
+        Args:
+            finger: finger index.
+            p_target_world: (3,) fingertip-centre target, world frame.
+            q_hand: (nq,) previous hand configuration.
+            approach: (3,) unit inward surface normal, world frame.
+        """
+        split = self._split_ik[finger]
+        idx = self.finger_q_index[finger]
+        if split is None:
+            return np.zeros((0, len(idx)))
+        return split.options_near(p_target_world, q_hand[idx], approach)
 
     def has_closed_form_ik(self, finger: int) -> bool:
         """True when ``finger`` is solved in closed form (see :meth:`finger_ik`).

@@ -33,6 +33,8 @@ _REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevolute
 #: Offsets (rad) of the free joint around its previous value tried when a
 #: redundant finger follows a moving contact.
 TRACK_DELTAS: tuple[int, ...] = (0, -1, 1, -3, 3, -8, 8)
+#: Largest joint change (rad) accepted per tracking step when choosing the posture.
+TRACK_MAX_STEP = 0.04
 #: Spacing (rad) of the free-joint table used when following a contact (the
 #: free joint takes table values; TRACK_DELTAS are steps in that table).
 TRACK_RESOLUTION = 0.004
@@ -229,9 +231,11 @@ class SplitFingerIK:
         else:
             span = self.hi[free] - self.lo[free]
             # the fine table holds the sampling grid: sampled solutions track exactly
-            steps = (SAMPLE_GRID - 1) * max(1, int(np.ceil(span / TRACK_RESOLUTION / 6)))
+            per = max(1, int(np.ceil(span / TRACK_RESOLUTION / (SAMPLE_GRID + 1))))
+            steps = (SAMPLE_GRID + 1) * per
             self.table = np.linspace(self.lo[free], self.hi[free], steps + 1)
-            self.grid = self.table[:: steps // (SAMPLE_GRID - 1)]
+            # grid values inside the range: a solution at a limit cannot move
+            self.grid = self.table[per:-per:per]
         self._table_geometry = self.geometry(self.table)
         self._grid_geometry = self.geometry(self.grid)
 
@@ -407,13 +411,56 @@ class SplitFingerIK:
         rows = np.arange(len(q))
         return q[rows, best], ok[rows, best]
 
-    def solve_near(self, target: FloatArray, q_prev: FloatArray) -> FloatArray | None:
-        """The solution nearest ``q_prev: (m,)`` for one target, or None.
+    def solve_near(
+        self, target: FloatArray, q_prev: FloatArray, approach: FloatArray | None = None
+    ) -> FloatArray | None:
+        """The solution to one target continuous with ``q_prev: (m,)``, or None.
 
         The free joint is searched in a table (:data:`TRACK_RESOLUTION`
         apart) around the entry nearest its value in ``q_prev``
         (:data:`TRACK_DELTAS` entries away), so a contact followed in small
-        steps gives joints that change in small steps.
+        steps gives joints that change in small steps. Without ``approach``
+        the solution nearest ``q_prev`` wins. With ``approach: (3,)`` (unit,
+        world frame, the direction the fingertip presses in: the inward
+        surface normal) the redundancy goes to the finger's posture: among the
+        solutions within :data:`TRACK_MAX_STEP` of ``q_prev`` in every joint,
+        the one whose last link (last joint to fingertip) points most along
+        ``approach``, so the distal link stays off the surface. When no
+        solution is found near ``q_prev``, the sampling grid is searched
+        (nearest to ``q_prev``).
+        """
+        t = np.asarray(target, dtype=float)[None]
+        if self.free is None:
+            g, v = self._table_geometry, self.table
+        else:
+            k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
+            ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
+            g = {key: val[ks] for key, val in self._table_geometry.items()}
+            v = self.table[ks]
+        q, ok = self._candidates(t, v, g)
+        if approach is not None and self.free is not None:
+            best = self._best_posture(q[0], ok[0], q_prev, approach)
+            if best is not None:
+                return best
+        q, ok = self._nearest(q, ok, q_prev)
+        if not ok[0] and self.free is not None:
+            # a far target (a landing, not a small step): the whole grid
+            q, ok = self._nearest(*self._candidates(t, self.grid, self._grid_geometry), q_prev)
+        return q[0] if ok[0] else None
+
+    def options_near(
+        self, target: FloatArray, q_prev: FloatArray, approach: FloatArray
+    ) -> FloatArray:
+        """Every solution within :data:`TRACK_MAX_STEP` of ``q_prev``, best posture first.
+
+        Args:
+            target: (3,) fingertip-centre target, world frame.
+            q_prev: (m,) previous joints.
+            approach: (3,) unit inward surface normal, world frame.
+
+        Returns:
+            (C, m) solutions within limits, sorted by the alignment of the last
+            link with ``approach`` minus the squared joint step (C may be 0).
         """
         if self.free is None:
             g, v = self._table_geometry, self.table
@@ -423,5 +470,27 @@ class SplitFingerIK:
             g = {key: val[ks] for key, val in self._table_geometry.items()}
             v = self.table[ks]
         q, ok = self._candidates(np.asarray(target, dtype=float)[None], v, g)
-        q, ok = self._nearest(q, ok, q_prev)
-        return q[0] if ok[0] else None
+        q, ok = q[0], ok[0]
+        rows = np.flatnonzero(ok & np.all(np.abs(q - q_prev) <= TRACK_MAX_STEP, axis=1))
+        if not len(rows):
+            return np.zeros((0, self.m))
+        score = self.alignment(q[rows], approach) - np.sum((q[rows] - q_prev) ** 2, axis=1)
+        return q[rows[np.argsort(-score, kind="stable")]]
+
+    def _best_posture(
+        self, q: FloatArray, ok: np.ndarray, q_prev: FloatArray, approach: FloatArray
+    ) -> FloatArray | None:
+        """Among ``q: (C, m)`` (``ok``) within the step of ``q_prev``, the best aligned."""
+        near = ok & np.all(np.abs(q - q_prev) <= TRACK_MAX_STEP, axis=1)
+        rows = np.flatnonzero(near)
+        if not len(rows):
+            return None
+        align = self.alignment(q[rows], approach)
+        step = np.sum((q[rows] - q_prev) ** 2, axis=1)
+        return q[rows[int(np.argmax(align - step))]]
+
+    def alignment(self, q: FloatArray, approach: FloatArray) -> FloatArray:
+        """Cosine ``(C,)`` between the last link of ``q: (C, m)`` and ``approach: (3,)``."""
+        tip, origins, _ = self.chain.forward(q)
+        d = tip - origins[:, -1]
+        return (d @ approach) / np.linalg.norm(d, axis=1)

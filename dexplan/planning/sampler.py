@@ -71,6 +71,8 @@ class SamplerSettings:
             before a new object pose is drawn (sample() returns at the first
             valid one).
         combination_draws: random combinations ranked to choose those.
+        joint_margin: pool solutions keep this far (rad) from joint limits
+            (transfers stop short of them, ``TransitionSettings.joint_margin``).
     """
 
     candidates: int = 48
@@ -84,6 +86,7 @@ class SamplerSettings:
     solutions_per_contact: int = 3
     combinations: int = 40
     combination_draws: int = 4000
+    joint_margin: float = 0.03
 
 
 @dataclass
@@ -420,6 +423,11 @@ class GraspSampler:
                 return None
             q_sol, solved = hand.finger_ik_candidates(i, tips[cand])
             idx = hand.finger_q_index[i]
+            # off the limits: a finger at a limit cannot follow the object
+            m = s.joint_margin
+            solved &= np.all(
+                (q_sol >= hand.lower[idx] + m) & (q_sol <= hand.upper[idx] - m), axis=2
+            )
             clearance = self._link_clearance(i, q_sol, solved, R, t)
             keep_c, keep_q = [], []
             for row in rng.permutation(len(cand)):

@@ -64,6 +64,15 @@ class TransitionSettings:
         transit_time: its time cap (s).
         transit_iterations: its iteration cap (the answer depends on the seed only
             when this cap, not the time, stops it).
+        landing_solutions: IK solutions (nearest first) tried for a
+            collision-free landing configuration when the nearest collides
+            (redundant fingers have many: branches times the free-joint grid).
+        posture_options: other postures of a redundant finger tried, one
+            tracking step away, when a transfer step collides.
+        landing_alignment: landings of a redundant finger need an IK solution
+            whose last link is within ``acos(landing_alignment)`` of the
+            inward normal (its side would touch the surface otherwise);
+            None: no such filter. Non-redundant fingers are not filtered.
     """
 
     max_step_m: float = 0.008
@@ -77,6 +86,9 @@ class TransitionSettings:
     transit_planner: str | None = "RRTConnect"
     transit_time: float = 1.0
     transit_iterations: int = 200
+    landing_solutions: int = 8
+    posture_options: int = 6
+    landing_alignment: float | None = 0.55
 
 
 @dataclass(frozen=True)
@@ -212,10 +224,12 @@ class Transitions:
     def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):
         """IK of every finger at ``pose``: ``(q, blocking finger or None, reason)``."""
         targets = self.tip_targets(pose, grasp)
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        inward = -grasp.normals_out @ R.T  # (n, 3) world frame
         q = q_prev.copy()
         for i in range(self.hand.n_fingers):
             idx = self.hand.finger_q_index[i]
-            q_f = self.hand.finger_ik_fast(i, targets[i], q)
+            q_f = self.hand.finger_ik_fast(i, targets[i], q, inward[i])
             if q_f is None:
                 return q, i, "ik"
             if np.any(q_f < self._lo[idx]) or np.any(q_f > self._hi[idx]):
@@ -284,9 +298,39 @@ class Transitions:
                 return second
             return first + second
         free, finger = self._collision_finger(q_b, pb, self.all_contact)
+        if not free and finger is not None:
+            q_alt = self._other_posture(finger, pb, q_a, q_b, grasp)
+            if q_alt is not None:
+                q_b, free = q_alt, True
         if not free:
             return (finger, "collision")
         return [(pb.copy(), q_b)]
+
+    def _other_posture(
+        self, finger: int, pose: FloatArray, q_a: FloatArray, q_b: FloatArray, grasp: GraspContacts
+    ) -> FloatArray | None:
+        """``q_b`` with ``finger`` in another collision-free posture one step from ``q_a``.
+
+        Redundant fingers reach a contact in many postures; when the one
+        chosen collides, the others within a tracking step are tried (best
+        aligned with the surface normal first). None when none is free.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        tip = self.tip_targets(pose, grasp)[finger]
+        inward = -(R @ grasp.normals_out[finger])
+        options = hand.finger_ik_alternatives(finger, tip, q_a, inward)
+        for q_f in options[: self.settings.posture_options]:
+            if np.any(q_f < self._lo[idx]) or np.any(q_f > self._hi[idx]):
+                continue
+            if np.array_equal(q_f, q_b[idx]):
+                continue
+            q = q_b.copy()
+            q[idx] = q_f
+            if self.world.is_free(q, pose, self.all_contact):
+                return q
+        return None
 
     # ------------------------------------------------------------------ landing
     def follow_scores(
@@ -358,6 +402,13 @@ class Transitions:
         scores = self.follow_scores(finger, tip_obj[keep], future_poses)
         reach = scores > 0
         keep, scores = keep[reach], scores[reach]
+        if s.landing_alignment is not None and len(keep):
+            # the distal link must be able to point into the surface there,
+            # or the finger's side touches the object (redundant fingers)
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            aligned = self._alignment(finger, tip_obj[keep] @ R.T + pose[:3], -nrm[keep] @ R.T)
+            good = aligned >= s.landing_alignment
+            keep, scores = keep[good], scores[good]
         order = np.lexsort((self.rng.random(len(keep)), -scores))
         found = 0
         for k in order:
@@ -372,6 +423,26 @@ class Transitions:
             found += 1
             if found >= limit:
                 return
+
+    def _alignment(self, finger: int, tips: FloatArray, inward: FloatArray) -> FloatArray:
+        """Best cosine ``(C,)`` between the last link and ``inward: (C, 3)`` over IK solutions.
+
+        ``tips: (C, 3)`` fingertip centres, world frame. Fingers without
+        several solutions per target (no redundancy) score 1.
+        """
+        hand = self.hand
+        split = hand._split_ik[finger]
+        if split is None:
+            return np.ones(len(tips))
+        cands, ok = hand.finger_ik_candidates(finger, tips)
+        idx = hand.finger_q_index[finger]
+        ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=2)
+        C, A, m = cands.shape
+        tip, origins, _ = split.chain.forward(cands.reshape(-1, m))
+        d = (tip - origins[:, -1]).reshape(C, A, 3)
+        cos = np.einsum("caj,cj->ca", d, inward) / np.linalg.norm(d, axis=2)
+        cos[~ok] = -np.inf
+        return cos.max(axis=1)
 
     # ------------------------------------------------------------------ regrasp
     def regrasp(
@@ -404,7 +475,10 @@ class Transitions:
         lift = self._straight_tip_move(finger, q, tip_now, n_now, pose, free_mask)
         if lift is None:
             return None
-        land = self._straight_tip_move(finger, q, tip_new, n_new, pose, free_mask)
+        q_touch = self._landing_configuration(finger, q, tip_new, pose)
+        if q_touch is None:
+            return None
+        land = self._straight_tip_move(finger, q_touch, tip_new, n_new, pose, free_mask)
         if land is None:
             return None
         land = land[::-1]  # approach: from above the new contact down onto it
@@ -424,6 +498,39 @@ class Transitions:
         wps.append(Waypoint(pose.copy(), qs[-1], new_c))
         self.stats["regrasps"] += 1
         return Segment("regrasp", finger, tuple(wps))
+
+    def _landing_configuration(
+        self, finger: int, q: FloatArray, tip: FloatArray, pose: FloatArray
+    ) -> FloatArray | None:
+        """Hand configuration with ``finger`` touching at fingertip centre ``tip: (3,)``.
+
+        The IK solution nearest ``q: (nq,)`` when the grasp it makes is
+        collision-free; otherwise (a redundant finger, or another branch) the
+        nearest of the other IK solutions that is, within the joint margin.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        q_f = hand.finger_ik_fast(finger, tip, q)
+        tried: list[FloatArray] = []
+        if q_f is not None:
+            q1 = q.copy()
+            q1[idx] = q_f
+            if self.world.is_free(q1, pose, self.all_contact):
+                return q1
+            tried.append(q_f)
+        cands, ok = hand.finger_ik_candidates(finger, tip[None])
+        cands, ok = cands[0], ok[0]
+        ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=1)
+        opts = np.flatnonzero(ok)
+        opts = opts[np.argsort(np.linalg.norm(cands[opts] - q[idx], axis=1), kind="stable")]
+        for k in opts[: self.settings.landing_solutions]:
+            if any(np.array_equal(cands[k], t) for t in tried):
+                continue
+            q1 = q.copy()
+            q1[idx] = cands[k]
+            if self.world.is_free(q1, pose, self.all_contact):
+                return q1
+        return None
 
     def _straight_tip_move(
         self,
