@@ -1,0 +1,501 @@
+"""Grip forces: contact forces inside the friction cones that hold the object still.
+
+At a configuration of a plan (object pose, joints, contacts), the *loaded*
+contacts (the fingers in contact, minus a regrasp's free finger) must balance
+the external wrench on the object: gravity on its mass at the object-frame
+origin (taken as the centre of mass) plus an optional extra wrench. Among the
+forces that do, :class:`GripForceSolver` returns the one of least norm that
+keeps a margin from the cone boundary:
+
+- each force lies in the linearized cone of :mod:`dexplan.grasp` (the plan's
+  contact model, ``point`` or ``soft``, and ``friction_edges``; the facets of
+  :func:`~dexplan.grasp.friction_cone_facets` / :func:`~dexplan.grasp.soft_finger_facets`,
+  the H-representation of the cones the generators of
+  :func:`~dexplan.grasp.contact_wrenches` span)
+  built with the friction ``mu (1 - cone_margin)`` (and the torsion
+  ``torsion (1 - cone_margin)`` for soft contacts): the angle to the boundary
+  of the true cone is then at least the difference of the two half-angles.
+  Where no balance exists with that margin (a marginal 3-finger subgrasp
+  during a regrasp), half, a quarter and then none of it are tried, and
+  :attr:`GripForces.margin` says which was kept;
+- each normal force is at least ``min_normal_force`` (N): the fingers always
+  squeeze, which also keeps a margin from the cone's apex;
+- objective ``sum |f_c|^2 + (tau_c / L)^2`` (``tau_c`` the soft-finger
+  torsional moment, ``L`` the object's characteristic length), solved by OSQP
+  over the contact forces (strictly convex; balance as equalities, the cones
+  as facet inequalities).
+
+Frames and units: forces in newtons, in the **object frame** (as the
+trajectory document reports them) and in the world frame; moments in N m.
+``f_c`` is the force the finger applies *on the object* at its contact.
+
+Joint torques: the torques the finger joints must produce to apply those
+forces, ``tau = sum_c J_c^T [f_c; m_c]`` with ``J_c`` the 6 x nq Pinocchio
+frame Jacobian of the fingertip frame (``LOCAL_WORLD_ALIGNED``: velocity of
+the tip-sphere centre and angular velocity, world frame), ``f_c`` in the world
+frame and ``m_c = (p_contact - p_tip) x f_c + tau_c n_c`` the moment about the
+tip centre. The links' own weight is not included.
+
+Defaults (DESIGN.md): mass 0.1 kg (the plan's ``object.mass`` when present),
+gravity ``(0, 0, -9.81)`` m/s^2 in the world frame (the plan's
+``world.gravity`` when present; palm-up for the builtin hands).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import scipy.sparse as sp
+
+from dexplan.exceptions import DexplanError, InvalidInputError
+from dexplan.typing import FloatArray
+
+__all__ = [
+    "DEFAULT_CONE_MARGIN",
+    "DEFAULT_GRAVITY",
+    "DEFAULT_MASS",
+    "DEFAULT_MIN_NORMAL_FORCE",
+    "ForceSettings",
+    "GripForceError",
+    "GripForceSolver",
+    "GripForces",
+    "force_settings_from_plan",
+    "loaded_fingers",
+    "plan_waypoint_forces",
+]
+
+#: Object mass (kg) when the plan has no ``object.mass``.
+DEFAULT_MASS = 0.1
+#: Gravity (m/s^2, world frame) when the plan has no ``world.gravity``.
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+#: Fraction of ``mu`` (and of the torsion) given up as a margin from the cone boundary.
+DEFAULT_CONE_MARGIN = 0.2
+#: Least normal force of every loaded contact (N).
+DEFAULT_MIN_NORMAL_FORCE = 0.2
+#: Largest acceptable balance residual (N, N m) of an OSQP solution.
+BALANCE_TOL = 1e-6
+
+
+class GripForceError(DexplanError):
+    """No forces inside the cones balance the wrench (the grasp is not force closure)."""
+
+
+@dataclass(frozen=True)
+class ForceSettings:
+    """What the grip forces balance and how far from the cone boundary they stay.
+
+    Attributes:
+        mass: object mass (kg), >= 0.
+        gravity: (3,) gravity acceleration (m/s^2), world frame.
+        external_wrench: (6,) extra wrench on the object ``[force, torque]``
+            (N, N m), world frame, torque about the object-frame origin.
+        cone_margin: fraction of ``mu`` and of the torsion kept as margin, in [0, 1).
+        min_normal_force: least normal force per loaded contact (N), >= 0.
+    """
+
+    mass: float = DEFAULT_MASS
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY
+    external_wrench: tuple[float, ...] = (0.0,) * 6
+    cone_margin: float = DEFAULT_CONE_MARGIN
+    min_normal_force: float = DEFAULT_MIN_NORMAL_FORCE
+
+    def __post_init__(self) -> None:
+        if not (_finite(self.mass) and 0.0 <= self.mass <= 1e4):
+            raise InvalidInputError(f"mass must be in [0, 1e4] kg, got {self.mass!r}")
+        g = self.gravity
+        if len(g) != 3 or not all(_finite(v) and abs(v) <= 1e3 for v in g):
+            raise InvalidInputError(f"gravity must be 3 finite numbers (m/s^2), got {g!r}")
+        w = self.external_wrench
+        if len(w) != 6 or not all(_finite(v) and abs(v) <= 1e6 for v in w):
+            raise InvalidInputError(f"external_wrench must be 6 finite numbers, got {w!r}")
+        if not (_finite(self.cone_margin) and 0.0 <= self.cone_margin < 1.0):
+            raise InvalidInputError(f"cone_margin must be in [0, 1), got {self.cone_margin!r}")
+        if not (_finite(self.min_normal_force) and 0.0 <= self.min_normal_force <= 1e4):
+            raise InvalidInputError(
+                f"min_normal_force must be in [0, 1e4] N, got {self.min_normal_force!r}"
+            )
+
+    def wrench_world(self) -> FloatArray:
+        """(6,) the external wrench on the object, world frame: weight plus the extra one."""
+        w = np.asarray(self.external_wrench, dtype=float).copy()
+        w[:3] += self.mass * np.asarray(self.gravity, dtype=float)
+        return w
+
+
+def _finite(v: object) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+@dataclass(frozen=True)
+class GripForces:
+    """Grip forces at one configuration (``n`` fingers).
+
+    Attributes:
+        loaded: (n,) the fingers that carry load.
+        contacts: (n, 3) contact points, object frame (m); NaN rows for free fingers.
+        normals: (n, 3) inward unit normals at the contacts, object frame; NaN when free.
+        forces: (n, 3) force of each finger on the object, object frame (N);
+            zero for fingers that carry no load.
+        forces_world: (n, 3) the same forces, world frame (N).
+        torsion: (n,) soft-finger torsional moments about the normals (N m); 0
+            for point contacts.
+        joint_torques: (nq,) joint torques that apply the forces (N m),
+            ``hand.joint_names`` order.
+        residual: (6,) ``sum of contact wrenches + external wrench`` (world
+            frame, torque about the object origin); ~0.
+        margin: the cone margin the forces keep (a fraction of ``mu``): the
+            settings' ``cone_margin``, or half, a quarter or none of it where
+            the larger margin admits no balance.
+    """
+
+    loaded: tuple[bool, ...]
+    contacts: FloatArray
+    normals: FloatArray
+    forces: FloatArray
+    forces_world: FloatArray
+    torsion: FloatArray
+    joint_torques: FloatArray
+    residual: FloatArray
+    margin: float
+
+
+def loaded_fingers(contacts: Sequence[object], free_finger: int | None) -> tuple[bool, ...]:
+    """Fingers that carry load: in contact, and not the free finger of a regrasp."""
+    return tuple(c is not None and i != free_finger for i, c in enumerate(contacts))
+
+
+class GripForceSolver:
+    """Least-norm grip forces with a cone margin for one plan's hand, object and friction.
+
+    Args:
+        hand: the plan's :class:`~dexplan.hand.Hand`.
+        obj: the object :class:`~dexplan.objects.Shape`.
+        mu: friction coefficient.
+        edges: friction-cone edges (``friction_edges``).
+        contact_model: ``"point"`` or ``"soft"``.
+        torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+        settings: the wrench and margins.
+    """
+
+    def __init__(
+        self,
+        hand: Any,
+        obj: Any,
+        mu: float,
+        edges: int = 8,
+        contact_model: str = "point",
+        torsion: float = 0.0,
+        settings: ForceSettings = ForceSettings(),
+    ) -> None:
+        from dexplan.grasp import check_contact_model
+
+        self.hand, self.obj = hand, obj
+        self.mu, self.edges = float(mu), int(edges)
+        self.contact_model = contact_model
+        self.torsion = float(torsion)
+        check_contact_model(contact_model, self.torsion)
+        self.settings = settings
+        self.L = float(obj.characteristic_length)
+        self._data = hand.model.createData()
+        # the same loaded contacts under the same wrench (a regrasp: the object
+        # is still) give the same forces
+        self._memo: dict[bytes, tuple[FloatArray, FloatArray, float]] = {}
+
+    def solve(
+        self,
+        q: FloatArray,
+        object_pose: FloatArray,
+        contacts: Sequence[FloatArray | None],
+        loaded: Sequence[bool] | None = None,
+        *,
+        where: str = "configuration",
+    ) -> GripForces:
+        """Grip forces at one configuration.
+
+        Args:
+            q: (nq,) joints (rad).
+            object_pose: (7,) object pose, world frame, XYZW.
+            contacts: per finger, the contact point (3,) in the object frame or None.
+            loaded: (n,) fingers that carry load (default: those in contact).
+            where: the configuration in error messages (``segment 2, waypoint 5``).
+
+        Raises:
+            GripForceError: no forces in the (margin-shrunk) cones balance the wrench.
+        """
+        n = len(contacts)
+        if loaded is None:
+            loaded = tuple(c is not None for c in contacts)
+        pose = np.asarray(object_pose, dtype=float)
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        P = np.full((n, 3), np.nan)
+        N = np.full((n, 3), np.nan)
+        for i, c in enumerate(contacts):
+            if c is None:
+                continue
+            _, n_s = (np.asarray(v, dtype=float).reshape(3) for v in self.obj.closest_point(c))
+            P[i], N[i] = np.asarray(c, dtype=float), -n_s
+        idx = [i for i in range(n) if loaded[i] and contacts[i] is not None]
+        w_ext_world = self.settings.wrench_world()
+        # the wrench in the object frame, torque about the object origin
+        w_ext = np.concatenate([R.T @ w_ext_world[:3], R.T @ w_ext_world[3:]])
+        forces = np.zeros((n, 3))
+        tors = np.zeros(n)
+        margin = self.settings.cone_margin
+        if idx:
+            key = np.round(np.concatenate([P[idx].ravel(), w_ext]), 12).tobytes()
+            hit = self._memo.get(key)
+            if hit is None:
+                hit = self._qp_margins(P[idx], N[idx], w_ext, where)
+                if len(self._memo) > 4096:
+                    self._memo.clear()
+                self._memo[key] = hit
+            f, t, margin = hit
+            forces[idx] = f
+            tors[idx] = t
+        elif np.linalg.norm(w_ext) > BALANCE_TOL:
+            raise GripForceError(f"{where}: no finger holds the object against its weight")
+        fw = forces @ R.T
+        # residual (world): sum f + F_ext, sum (R p) x f + tau n + T_ext
+        res = np.zeros(6)
+        res[:3] = fw.sum(axis=0) + w_ext_world[:3]
+        for i in idx:
+            res[3:] += np.cross(R @ P[i], fw[i]) + tors[i] * (R @ N[i])
+        res[3:] += w_ext_world[3:]
+        tau = self._torques(q, pose, R, P, N, fw, tors, idx)
+        return GripForces(
+            tuple(bool(b) for b in loaded), P, N, forces, fw, tors, tau, res, float(margin)
+        )
+
+    def _qp_margins(
+        self, P: FloatArray, N: FloatArray, w_ext: FloatArray, where: str
+    ) -> tuple[FloatArray, FloatArray, float]:
+        """:meth:`_qp` with the largest margin of ``cone_margin * (1, 1/2, 1/4, 0)`` that works."""
+        m0 = self.settings.cone_margin
+        margins = [m0, m0 / 2, m0 / 4, 0.0] if m0 > 0 else [0.0]
+        for margin in margins:
+            out = self._qp(P, N, w_ext, margin, None)
+            if out is not None:
+                return (*out, margin)
+        st = self.settings
+        model = (
+            f"soft contacts, mu {self.mu:g}, torsion {self.torsion:g} m"
+            if self.contact_model == "soft"
+            else f"point contacts, mu {self.mu:g}"
+        )
+        raise GripForceError(
+            f"{where}: no contact forces inside the friction cones ({model}, normal force >= "
+            f"{st.min_normal_force:g} N) balance the object's weight ({st.mass:g} kg) and "
+            f"the external wrench: the {P.shape[0]} loaded contact(s) are not force closure"
+        )
+
+    def _qp(
+        self, P: FloatArray, N: FloatArray, w_ext: FloatArray, margin: float, cones: Any
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """Least-norm contact forces, cones shrunk by ``margin``; None if infeasible.
+
+        Variables ``x_c = (f_c, sigma_c)`` per contact (``sigma_c = tau_c / L``,
+        soft contacts only), object frame; the cone facets of
+        :func:`dexplan.grasp.friction_cone_facets` or
+        :func:`dexplan.grasp.soft_finger_facets` (``a . x_c <= 0``).
+
+        Returns:
+            ``(f, tau)``: (k, 3) forces (N) and (k,) torsional moments (N m).
+        """
+        import osqp
+
+        from dexplan.grasp import friction_cone_facets, soft_finger_facets
+
+        st = self.settings
+        mu_eff = self.mu * (1.0 - margin)
+        soft = self.contact_model == "soft"
+        L = self.L
+        k = P.shape[0]
+        r = 4 if soft else 3
+        m = k * r
+        if soft:
+            facets = soft_finger_facets(
+                N, mu_eff, self.torsion * (1.0 - margin), self.edges, torque_scale=L
+            )
+        else:
+            facets = friction_cone_facets(N, mu_eff, self.edges)
+        rows = []
+        for c in range(k):
+            fc = facets[c]
+            if soft and mu_eff == 0.0:  # rows on (f_n, sigma): f_t = 0 by equalities below
+                blk = np.zeros((fc.shape[0], m))
+                blk[:, c * r : c * r + 3] = fc[:, :1] * N[c][None, :]
+                blk[:, c * r + 3] = fc[:, 1]
+            else:
+                blk = np.zeros((fc.shape[0], m))
+                blk[:, c * r : c * r + fc.shape[1]] = fc
+            rows.append(blk)
+        cone = np.vstack(rows)
+        # balance: sum f_c + F = 0; sum p_c x f_c + L sigma_c n_c + T = 0 (object frame)
+        G = np.zeros((6, m))
+        nrm = np.zeros((k, m))
+        for c in range(k):
+            G[:3, c * r : c * r + 3] = np.eye(3)
+            px, py, pz = P[c]
+            G[3:, c * r : c * r + 3] = np.array([[0, -pz, py], [pz, 0, -px], [-py, px, 0]])
+            if soft:
+                G[3:, c * r + 3] = L * N[c]
+            nrm[c, c * r : c * r + 3] = N[c]
+        extra = []
+        if mu_eff == 0.0:  # frictionless: no tangential force at all
+            for c in range(k):
+                for t in np.linalg.svd(N[c][None, :])[2][1:]:
+                    row = np.zeros(m)
+                    row[c * r : c * r + 3] = t
+                    extra.append(row)
+        E = np.vstack([G, *([np.array(extra)] if extra else [])])
+        A = np.vstack([E, nrm, cone])
+        lo = np.concatenate(
+            [
+                -w_ext,
+                np.zeros(len(extra)),
+                np.full(k, st.min_normal_force),
+                np.full(len(cone), -np.inf),
+            ]
+        )
+        hi = np.concatenate([-w_ext, np.zeros(len(extra)), np.full(k, np.inf), np.zeros(len(cone))])
+        prob = osqp.OSQP()
+        prob.setup(
+            sp.identity(m, format="csc"),
+            np.zeros(m),
+            sp.csc_matrix(A),
+            lo,
+            hi,
+            verbose=False,
+            eps_abs=1e-8,
+            eps_rel=1e-8,
+            max_iter=4000,
+            polish=True,
+        )
+        res = prob.solve()
+        x = res.x
+        if x is None or not np.all(np.isfinite(x)) or "infeasible" in str(res.info.status).lower():
+            return None
+        resid = max(
+            float(np.max(np.abs(E @ x - np.concatenate([-w_ext, np.zeros(len(extra))])))),
+            float(np.max(cone @ x, initial=0.0)),
+            float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
+        )
+        if resid > BALANCE_TOL:
+            return None
+        X = x.reshape(k, r)
+        return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
+
+    def _torques(
+        self,
+        q: FloatArray,
+        pose: FloatArray,
+        R: FloatArray,
+        P: FloatArray,
+        N: FloatArray,
+        fw: FloatArray,
+        tors: FloatArray,
+        idx: list[int],
+    ) -> FloatArray:
+        model, data = self.hand.model, self._data
+        q = np.asarray(q, dtype=float)
+        tau = np.zeros(model.nv)
+        if not idx:
+            return tau
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        for i in idx:
+            fid = self.hand.tip_frame_ids[i]
+            J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+            p_tip = data.oMf[fid].translation
+            p_c = pose[:3] + R @ P[i]
+            m = np.cross(p_c - p_tip, fw[i]) + tors[i] * (R @ N[i])
+            tau += J.T @ np.concatenate([fw[i], m])
+        return tau
+
+
+def force_settings_from_plan(
+    doc: Mapping[str, Any],
+    *,
+    mass: float | None = None,
+    gravity: Sequence[float] | None = None,
+    **kwargs: Any,
+) -> ForceSettings:
+    """Settings from a plan's ``object.mass`` and ``world.gravity``, overridden by arguments.
+
+    Args:
+        doc: a validated plan document.
+        mass: object mass (kg) overriding the plan's.
+        gravity: (3,) gravity (m/s^2, world frame) overriding the plan's.
+        **kwargs: other :class:`ForceSettings` fields.
+    """
+    m = mass if mass is not None else doc["object"].get("mass", DEFAULT_MASS)
+    world = doc.get("world") or {}
+    g = gravity if gravity is not None else world.get("gravity", DEFAULT_GRAVITY)
+    return ForceSettings(mass=float(m), gravity=tuple(float(v) for v in g), **kwargs)
+
+
+def solver_from_plan(
+    doc: Mapping[str, Any], settings: ForceSettings, hand: Any = None, base_dir: Any = "."
+) -> GripForceSolver:
+    """A :class:`GripForceSolver` for a validated plan (hand, object, friction from the file)."""
+    from pathlib import Path
+
+    from dexplan.objects import shape_from_dict
+
+    if hand is None:
+        from dexplan.plan import hand_from_plan
+
+        hand = hand_from_plan(doc["hand"])
+    shape = {k: v for k, v in doc["object"].items() if k != "mass"}
+    obj = shape_from_dict(shape, Path(base_dir))
+    return GripForceSolver(
+        hand,
+        obj,
+        float(doc["mu"]),
+        int(doc.get("friction_edges", 8)),
+        str(doc.get("contact_model", "point")),
+        float(doc.get("torsion", 0.0)),
+        settings,
+    )
+
+
+def plan_waypoint_forces(
+    doc: Mapping[str, Any],
+    settings: ForceSettings | None = None,
+    *,
+    hand: Any = None,
+    base_dir: Any = ".",
+) -> list[list[GripForces]]:
+    """Grip forces at every waypoint of a validated plan, per segment.
+
+    A regrasp's free finger carries no load at any of its waypoints (its end
+    waypoints included: it lifts off unloaded and lands before taking load).
+
+    Raises:
+        GripForceError: at some waypoint no forces balance the wrench; the
+            message names the segment and the waypoint.
+    """
+    settings = force_settings_from_plan(doc) if settings is None else settings
+    solver = solver_from_plan(doc, settings, hand, base_dir)
+    out = []
+    for si, seg in enumerate(doc["segments"]):
+        free = seg["finger"] if seg["kind"] == "regrasp" else None
+        rows = []
+        for wi, w in enumerate(seg["waypoints"]):
+            contacts = [None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]]
+            rows.append(
+                solver.solve(
+                    np.asarray(w["q"], dtype=float),
+                    np.asarray(w["object_pose_xyzquat"], dtype=float),
+                    contacts,
+                    loaded_fingers(contacts, free),
+                    where=f"segment {si}, waypoint {wi}",
+                )
+            )
+        out.append(rows)
+    return out
