@@ -88,7 +88,7 @@ class TransitionSettings:
     transit_iterations: int = 200
     landing_solutions: int = 8
     posture_options: int = 6
-    landing_alignment: float | None = 0.55
+    landing_alignment: float | None = 0.4
 
 
 @dataclass(frozen=True)
