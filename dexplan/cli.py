@@ -330,6 +330,96 @@ def cmd_show(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _plan_sha256(path: str) -> str:
+    import hashlib
+    from pathlib import Path
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """Time-parameterise a plan, add grip forces, write dexplan-trajectory/1 (JSON or CSV)."""
+    from pathlib import Path
+
+    from dexplan.export import (
+        build_trajectory,
+        check_trajectory,
+        trajectory_document,
+        write_trajectory,
+    )
+    from dexplan.files import check_output_path
+    from dexplan.forces import force_settings_from_plan
+    from dexplan.plan import hand_from_plan, read_plan
+    from dexplan.timing import TimingLimits
+
+    out = check_output_path(args.output, "-o")
+    if out.suffix.lower() not in (".json", ".csv"):
+        raise InvalidInputError(
+            f"-o: the trajectory file must end in .json or .csv, got {str(out)!r}"
+        )
+    doc = read_plan(args.plan)
+    base = Path(args.plan).resolve().parent
+    limits = TimingLimits(
+        **{
+            k: v
+            for k, v in (
+                ("max_acceleration", args.max_acceleration),
+                ("object_speed", args.max_object_speed),
+                ("object_angular_speed", args.max_object_angular_speed),
+            )
+            if v is not None
+        }
+    )
+    settings = force_settings_from_plan(doc, mass=args.mass, gravity=args.gravity)
+    hand = hand_from_plan(doc["hand"])
+    traj = build_trajectory(
+        doc, rate=args.rate, limits=limits, settings=settings, base_dir=base, hand=hand
+    )
+    _check_interrupted()
+    tdoc = trajectory_document(traj, doc, _plan_sha256(args.plan))
+    problems = check_trajectory(tdoc)
+    write_trajectory(out, tdoc)
+    import numpy as np
+
+    fmax = float(np.nanmax(np.linalg.norm(traj.forces, axis=2), initial=0.0))
+    verdict = "OK" if not problems else f"FAILED ({len(problems)}: {problems[0]})"
+    sys.stdout.write(
+        f"trajectory: {out}\npoints: {traj.t.size}  segments: {len(traj.segments)}  "
+        f"duration_s: {traj.duration:.3f}\nmax_grip_force_N: {fmax:.3f}  "
+        f"max_joint_torque_Nm: {float(np.abs(traj.joint_torques).max(initial=0.0)):.4f}\n"
+        f"limits check: {shorten_text(verdict, 300)}\n"
+    )
+    return EXIT_OK if not problems else EXIT_FAILED
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Replay a plan in MuJoCo physics; report how far the object strays from the plan."""
+    from pathlib import Path
+
+    from dexplan.files import check_output_path
+    from dexplan.plan import read_plan
+    from dexplan.replay import replay_plan, require_mujoco
+
+    require_mujoco()
+    if args.rrd is not None:
+        from dexplan.viz import require_rerun
+
+        require_rerun()
+        check_output_path(args.rrd, "--rrd")
+    doc = read_plan(args.plan)
+    result = replay_plan(
+        doc, gravity=args.gravity, base_dir=Path(args.plan).resolve().parent, rate=args.rate
+    )
+    _check_interrupted()
+    if args.rrd is not None:
+        from dexplan.viz import record_replay
+
+        record_replay(doc, result, args.rrd, base_dir=Path(args.plan).resolve().parent)
+        _err(f"recording written to {args.rrd}")
+    sys.stdout.write(result.summary() + "\n")
+    return EXIT_OK if result.tracked else EXIT_FAILED
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``dexplan`` command."""
     parser = argparse.ArgumentParser(
@@ -448,6 +538,50 @@ def build_parser() -> argparse.ArgumentParser:
     p_show.add_argument("--roadmap", help="a roadmap .npz to show with a plan")
     p_show.add_argument("--plan", help="a plan .json giving hand and object for a roadmap")
     p_show.set_defaults(func=cmd_show)
+
+    p_exp = sub.add_parser(
+        "export",
+        help="time-parameterise a plan, add grip forces, write a trajectory (.json or .csv)",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_exp.add_argument("plan", help="plan JSON file")
+    p_exp.add_argument("-o", "--output", required=True, help="trajectory file: .json or .csv")
+    p_exp.add_argument("--rate", type=float, default=100.0, help="samples per second (100)")
+    p_exp.add_argument("--mass", type=float, help="object mass, kg (default: the plan's or 0.1)")
+    p_exp.add_argument(
+        "--gravity",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="gravity, m/s^2, world frame (default: the plan's or 0 0 -9.81)",
+    )
+    p_exp.add_argument("--max-object-speed", type=float, help="m/s (0.02)")
+    p_exp.add_argument("--max-object-angular-speed", type=float, help="rad/s (0.5)")
+    p_exp.add_argument("--max-acceleration", type=float, help="joint acceleration, rad/s^2 (5)")
+    p_exp.set_defaults(func=cmd_export)
+
+    p_rep = sub.add_parser(
+        "replay",
+        help="replay a plan in MuJoCo physics (needs the sim extra); exit 1 if it loses track",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p_rep.add_argument("plan", help="plan JSON file")
+    grav = p_rep.add_mutually_exclusive_group()
+    grav.add_argument(
+        "--gravity",
+        dest="gravity",
+        action="store_true",
+        default=True,
+        help="with gravity (default)",
+    )
+    grav.add_argument("--no-gravity", dest="gravity", action="store_false", help="without gravity")
+    p_rep.add_argument("--rate", type=float, default=100.0, help="trajectory samples per second")
+    p_rep.add_argument(
+        "--rrd", help="write a Rerun recording, plan and replay (needs the viz extra)"
+    )
+    p_rep.set_defaults(func=cmd_replay)
     return parser
 
 
