@@ -854,7 +854,7 @@ def exact_force_closure(
         ``"fc_linear"`` (force closure already for the ``edges`` linearization),
         ``"fc_dense"`` (force closure for the dense inscribed polytope),
         ``"undecided"`` (within the gap between the dense inner and outer
-        polytopes: 0.12 % of ``mu`` for point contacts, ~3 % for soft ones) or
+        polytopes: 0.12 % of ``mu`` for point contacts, 1.1 % of the set for soft ones) or
         ``"not_fc"`` (not force closure even for the outer polytope, or fewer
         contacts than :func:`~dexplan.grasp.cones.min_contacts`).
 
