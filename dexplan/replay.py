@@ -1,0 +1,543 @@
+"""Physics replay of a plan in MuJoCo (extra ``sim``): does the object follow the plan?
+
+:func:`build_mjcf` writes a MuJoCo model from the plan file alone:
+
+- the hand: one body per Pinocchio joint of the plan's embedded URDF (joint
+  placements, inertias with fixed links merged, hinge or slide axes, URDF
+  ranges), its collision geometry from the Pinocchio geometry model (boxes,
+  spheres, cylinders, capsules; any other geometry by its local bounding box),
+  gravity compensated on the hand's own links (``gravcomp``); hand-hand
+  contacts are off (the planner checked them);
+- the object: a free body with the plan's shape and mass (uniform density;
+  meshes from the plan's mesh file), obstacles static;
+- friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
+  contacts ``condim 3``, soft contacts ``condim 4`` with the torsional friction
+  ``torsion`` (m, as in dexplan); elliptic cones, ``impratio`` 10.
+
+:func:`replay_plan` times the plan and computes its grip forces
+(:func:`dexplan.export.build_trajectory`; with ``gravity=False`` the forces
+balance no weight and only the least normal force squeezes), then drives the
+fingers with position actuators along the timed trajectory (targets
+interpolated linearly between samples) plus the grip-force feed-forward
+``J^T f`` applied as joint forces. It reports the object's position and
+orientation error against the plan over time (max over the samples and the
+waypoints, and at the goal), contact losses (a loaded finger without a
+MuJoCo contact for longer than :data:`LOSS_TIME`), slips (the contact point
+moving more than :data:`SLIP_TOL` on the object from the planned one), drops
+(the object more than :data:`DROP_TOL` from the plan) and the deepest
+penetration. ``tracked``: every waypoint within :data:`POSITION_TOL` and
+:data:`ANGLE_TOL` and no drop; ``at_goal``: the final pose within the plan's
+goal tolerances.
+
+mujoco is imported only in this module.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.exceptions import DependencyError, PlanFileError
+from dexplan.typing import FloatArray
+
+__all__ = [
+    "ANGLE_TOL",
+    "POSITION_TOL",
+    "ReplayResult",
+    "build_mjcf",
+    "replay_plan",
+    "require_mujoco",
+]
+
+#: Tracking tolerances at every waypoint (m, rad).
+POSITION_TOL = 0.005
+ANGLE_TOL = 0.1
+#: Object farther than this from the plan: dropped (m).
+DROP_TOL = 0.02
+#: A loaded finger without contact for longer than this: a contact loss (s).
+LOSS_TIME = 0.02
+#: Contact point farther than this from the planned one on the object: a slip (m).
+SLIP_TOL = 0.003
+#: Simulation step (s), position gain (N m / rad), joint armature (kg m^2).
+TIMESTEP = 0.001
+KP = 10.0
+ARMATURE = 1e-3
+#: Still time before the trajectory starts (s), with the start targets and forces.
+SETTLE_TIME = 0.2
+_PIP = "pip install 'dexplan[sim]' (or: pip install mujoco)"
+
+
+def require_mujoco() -> Any:
+    """Import mujoco or raise DependencyError naming the pip command."""
+    try:
+        import mujoco
+    except ImportError as exc:
+        raise DependencyError(f"dexplan replay needs MuJoCo: {_PIP}") from exc
+    return mujoco
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """What the physics replay of a plan did (``m`` recorded samples).
+
+    Attributes:
+        gravity: whether gravity was on.
+        t: (m,) times of the trajectory samples (s from the trajectory's start).
+        planned_pose: (m, 7) the plan's object pose at those times, world frame.
+        sim_pose: (m, 7) the simulated object pose, world frame.
+        sim_q: (m, nq) the simulated joints.
+        position_error: (m,) |p_sim - p_plan| (m).
+        angle_error: (m,) rotation angle between the two orientations (rad).
+        waypoint_position_error: max over the plan's waypoints (m).
+        waypoint_angle_error: max over the plan's waypoints (rad).
+        goal_position_error: final distance to the goal position (m).
+        goal_angle_error: final angle to the goal orientation (rad).
+        goal_tolerances: the plan's ``(position_tol, angle_tol)``.
+        contact_losses: (finger, time) of each contact loss.
+        slips: (finger, time, distance) of each slip event.
+        dropped: the object strayed more than :data:`DROP_TOL` from the plan.
+        drop_time: when it first did (s), or None.
+        max_penetration: deepest hand-object penetration (m).
+    """
+
+    gravity: bool
+    t: FloatArray
+    planned_pose: FloatArray
+    sim_pose: FloatArray
+    sim_q: FloatArray
+    position_error: FloatArray
+    angle_error: FloatArray
+    waypoint_position_error: float
+    waypoint_angle_error: float
+    goal_position_error: float
+    goal_angle_error: float
+    goal_tolerances: tuple[float, float]
+    contact_losses: tuple[tuple[int, float], ...]
+    slips: tuple[tuple[int, float, float], ...]
+    dropped: bool
+    drop_time: float | None
+    max_penetration: float
+
+    @property
+    def tracked(self) -> bool:
+        """Every waypoint within the tolerances and no drop."""
+        return (
+            self.waypoint_position_error <= POSITION_TOL
+            and self.waypoint_angle_error <= ANGLE_TOL
+            and not self.dropped
+        )
+
+    @property
+    def at_goal(self) -> bool:
+        """The final pose is within the plan's goal tolerances."""
+        return (
+            self.goal_position_error <= self.goal_tolerances[0]
+            and self.goal_angle_error <= self.goal_tolerances[1]
+        )
+
+    def summary(self) -> str:
+        """Lines for the CLI: errors, events and the verdict."""
+        lines = [
+            f"replay: {'gravity' if self.gravity else 'no gravity'}, "
+            f"{self.t[-1] if self.t.size else 0:.2f} s",
+            f"object error: max {float(self.position_error.max(initial=0)) * 1e3:.2f} mm, "
+            f"{float(self.angle_error.max(initial=0)):.4f} rad; at waypoints max "
+            f"{self.waypoint_position_error * 1e3:.2f} mm, {self.waypoint_angle_error:.4f} rad",
+            f"goal: {self.goal_position_error * 1e3:.2f} mm, {self.goal_angle_error:.4f} rad "
+            f"({'within' if self.at_goal else 'outside'} the goal tolerance)",
+            f"contact losses: {len(self.contact_losses)}  slips: {len(self.slips)}  "
+            f"dropped: {'yes at %.2f s' % self.drop_time if self.dropped else 'no'}  "
+            f"max penetration: {self.max_penetration * 1e3:.2f} mm",
+        ]
+        if self.tracked:
+            verdict = f"TRACKED within {POSITION_TOL * 1e3:g} mm and {ANGLE_TOL:g} rad"
+        elif self.dropped:
+            verdict = "DROPPED: the object fell away from the plan"
+        else:
+            verdict = f"LOST TRACK: beyond {POSITION_TOL * 1e3:g} mm or {ANGLE_TOL:g} rad"
+        lines.append(verdict)
+        return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ model
+def _f(v: Any) -> str:
+    return " ".join(f"{float(x):.9g}" for x in np.asarray(v, dtype=float).reshape(-1))
+
+
+def _quat_wxyz(R: FloatArray) -> FloatArray:
+    q = pin.Quaternion(np.asarray(R, dtype=float))
+    q.normalize()
+    return np.array([q.w, q.x, q.y, q.z])
+
+
+def _pose_attrs(M: pin.SE3) -> str:
+    return f'pos="{_f(M.translation)}" quat="{_f(_quat_wxyz(M.rotation))}"'
+
+
+def _geom_xml(geom: Any) -> str | None:
+    """MJCF type and size of a coal geometry (None: not a collision shape)."""
+    import coal
+
+    if isinstance(geom, coal.Box):
+        return f'type="box" size="{_f(geom.halfSide)}"'
+    if isinstance(geom, coal.Sphere):
+        return f'type="sphere" size="{geom.radius:.9g}"'
+    if isinstance(geom, coal.Capsule):
+        return f'type="capsule" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    if isinstance(geom, coal.Cylinder):
+        return f'type="cylinder" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    try:
+        geom.computeLocalAABB()
+        box = geom.aabb_local
+        c = 0.5 * (np.asarray(box.min_) + np.asarray(box.max_))
+        h = 0.5 * (np.asarray(box.max_) - np.asarray(box.min_))
+    except Exception:
+        return None
+    return f'type="box" size="{_f(np.maximum(h, 1e-4))}" pos="{_f(c)}"'
+
+
+def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[str, str]:
+    """(asset xml, geom attributes) of a plan shape table."""
+    kind = d["shape"]
+    if kind == "sphere":
+        return "", f'type="sphere" size="{float(d["radius"]):.9g}"'
+    if kind == "box":
+        return "", f'type="box" size="{_f(np.asarray(d["size"], dtype=float) / 2)}"'
+    if kind == "capsule":
+        return "", f'type="capsule" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    if kind == "cylinder":
+        return "", f'type="cylinder" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    path = Path(str(d["path"]))
+    if not path.is_absolute():
+        path = base_dir / path
+    scale = float(d.get("scale", 1.0))
+    asset = f'<mesh name="{name}_mesh" file={quoteattr(str(path))} scale="{_f([scale] * 3)}"/>'
+    return asset, f'type="mesh" mesh="{name}_mesh"'
+
+
+def build_mjcf(
+    doc: Mapping[str, Any],
+    hand: Any,
+    *,
+    mass: float,
+    gravity: FloatArray,
+    base_dir: str | Path = ".",
+) -> tuple[str, list[int]]:
+    """MJCF text of the plan's hand, object and obstacles; and the fingertip geom ids.
+
+    Geoms are named ``hand{k}`` in the order of ``hand.geom_model``, the
+    object ``object``, obstacles ``obstacle{k}``; bodies ``b_<joint>``; position
+    actuators ``a_<joint>`` in ``hand.joint_names`` order.
+
+    Args:
+        doc: a validated plan.
+        hand: its :class:`~dexplan.hand.Hand`.
+        mass: object mass (kg).
+        gravity: (3,) gravity (m/s^2), world frame.
+        base_dir: the plan's folder (mesh paths).
+    """
+    from dexplan.collision import CollisionWorld
+    from dexplan.objects import shape_from_dict
+
+    base_dir = Path(base_dir)
+    model, gm = hand.model, hand.geom_model
+    mu = float(doc["mu"])
+    soft = doc.get("contact_model", "point") == "soft"
+    torsion = float(doc.get("torsion", 0.0))
+    condim = 4 if soft else 3
+    fr = f'friction="{mu:.6g} {max(torsion, 1e-6) if soft else 0.0:.6g} 0"'
+    contact = f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
+    shape = {k: v for k, v in doc["object"].items() if k != "mass"}
+    obj = shape_from_dict(shape, base_dir)
+    world = CollisionWorld(hand, obj)
+    tips = list(world.tip_geoms)
+
+    geoms_of: dict[int, list[str]] = {}
+    for k, go in enumerate(gm.geometryObjects):
+        g = _geom_xml(go.geometry)
+        if g is None:
+            continue
+        pos = _pose_attrs(go.placement)
+        if ' pos="' in g:  # a bounding box centred off the geometry frame
+            c = np.array([float(x) for x in g.split(' pos="')[1].split('"')[0].split()])
+            M = go.placement * pin.SE3(np.eye(3), c)
+            g = g.split(' pos="')[0]
+            pos = _pose_attrs(M)
+        geoms_of.setdefault(int(go.parentJoint), []).append(
+            f'<geom name="hand{k}" {g} {pos} contype="1" conaffinity="2" {contact}/>'
+        )
+    children: dict[int, list[int]] = {}
+    for j in range(1, model.njoints):
+        children.setdefault(int(model.parents[j]), []).append(j)
+
+    def body(j: int, indent: str) -> str:
+        name = model.names[j]
+        jm = model.joints[j]
+        short = jm.shortname()
+        kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
+        axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1], None)
+        if axis is None:
+            axis = tuple(np.asarray(jm.extract().axis, dtype=float))
+        I = model.inertias[j]
+        m = max(float(I.mass), 1e-4)
+        Ic = np.asarray(I.inertia, dtype=float)
+        Ic = Ic + np.eye(3) * 1e-8
+        full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
+        iq = jm.idx_q
+        lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+        parts = [
+            f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
+            f'{indent}  <inertial pos="{_f(I.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
+            f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
+            f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
+        ]
+        parts += [indent + "  " + g for g in geoms_of.get(j, [])]
+        for c in children.get(j, []):
+            parts.append(body(c, indent + "  "))
+        parts.append(f"{indent}</body>")
+        return "\n".join(parts)
+
+    assets = []
+    a_obj, g_obj = _shape_xml(shape, base_dir, "object")
+    assets.append(a_obj)
+    obstacles = []
+    for k, ob in enumerate(doc.get("obstacles", [])):
+        sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
+        a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
+        assets.append(a)
+        p = np.asarray(ob["pose_xyzquat"], dtype=float)
+        obstacles.append(
+            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
+            f'contype="2" conaffinity="1" {contact}/>'
+        )
+    start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
+    actuators = "\n".join(
+        f'    <position name="a_{n}" joint="{n}" kp="{KP:g}" dampratio="1" '
+        f'ctrlrange="{model.lowerPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g} '
+        f'{model.upperPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g}"/>'
+        for n in hand.joint_names
+    )
+    palm = "\n".join("    " + g for g in geoms_of.get(0, []))
+    tree = "\n".join(body(c, "    ") for c in children.get(0, []))
+    xml = f"""<mujoco model="dexplan replay">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{TIMESTEP:g}" gravity="{_f(gravity)}" cone="elliptic" impratio="10"
+          integrator="implicitfast"/>
+  <asset>
+{chr(10).join(a for a in assets if a)}
+  </asset>
+  <worldbody>
+{palm}
+{chr(10).join(obstacles)}
+    <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">
+      <freejoint name="object"/>
+      <geom name="object" {g_obj} mass="{mass:.9g}" contype="2" conaffinity="3" {contact}/>
+    </body>
+{tree}
+  </worldbody>
+  <actuator>
+{actuators}
+  </actuator>
+</mujoco>
+"""
+    return xml, tips
+
+
+# ------------------------------------------------------------------ replay
+def _angle(a_xyzw: FloatArray, b_xyzw: FloatArray) -> float:
+    d = abs(float(np.dot(a_xyzw, b_xyzw)) / (np.linalg.norm(a_xyzw) * np.linalg.norm(b_xyzw)))
+    return 2.0 * math.acos(min(1.0, d))
+
+
+def replay_plan(
+    doc: Mapping[str, Any],
+    *,
+    gravity: bool = True,
+    base_dir: str | Path = ".",
+    rate: float = 100.0,
+    mass: float | None = None,
+    gravity_vector: FloatArray | None = None,
+    hand: Any = None,
+) -> ReplayResult:
+    """Simulate the plan in MuJoCo and measure how far the object strays from it.
+
+    Args:
+        doc: a validated plan (:func:`dexplan.plan.read_plan`).
+        gravity: gravity on (the plan's ``world.gravity`` or ``(0, 0, -9.81)``) or off.
+        base_dir: the plan's folder (mesh paths).
+        rate: trajectory samples per second (targets in between are interpolated).
+        mass: object mass (kg), default the plan's ``object.mass`` or 0.1.
+        gravity_vector: (3,) overrides the plan's gravity (world frame).
+        hand: the plan's hand (rebuilt from the file when None).
+
+    Raises:
+        DependencyError: mujoco is not installed.
+        PlanFileError: MuJoCo rejects the model built from the plan.
+        TimingError, GripForceError: the plan cannot be timed or held.
+    """
+    mujoco = require_mujoco()
+    from dexplan.export import build_trajectory
+    from dexplan.forces import force_settings_from_plan
+    from dexplan.pose import quat_angle
+
+    if hand is None:
+        from dexplan.plan import hand_from_plan
+
+        hand = hand_from_plan(doc["hand"])
+    settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)
+    g = np.asarray(settings.gravity, dtype=float) if gravity else np.zeros(3)
+    settings = type(settings)(
+        mass=settings.mass,
+        gravity=tuple(float(v) for v in g),
+        cone_margin=settings.cone_margin,
+        min_normal_force=settings.min_normal_force,
+    )
+    traj = build_trajectory(doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand)
+    xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
+    try:
+        m = mujoco.MjModel.from_xml_string(xml)
+    except Exception as exc:  # mujoco's ValueError
+        raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
+    d = mujoco.MjData(m)
+    nq = hand.nq
+    jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
+    jv = np.array([m.jnt_dofadr[m.joint(n).id] for n in hand.joint_names])
+    oq = m.jnt_qposadr[m.joint("object").id]
+    obj_geom = m.geom("object").id
+    tip_ids = [m.geom(f"hand{k}").id for k in tips]
+    tip_of = {gid: i for i, gid in enumerate(tip_ids)}
+    hand_geoms = {m.geom(f"hand{k}").id for k in range(hand.geom_model.ngeoms) if _has(m, k)}
+
+    t = traj.t
+    d.qpos[jq] = traj.q[0]
+    d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
+    d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
+    mujoco.mj_forward(m, d)
+    n = hand.n_fingers
+    loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
+    steps_total = int(math.ceil((SETTLE_TIME + t[-1]) / TIMESTEP)) + 1
+    rec_idx = 0
+    sim_pose = np.empty((t.size, 7))
+    sim_q = np.empty((t.size, nq))
+    missing = np.zeros(n)
+    losses: list[tuple[int, float]] = []
+    slips: list[tuple[int, float, float]] = []
+    slipping = np.zeros(n, dtype=bool)
+    max_pen = 0.0
+    drop_time = None
+    for step in range(steps_total):
+        now = step * TIMESTEP - SETTLE_TIME
+        tt = min(max(now, 0.0), t[-1])
+        i = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 1))
+        if i + 1 < t.size and t[i + 1] > t[i]:
+            w = (tt - t[i]) / (t[i + 1] - t[i])
+            target = (1 - w) * traj.q[i] + w * traj.q[i + 1]
+            ff = (1 - w) * traj.joint_torques[i] + w * traj.joint_torques[i + 1]
+        else:
+            target, ff = traj.q[i], traj.joint_torques[i]
+        d.ctrl[:nq] = target
+        d.qfrc_applied[:] = 0.0
+        d.qfrc_applied[jv] = ff
+        mujoco.mj_step(m, d)
+        now = (step + 1) * TIMESTEP - SETTLE_TIME
+        # contacts
+        touching = np.zeros(n, dtype=bool)
+        pose_now = np.concatenate(
+            [d.qpos[oq : oq + 3], d.qpos[oq + 4 : oq + 7], d.qpos[oq + 3 : oq + 4]]
+        )
+        R = pin.Quaternion(pose_now[6], pose_now[3], pose_now[4], pose_now[5]).normalized()
+        Rm = R.toRotationMatrix()
+        for c in range(d.ncon):
+            con = d.contact[c]
+            g1, g2 = int(con.geom1), int(con.geom2)
+            if obj_geom not in (g1, g2):
+                continue
+            other = g2 if g1 == obj_geom else g1
+            if other in hand_geoms:
+                max_pen = max(max_pen, -float(con.dist))
+            f = tip_of.get(other)
+            if f is None:
+                continue
+            touching[f] = True
+            if now >= 0.0 and loaded[i, f]:
+                p_obj = Rm.T @ (np.asarray(con.pos) - pose_now[:3])
+                dist = float(np.linalg.norm(p_obj - traj.contacts[i, f]))
+                if dist > SLIP_TOL and not slipping[f]:
+                    slips.append((f, now, dist))
+                slipping[f] = dist > SLIP_TOL
+        if now >= 0.0:
+            for f in range(n):
+                if loaded[i, f] and not touching[f]:
+                    missing[f] += TIMESTEP
+                    if missing[f] > LOSS_TIME and missing[f] - TIMESTEP <= LOSS_TIME:
+                        losses.append((f, now))
+                else:
+                    missing[f] = 0.0
+        while rec_idx < t.size and now >= t[rec_idx] - 1e-9:
+            sim_pose[rec_idx] = pose_now
+            sim_q[rec_idx] = d.qpos[jq]
+            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[rec_idx, :3]))
+            if err > DROP_TOL and drop_time is None:
+                drop_time = float(t[rec_idx])
+            rec_idx += 1
+    while rec_idx < t.size:  # numerical end: the last state
+        sim_pose[rec_idx] = sim_pose[rec_idx - 1]
+        sim_q[rec_idx] = sim_q[rec_idx - 1]
+        rec_idx += 1
+    pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
+    ang_err = np.array(
+        [_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
+    )
+    # the waypoints: their times in the trajectory
+    wp_t = np.concatenate(
+        [
+            traj.timing.start_times[s] + seg.waypoint_times
+            for s, seg in enumerate(traj.timing.segments)
+        ]
+    )
+    wp_pose = np.array(
+        [w["object_pose_xyzquat"] for s in doc["segments"] for w in s["waypoints"]], dtype=float
+    )
+    idx = np.clip(np.searchsorted(t, wp_t - 1e-9), 0, t.size - 1)
+    wp_pos = float(np.max(np.linalg.norm(sim_pose[idx, :3] - wp_pose[:, :3], axis=1)))
+    wp_ang = float(max(_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
+    goal = doc["goal"]
+    gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+    fin = sim_pose[-1]
+    return ReplayResult(
+        gravity=gravity,
+        t=t,
+        planned_pose=traj.object_pose,
+        sim_pose=sim_pose,
+        sim_q=sim_q,
+        position_error=pos_err,
+        angle_error=ang_err,
+        waypoint_position_error=wp_pos,
+        waypoint_angle_error=wp_ang,
+        goal_position_error=float(np.linalg.norm(fin[:3] - gp[:3])),
+        goal_angle_error=float(quat_angle(fin[3:], gp[3:])),
+        goal_tolerances=(
+            float(goal.get("position_tol", 0.005)),
+            float(goal.get("angle_tol", 0.05)),
+        ),
+        contact_losses=tuple(losses),
+        slips=tuple(slips),
+        dropped=drop_time is not None,
+        drop_time=drop_time,
+        max_penetration=max_pen,
+    )
+
+
+def _has(m: Any, k: int) -> bool:
+    try:
+        m.geom(f"hand{k}")
+    except KeyError:
+        return False
+    return True
