@@ -334,7 +334,11 @@ class Transitions:
 
     # ------------------------------------------------------------------ landing
     def follow_scores(
-        self, finger: int, candidates_tip_obj: FloatArray, future_poses: FloatArray
+        self,
+        finger: int,
+        candidates_tip_obj: FloatArray,
+        future_poses: FloatArray,
+        normals_obj: FloatArray | None = None,
     ) -> FloatArray:
         """How many consecutive future poses the finger can follow from each candidate.
 
@@ -342,6 +346,11 @@ class Transitions:
             finger: the finger to regrasp.
             candidates_tip_obj: (C, 3) fingertip centres (contact + r * normal), object frame.
             future_poses: (P, 7) the rest of the object trajectory (first = now).
+            normals_obj: (C, 3) outward normals at the candidates (object
+                frame). With them, and ``landing_alignment`` set, a redundant
+                finger must also be able to point its last link within
+                ``acos(landing_alignment)`` of the inward normal at each pose
+                (bounded by how far the normal leaves the finger's flexion plane).
 
         Returns:
             (C,) counts of consecutive poses, from the first, where the finger's
@@ -357,6 +366,18 @@ class Transitions:
         q, ok = self.hand.finger_ik_batch(finger, targets.reshape(-1, 3))
         idx = self.hand.finger_q_index[finger]
         ok &= np.all(q >= self._lo[idx], axis=1) & np.all(q <= self._hi[idx], axis=1)
+        split = self.hand._split_ik[finger]
+        limit = self.settings.landing_alignment
+        if normals_obj is not None and split is not None and limit is not None and ok.any():
+            inward = np.empty((P, C, 3))
+            for k, pose in enumerate(poses):
+                R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+                inward[k] = -normals_obj @ R.T
+            inward = inward.reshape(-1, 3)
+            rows = np.flatnonzero(ok)
+            axes = split.chain.forward(q[rows])[2][:, split.sub[1]]  # flexion-plane normals
+            off = np.einsum("ij,ij->i", axes, inward[rows])
+            ok[rows] = np.sqrt(np.maximum(0.0, 1.0 - off * off)) >= limit
         ok = ok.reshape(P, C)
         # consecutive successes from the first pose
         follow = np.cumprod(ok, axis=0).sum(axis=0)
@@ -399,7 +420,7 @@ class Transitions:
         keep = np.flatnonzero(apart & moved)
         if len(keep) == 0:
             return
-        scores = self.follow_scores(finger, tip_obj[keep], future_poses)
+        scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
         reach = scores > 0
         keep, scores = keep[reach], scores[reach]
         if s.landing_alignment is not None and len(keep):
