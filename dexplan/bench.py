@@ -54,6 +54,7 @@ from typing import Any
 
 from dexplan.exceptions import DependencyError, InvalidInputError, PlannerError, ScenarioError
 from dexplan.files import atomic_output
+from dexplan.planning.plan_stats import PlanStats
 from dexplan.planning.progress import ProgressEvent, Stage
 from dexplan.scenario import Scenario, builtin_scenario_path, load_scenario
 
@@ -503,12 +504,12 @@ def segments_sha256(segments: Sequence[Mapping[str, Any]]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _fill_stats(rec: dict[str, Any], stats: Mapping[str, Any]) -> None:
-    rec["time"] = stats.get("time_s")
-    rec["gsn_time"] = stats.get("gsn_time_s")
-    rec["reduction_time"] = stats.get("reduction_time_s")
-    rec["graph_states"] = stats.get("roadmap_nodes")
-    rec["graph_motions"] = stats.get("roadmap_edges")
+def _fill_stats(rec: dict[str, Any], stats: PlanStats) -> None:
+    rec["time"] = stats.time_s
+    rec["gsn_time"] = stats.gsn_time_s
+    rec["reduction_time"] = stats.reduction_time_s
+    rec["graph_states"] = stats.roadmap_nodes
+    rec["graph_motions"] = stats.roadmap_edges
     for name in (
         "components",
         "graph_nodes",
@@ -521,21 +522,20 @@ def _fill_stats(rec: dict[str, Any], stats: Mapping[str, Any]) -> None:
         "object_path_m",
         "object_path_rad",
     ):
-        rec[name] = stats.get(name)
-    method = stats.get("reduction_method")
+        rec[name] = getattr(stats, name)
+    method = stats.reduction_method
     known = method in REDUCTION_METHODS
     rec["reduction_method"] = REDUCTION_METHODS.index(method) if known else None
     if rec["regrasps"] is not None and rec["transfers"] is not None:
         rec["solution_segments"] = int(rec["regrasps"]) + int(rec["transfers"])
-    validity = stats.get("validity") or {}
+    validity = stats.validity
     rec["states_checked"] = validity.get("checked")
     rec["states_valid"] = validity.get("valid")
     rejected = validity.get("rejected") or {}
     for reason in ("bounds", "joint_limits", "collision", "force_closure"):
         rec[f"rejected_{reason}"] = rejected.get(reason)
-    sampler = stats.get("sampler") or {}
-    rec["sampler_attempts"] = sampler.get("attempts")
-    rec["sampler_valid"] = sampler.get("valid")
+    rec["sampler_attempts"] = stats.sampler.get("attempts")
+    rec["sampler_valid"] = stats.sampler.get("valid")
 
 
 def _jsonable(value: Any) -> Any:
@@ -583,13 +583,13 @@ def execute_run(task: RunTask) -> dict[str, Any]:
             progress=on_event,
         )
         result = planned.result
-        stats = dict(result.stats)
-        rec["stats"] = _jsonable(stats)
+        stats = result.stats
+        rec["stats"] = _jsonable(stats.as_dict())
         rec["message"] = result.message
         _fill_stats(rec, stats)
         _set_status(rec, result.status if result.status in PLAN_STATUSES else "error")
         if result.solved or result.violations:
-            rec["verify_time"] = stats.get("verify_time_s")
+            rec["verify_time"] = stats.verify_time_s
             rec["correct_solution"] = int(result.solved)
             rec["verify_violations"] = len(result.violations)
             if rec["verify_time"] and rec["time"] is not None:

@@ -199,7 +199,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
             doc["stats"]["violations"] = list(result.violations)
             write_plan(bad, doc)
             _err(f"the plan that failed verification is in {bad}")
-        sys.stdout.write(f"status: {result.status}\ntime_s: {st.get('time_s', 0):.3f}\n")
+        sys.stdout.write(f"status: {result.status}\ntime_s: {st.time_s:.3f}\n")
         return EXIT_FAILED
     doc = planned.to_document(out.resolve().parent)
     write_plan(out, doc)
@@ -209,13 +209,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         record_plan(doc, args.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
         _err(f"recording written to {args.rrd}")
     sys.stdout.write(
-        f"status: solved\nplan: {out}\nplanner: {st['planner']}  seed: {st['seed']}\n"
-        f"time_s: {st['time_s']:.3f}  (GSn {st.get('gsn_time_s', 0):.3f}, "
-        f"reduction {st.get('reduction_time_s', 0):.3f}, verify {st.get('verify_time_s', 0):.3f})\n"
-        f"roadmap_nodes: {st.get('roadmap_nodes')}  graph_nodes: {st.get('graph_nodes')}  "
-        f"components: {st.get('components')}\n"
-        f"transfers: {st.get('transfers')}  regrasps: {st.get('regrasps')}  "
-        f"waypoints: {st.get('waypoints')}  reduction: {st.get('reduction_method')}\n"
+        f"status: solved\nplan: {out}\nplanner: {st.planner}  seed: {st.seed}\n"
+        f"time_s: {st.time_s:.3f}  (GSn {st.gsn_time_s or 0:.3f}, "
+        f"reduction {st.reduction_time_s or 0:.3f}, verify {st.verify_time_s or 0:.3f})\n"
+        f"roadmap_nodes: {st.roadmap_nodes}  graph_nodes: {st.graph_nodes}  "
+        f"components: {st.components}\n"
+        f"transfers: {st.transfers}  regrasps: {st.regrasps}  "
+        f"waypoints: {st.waypoints}  reduction: {st.reduction_method}\n"
     )
     return EXIT_OK
 

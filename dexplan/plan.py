@@ -27,7 +27,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -36,6 +36,11 @@ from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, s
 from dexplan.files import atomic_output
 from dexplan.plan_schema import FORMAT, validate_plan
 from dexplan.segments import Segment, Waypoint
+from dexplan.typing import FloatArray
+
+if TYPE_CHECKING:  # models only: the plan file never imports planning
+    from dexplan.hand import Hand
+    from dexplan.scenario import Scenario
 
 __all__ = [
     "FORMAT",
@@ -546,15 +551,34 @@ def _portable_shape(shape: Mapping[str, Any], base_dir: Path, out_dir: Path) -> 
     return d
 
 
+class PlannedPath(Protocol):
+    """What a plan document is built from (a planner result has these).
+
+    The plan file sits below planning and does not import it: any object with
+    these attributes will do (:class:`~dexplan.planning.planner.PlanResult` is one).
+    """
+
+    segments: Sequence[Segment]
+    start_pose: FloatArray
+    start_q: FloatArray | None
+
+    @property
+    def stats(self) -> _StatsLike: ...
+
+
+class _StatsLike(Protocol):
+    def as_dict(self) -> Mapping[str, Any]: ...
+
+
 def build_plan_document(
-    scenario: Any, hand: Any, result: Any, out_dir: str | Path = "."
+    scenario: Scenario, hand: Hand, result: PlannedPath, out_dir: str | Path = "."
 ) -> dict[str, Any]:
-    """The ``dexplan-plan/1`` document of a solved :class:`~dexplan.planning.planner.PlanResult`.
+    """The ``dexplan-plan/1`` document of a planner's result.
 
     Args:
-        scenario: the :class:`~dexplan.scenario.Scenario` planned.
-        hand: the :class:`~dexplan.hand.Hand` used.
-        result: the planner's result (``segments``, ``start_q``, ``stats``).
+        scenario: the scenario planned.
+        hand: the hand used.
+        result: the planner's result (segments, start pose and joints, statistics).
         out_dir: folder the plan will be written to (mesh paths are relative to it).
     """
     out_dir = Path(out_dir)
@@ -586,7 +610,7 @@ def build_plan_document(
             "angle_tol": g.angle_tol,
         },
         "segments": [segment_to_dict(s) for s in result.segments],
-        "stats": _jsonable(result.stats),
+        "stats": _jsonable(result.stats.as_dict()),
     }
 
 

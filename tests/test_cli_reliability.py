@@ -181,8 +181,8 @@ def test_unsolvable_query_ends_with_a_status_at_its_limit():
     """
     res = plan(load_scenario(UNSOLVABLE), time_limit=1.0)
     assert res.status == PlanStatus.NO_GOAL_GRASP and not res.solved
-    assert res.stats["goal_samples"] == 0
-    assert res.stats["time_s"] >= 0.9  # it searched until the deadline; no upper bound here
+    assert res.stats.goal_samples == 0
+    assert res.stats.time_s >= 0.9  # it searched until the deadline; no upper bound here
 
 
 def test_run_can_be_called_many_times_in_one_process(capfd):

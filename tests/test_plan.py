@@ -39,7 +39,7 @@ def test_planner_plan_passes_verify(solved) -> None:
     report = verify_plan(doc)
     assert report.ok, [str(v) for v in report.violations[:5]]
     assert report.waypoints == sum(len(s["waypoints"]) for s in doc["segments"])
-    assert result.stats["regrasps"] >= 1  # 180 degrees needs finger gaits
+    assert result.stats.regrasps >= 1  # 180 degrees needs finger gaits
     kinds = [s["kind"] for s in doc["segments"]]
     assert "transfer" in kinds and "regrasp" in kinds
 

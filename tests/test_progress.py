@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from dexplan import bench
-from dexplan.planning.planner import plan
+from dexplan.api import plan
 from dexplan.planning.progress import PlanStatus, ProgressEvent, Stage
 from dexplan.scenario import default_scenario
 
@@ -23,7 +23,7 @@ def test_bench_stage_names_follow_the_stage_enum():
 
 def test_a_solved_query_reports_each_stage_in_order():
     events: list[ProgressEvent] = []
-    res = plan(default_scenario(), seed=3, progress=events.append)
+    res = plan(default_scenario(), seed=3, progress=events.append).result  # verified
     assert res.solved and res.status is PlanStatus.SOLVED
     stages = [e.stage for e in events]
     assert stages == sorted(stages)
@@ -31,3 +31,20 @@ def test_a_solved_query_reports_each_stage_in_order():
     assert Stage.MODULE1 in stages and Stage.REDUCTION in stages
     assert all(e.message and e.elapsed_s >= 0 for e in events)
     assert [e.elapsed_s for e in events] == sorted(e.elapsed_s for e in events)
+
+
+def test_plan_stats_round_trip_and_refuse_unknown_figures():
+    import pytest
+
+    from dexplan.exceptions import DexplanError
+    from dexplan.planning.plan_stats import PlanStats
+
+    st = PlanStats.from_mapping(
+        {"planner": "PRM", "seed": 1, "time_limit": 30.0, "regrasps": 7, "local_landing_checks": 9}
+    )
+    assert st.regrasps == 7 and st.local == {"landing_checks": 9}
+    d = st.as_dict()
+    assert d["local_landing_checks"] == 9 and "verify_time_s" not in d  # None left out
+    assert PlanStats.from_mapping(d) == st
+    with pytest.raises(DexplanError, match="regrasp"):
+        PlanStats.from_mapping({"planner": "PRM", "seed": 1, "time_limit": 1.0, "regrasp": 1})

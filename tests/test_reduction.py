@@ -38,7 +38,7 @@ def _grasps(ctx, states):
 def test_edge_reduction_plan_passes_verify(scenario) -> None:
     result = plan(scenario, seed=1, reduction="edges", time_limit=60.0)
     assert result.solved, (result.status, result.message)
-    assert result.stats["reduction_method"] == "edges"
+    assert result.stats.reduction_method == "edges"
     kinds = [s.kind for s in result.segments]
     assert "regrasp" in kinds and "transfer" in kinds
     # transfers on one grasp across several GSn edges are merged into one

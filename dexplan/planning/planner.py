@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import check_planner
+from dexplan.planning.plan_stats import PlanStats
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
 from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
@@ -76,7 +77,7 @@ class PlanResult:
     start_q: FloatArray | None
     gsn_path: FloatArray
     roadmap: Roadmap | None
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: PlanStats
     message: str = ""
     rejections: Rejections | None = None
     violations: tuple[str, ...] = ()
@@ -218,13 +219,14 @@ def plan(
         stats["time_s"] = time.perf_counter() - t0
         stats["sampler"] = ctx.sampler.stats.as_dict()
         stats["validity"] = ctx.validity.stats.as_dict()
+        typed = PlanStats.from_mapping(stats)
         kw.setdefault("segments", ())
         kw.setdefault("gsn_path", np.zeros((0, ctx.gsn.ambient_dim)))
         kw.setdefault("roadmap", roadmap)
         kw.setdefault("start_q", None)
         rejections = Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats)
         return PlanResult(
-            status, start_pose=pose0, stats=stats, message=message, rejections=rejections, **kw
+            status, start_pose=pose0, stats=typed, message=message, rejections=rejections, **kw
         )
 
     say(Stage.START_GRASP, "sampling a start grasp")
@@ -342,30 +344,20 @@ def plan(
     trans_m, rot_rad = object_path_length(segments)
     stats["object_path_m"] = trans_m
     stats["object_path_rad"] = rot_rad
-    solved = result(
-        PlanStatus.SOLVED,
-        segments=tuple(segments),
-        roadmap=roadmap,
-        gsn_path=gsn.path,
-        start_q=q_start,
-    )
+    solved = dict(segments=tuple(segments), roadmap=roadmap, gsn_path=gsn.path, start_q=q_start)
     # re-check the whole plan with the independent verifier, as OMPL checks
     # simplified paths: a plan that fails it is never returned as solved
     if verify is None:
-        return solved
+        return result(PlanStatus.SOLVED, **solved)
     say(Stage.VERIFICATION, "verifying the plan")
     t_ver = time.perf_counter()
-    violations = tuple(verify(solved))
+    violations = tuple(verify(result(PlanStatus.SOLVED, **solved)))
     stats["verify_time_s"] = time.perf_counter() - t_ver
     if violations:
         return result(
             PlanStatus.INVALID_PLAN,
             f"the reduced plan failed verification: {'; '.join(violations[:5])}",
-            segments=tuple(segments),
-            roadmap=roadmap,
-            gsn_path=gsn.path,
-            start_q=q_start,
             violations=violations,
+            **solved,
         )
-    stats["time_s"] = time.perf_counter() - t0
-    return solved
+    return result(PlanStatus.SOLVED, **solved)
