@@ -1,0 +1,69 @@
+"""The scripts in examples/ run from a fresh process and print what they promise."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+
+
+def run_example(name: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    res = subprocess.run(
+        [sys.executable, str(EXAMPLES / name)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert res.returncode == 0, f"{name} exited {res.returncode}:\n{res.stdout}\n{res.stderr}"
+    assert "Traceback" not in res.stderr
+    return res
+
+
+def test_every_example_is_short_and_documented() -> None:
+    scripts = sorted(EXAMPLES.glob("*.py"))
+    assert {p.name for p in scripts} >= {
+        "plan_and_inspect.py",
+        "compare_planners.py",
+        "multi_query.py",
+    }
+    for path in scripts:
+        text = path.read_text()
+        assert len(text.splitlines()) < 60, path.name
+        assert text.startswith('"""'), f"{path.name} has no module docstring"
+
+
+def test_plan_and_inspect(tmp_path: Path) -> None:
+    out = run_example("plan_and_inspect.py", tmp_path).stdout
+    assert "status: solved" in out
+    kinds = re.findall(
+        r"^segment +\d+: (transfer|regrasp) +finger (\S+) +(\d+) waypoints$", out, re.M
+    )
+    assert kinds and {k for k, _, _ in kinds} == {"transfer", "regrasp"}
+    assert all((finger == "-") == (kind == "transfer") for kind, finger, _ in kinds)
+    counts = re.search(r"^regrasps: (\d+)  transfers: (\d+)$", out, re.M)
+    assert counts is not None
+    assert int(counts[1]) + int(counts[2]) == len(kinds)
+    assert re.search(r"^verify: OK ", out, re.M)
+    assert not list(tmp_path.iterdir())  # the plan went to a temporary folder
+
+
+def test_multi_query(tmp_path: Path) -> None:
+    out = run_example("multi_query.py", tmp_path).stdout
+    assert "first query: solved" in out
+    assert re.search(r"^loaded \d+ vertices, \d+ edges$", out, re.M)
+    assert "second query: solved" in out
+
+
+@pytest.mark.slow
+def test_compare_planners(tmp_path: Path) -> None:
+    out = run_example("compare_planners.py", tmp_path).stdout
+    # the table's shape only: how many seeds finish within 20 s is the machine's business
+    rows = re.findall(r"^(PRM|RRTConnect|KPIECE1) +([0-3]) / 3 +(\S+) +(\S+)$", out, re.M)
+    assert [row[0] for row in rows] == ["PRM", "RRTConnect", "KPIECE1"]
