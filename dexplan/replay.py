@@ -7,7 +7,11 @@
   ranges), its collision geometry from the Pinocchio geometry model (boxes,
   spheres, cylinders, capsules; any other geometry by its local bounding box),
   gravity compensated on the hand's own links (``gravcomp``); hand-hand
-  contacts are off (the planner checked them);
+  contacts are off (the planner checked them). The fingertip spheres are
+  rigid: where a finger turns relative to the object, the plan's fixed
+  contact asks the sphere to slide on the object by ``r (w_object - w_link) x n``,
+  which friction resists and the plan does not model (a passive ball at the
+  tip would roll instead, but a free ball transmits normal forces only);
 - the object: a free body with the plan's shape and mass (uniform density;
   meshes from the plan's mesh file), obstacles static;
 - friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
@@ -153,7 +157,7 @@ class ReplayResult:
             f"goal: {self.goal_position_error * 1e3:.2f} mm, {self.goal_angle_error:.4f} rad "
             f"({'within' if self.at_goal else 'outside'} the goal tolerance)",
             f"contact losses: {len(self.contact_losses)}  slips: {len(self.slips)}  "
-            f"dropped: {'yes at %.2f s' % self.drop_time if self.dropped else 'no'}  "
+            f"dropped: {f'yes at {self.drop_time:.2f} s' if self.dropped else 'no'}  "
             f"max penetration: {self.max_penetration * 1e3:.2f} mm",
         ]
         if self.tracked:
@@ -282,19 +286,20 @@ def build_mjcf(
         jm = model.joints[j]
         short = jm.shortname()
         kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
-        axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1], None)
+        axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
         if axis is None:
             axis = tuple(np.asarray(jm.extract().axis, dtype=float))
-        I = model.inertias[j]
-        m = max(float(I.mass), 1e-4)
-        Ic = np.asarray(I.inertia, dtype=float)
+        inertia = model.inertias[j]
+        m = max(float(inertia.mass), 1e-4)
+        Ic = np.asarray(inertia.inertia, dtype=float)
         Ic = Ic + np.eye(3) * 1e-8
         full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
         iq = jm.idx_q
         lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
         parts = [
             f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
-            f'{indent}  <inertial pos="{_f(I.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
+            f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" '
+            f'fullinertia="{_f(full)}"/>',
             f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
             f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
         ]
@@ -422,7 +427,7 @@ def replay_plan(
     mujoco.mj_forward(m, d)
     n = hand.n_fingers
     loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
-    steps_total = int(math.ceil((SETTLE_TIME + t[-1]) / TIMESTEP)) + 1
+    steps_total = math.ceil((SETTLE_TIME + t[-1]) / TIMESTEP) + 1
     rec_idx = 0
     sim_pose = np.empty((t.size, 7))
     sim_q = np.empty((t.size, nq))
