@@ -40,6 +40,7 @@ from dexplan.typing import FloatArray
 
 if TYPE_CHECKING:  # models only: the plan file never imports planning
     from dexplan.hand import Hand
+    from dexplan.objects import Shape
     from dexplan.scenario import Scenario
 
 __all__ = [
@@ -199,6 +200,37 @@ def file_sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+# ---------------------------------------------------------------- contacts
+def fingertip_contact(
+    obj: Shape, c_obj: FloatArray, tip_obj: FloatArray, radius: float
+) -> tuple[FloatArray, FloatArray, float]:
+    """Where and along which normal a fingertip pushes on the object (the one rule).
+
+    The fingertip sphere touches the surface at the closest point to its
+    centre, pushing along the normal there. On a face that is the stated
+    contact's own normal (exact per contact, so equal contacts give equal
+    answers); at a box edge or corner, the direction from the edge to the
+    fingertip centre. The verifier and the viewer both read contacts this way.
+
+    Args:
+        obj: the object shape.
+        c_obj: (3,) the stated contact, object frame.
+        tip_obj: (3,) the fingertip centre, object frame.
+        radius: fingertip radius (m).
+
+    Returns:
+        ``(p, n_out, gap)``: (3,) the surface point of the contact and (3,) the
+        outward unit normal the fingertip pushes along, both object frame, and
+        the distance (m) between the stated contact and the fingertip's own.
+    """
+    p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(c_obj))
+    gap = float(np.linalg.norm(p_s + radius * n_s - tip_obj))
+    if gap > TIP_DISTANCE_TOL:
+        p_t, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tip_obj))
+        gap = float(np.linalg.norm(p_t - c_obj))
+    return p_s, n_s, gap
+
+
 # ---------------------------------------------------------------- verifying
 @dataclass(frozen=True)
 class Violation:
@@ -301,18 +333,7 @@ class _Checker:
                     "contact_on_surface",
                     f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface",
                 )
-            # The fingertip sphere touches the surface at the closest point to
-            # its centre, pushing along the normal there. On a face that is the
-            # stated contact's own normal (exact per contact: the force-closure
-            # memo below hits); at a box edge or corner, the direction from
-            # the edge to the centre.
-            p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(c))
-            gap = float(np.linalg.norm(p_s + r * n_s - tips[i]))
-            if gap > TIP_DISTANCE_TOL:
-                p_t, n_s = (
-                    np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tips[i])
-                )
-                gap = float(np.linalg.norm(p_t - c))
+            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r)
             if gap > TIP_DISTANCE_TOL:
                 self.add(
                     si,

@@ -181,16 +181,14 @@ class _Scene:
 
 
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
+    from dexplan.hand import example_robot_data_file
     from dexplan.plan import hand_from_plan
 
     package_dirs: list[str | Path] = [base_dir]
-    try:  # the allegro hand's meshes live in example-robot-data
-        import example_robot_data as erd
-
-        package_dirs.append(
-            Path(erd.getModelPath("allegro_hand_description/urdf/allegro_right_hand.urdf"))
-        )
-    except (ImportError, OSError, ValueError):
+    try:  # the allegro hand's meshes live in example-robot-data's share folder
+        urdf = example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
+        package_dirs.append(urdf.parents[4])  # .../share, holding example-robot-data/
+    except DependencyError:
         pass
     return hand_from_plan(h, package_dirs)
 
@@ -936,6 +934,7 @@ def _log_contacts_and_fc(
     than two holding fingers; for ``min_subgrasp``, while a finger is free).
     """
     rr = _rerun()
+    from dexplan.plan import fingertip_contact
     from dexplan.pose import inverse_transform_points, transform_points
 
     hand, obj = scene.hand, scene.obj
@@ -979,7 +978,7 @@ def _log_contacts_and_fc(
         )
 
     # per stated contact (object frame): surface point, outward normal, [c; cone points]
-    local: dict[bytes, tuple[FloatArray, FloatArray, FloatArray]] = {}
+    local: dict[tuple[bytes, bytes], FloatArray] = {}  # (contact, normal) -> cone points
     fc_cache: dict[bytes, tuple[float | None, float | None]] = {}
     points: list[list[FloatArray]] = [[] for _ in range(n)]  # per finger, per step (k, 3)
     strips: list[list[FloatArray]] = [[] for _ in range(n)]  # per finger, cone strips
@@ -998,20 +997,13 @@ def _log_contacts_and_fc(
                     n_strips[i].append(0)
                     continue
                 c = np.asarray(c, dtype=float)
-                key_c = c.tobytes()
-                if key_c not in local:
-                    p_s, n_s = obj.closest_point(c)
-                    p_s = np.asarray(p_s, dtype=float).reshape(3)
-                    n_s = np.asarray(n_s, dtype=float).reshape(3)
-                    cone = np.vstack(_contact_strips(c, n_s, scene, cone_h))
-                    local[key_c] = (p_s, n_s, np.vstack([c[None], cone]))
-                p_s, n_s, pts_local = local[key_c]
-                if np.linalg.norm(p_s + r * n_s - tips[i]) > 1e-3:
-                    # a fingertip on a box edge: it pushes along the normal at
-                    # its own closest point (as the verifier reads it)
-                    n_s = np.asarray(obj.closest_point(tips[i])[1], dtype=float).reshape(3)
-                    cone = np.vstack(_contact_strips(c, n_s, scene, cone_h))
-                    pts_local = np.vstack([c[None], cone])
+                # the verifier's rule (a fingertip on a box edge pushes along
+                # the normal at its own closest point)
+                p_s, n_s, _ = fingertip_contact(obj, c, tips[i], r)
+                key = (c.tobytes(), n_s.tobytes())
+                if key not in local:  # along a transfer the same cone repeats
+                    local[key] = np.vstack([c[None], *_contact_strips(c, n_s, scene, cone_h)])
+                pts_local = local[key]
                 pts_obj.append(p_s)
                 nrm_in.append(-n_s)
                 pts_w = transform_points(pose, pts_local)
