@@ -1,0 +1,87 @@
+"""Execution benchmark (issue 16): export limits check and MuJoCo replay over N paper_sphere seeds.
+
+    python scripts/bench_execution.py [--seeds 20] [--first-seed 1] [--out DIR]
+
+Per seed: plan with ``dexplan plan --seed N`` (in-process CLI), export the
+trajectory and check its limits, replay without and with gravity (palm up,
+0.1 kg). Prints one line per seed and the totals; runs one process at a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+from dexplan import cli
+from dexplan.export import build_trajectory, check_trajectory, trajectory_document
+from dexplan.plan import hand_from_plan, read_plan
+from dexplan.replay import replay_plan
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--out", default="bench_execution")
+    args = ap.parse_args()
+    out = Path(args.out)
+    out.mkdir(exist_ok=True)
+    rows = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        plan = out / f"plan_{seed}.json"
+        if not plan.exists():
+            code = cli.run(["plan", "--seed", str(seed), "-q", "-o", str(plan)])
+            if code != 0:
+                print(f"seed {seed}: planning failed (exit {code})", flush=True)
+                continue
+        doc = read_plan(plan)
+        hand = hand_from_plan(doc["hand"])
+        t0 = time.perf_counter()
+        traj = build_trajectory(doc, hand=hand, base_dir=out)
+        problems = check_trajectory(trajectory_document(traj, doc))
+        t_exp = time.perf_counter() - t0
+        r = {}
+        for g in (False, True):
+            res = replay_plan(doc, gravity=g, base_dir=out, hand=hand)
+            r[g] = res
+        row = dict(seed=seed, duration=traj.duration, ok=not problems, export_s=t_exp, r=r)
+        rows.append(row)
+        print(
+            f"seed {seed}: duration {traj.duration:.2f} s, "
+            f"limits {'OK' if not problems else problems[0]}"
+            + "".join(
+                f" | {'g' if g else 'no-g'}: wp {x.waypoint_position_error * 1e3:.1f} mm "
+                f"{x.waypoint_angle_error:.3f} rad, goal {x.goal_position_error * 1e3:.1f} mm "
+                f"{x.goal_angle_error:.3f} rad, losses {len(x.contact_losses)}, "
+                f"slips {len(x.slips)}, "
+                f"{'DROP' if x.dropped else 'held'}"
+                for g, x in r.items()
+            ),
+            flush=True,
+        )
+    if not rows:
+        return 1
+    n = len(rows)
+    print(f"plans: {n}; limits check passed: {sum(r['ok'] for r in rows)}/{n}")
+    print(
+        f"execution time per plan: median {statistics.median(r['duration'] for r in rows):.2f} s "
+        f"(min {min(r['duration'] for r in rows):.2f}, max {max(r['duration'] for r in rows):.2f})"
+    )
+    for g in (False, True):
+        rs = [r["r"][g] for r in rows]
+        good = sum(x.tracked and x.at_goal and not x.dropped for x in rs)
+        print(
+            f"replay {'with' if g else 'without'} gravity: tracked+goal+no drop {good}/{n}; "
+            f"tracked {sum(x.tracked for x in rs)}/{n}; at goal {sum(x.at_goal for x in rs)}/{n}; "
+            f"dropped {sum(x.dropped for x in rs)}/{n}; median waypoint error "
+            f"{statistics.median(x.waypoint_position_error for x in rs) * 1e3:.1f} mm, "
+            f"{statistics.median(x.waypoint_angle_error for x in rs):.3f} rad"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
