@@ -184,10 +184,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dexplan.viz import record_rejections
 
         n = record_rejections(result.rejections.samples, args.debug_rrd, scenario=scenario)
-        _err(f"{n} rejected samples recorded in {args.debug_rrd}")
+        if not args.quiet:
+            _err(f"{n} rejected samples recorded in {args.debug_rrd}")
     if args.save_roadmap is not None and result.roadmap is not None:
         result.roadmap.save(args.save_roadmap)
-        _err(f"roadmap written to {args.save_roadmap}")
+        if not args.quiet:
+            _err(f"roadmap written to {args.save_roadmap}")
     if not result.solved:
         _err(f"no plan: {result.status}: {shorten_text(result.message)}")
         if result.rejections is not None:
@@ -207,7 +209,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dexplan.viz import record_plan
 
         record_plan(doc, args.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
-        _err(f"recording written to {args.rrd}")
+        if not args.quiet:
+            _err(f"recording written to {args.rrd}")
     sys.stdout.write(
         f"status: solved\nplan: {out}\nplanner: {st.planner}  seed: {st.seed}\n"
         f"time_s: {st.time_s:.3f}  (GSn {st.gsn_time_s or 0:.3f}, "
