@@ -5,7 +5,7 @@ with quaternions XYZW. Every field is validated before any model is built; a
 wrong one raises :class:`~dexplan.exceptions.ScenarioError` naming the field
 and its (shortened) value, unknown fields are rejected in every table with a
 "did you mean" hint (a typo never silently falls back to a default), and every
-size is bounded by one of the limits below (``docs/scenario_format.md``).
+size is bounded by one of the limits below (``docs/scenario.md``).
 The paper's experiment is embedded: :func:`default_scenario`.
 """
 
@@ -31,7 +31,7 @@ DEFAULT_SCENARIO = "paper_sphere"
 SPACES = ("projected", "atlas", "tangent_bundle")
 
 # ---------------------------------------------------------------------- limits
-# Documented in docs/scenario_format.md ("Limits"); a value outside is bad input.
+# Documented in docs/scenario.md ("Limits"); a value outside is bad input.
 MAX_SCENARIO_BYTES = 1_000_000  # a scenario file is a few hundred bytes
 MAX_POSITION = 10.0  # m: |x|, |y|, |z| of start, goal and obstacle positions
 MAX_HALF_EXTENT = 1.0  # m: workspace.half_extent per axis
