@@ -24,7 +24,13 @@ import numpy as np
 
 from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError, shorten
 from dexplan.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
-from dexplan.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, check_fields, field_key
+from dexplan.objects.factory import (
+    ALL_SHAPE_FIELDS,
+    SHAPE_FIELDS,
+    SHAPE_KINDS,
+    check_fields,
+    field_key,
+)
 from dexplan.typing import FloatArray
 
 DEFAULT_SCENARIO = "paper_sphere"
@@ -56,6 +62,27 @@ MAX_PATH = 4096  # characters of a file name (hand.urdf; mesh paths likewise)
 MAX_PLANNER_PARAMS = 64  # planner.params entries
 MAX_PARAM_INT = 2**53  # |integer planner.params value| (exact as a double, as OMPL stores it)
 MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
+
+# ----------------------------------------------------------------------- fields
+# The fields each table accepts; the parser rejects any other, and
+# docs/scenario.md documents every one (tests/test_scenario_docs.py checks it).
+HAND_BUILTIN_FIELDS = frozenset({"builtin"})
+HAND_URDF_FIELDS = frozenset({"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"})
+OBSTACLE_OWN_FIELDS = frozenset({"name", "pose_xyzquat"})  # beside its shape fields
+SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
+    "": frozenset(
+        {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner", "workspace"}
+    ),
+    "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS,  # builtin, or urdf and its fields
+    "object": ALL_SHAPE_FIELDS,  # those of its shape kind (SHAPE_FIELDS)
+    "contact": frozenset({"mu", "friction_edges", "fc_margin", "model", "torsion"}),
+    "obstacles": ALL_SHAPE_FIELDS | OBSTACLE_OWN_FIELDS,
+    "start": frozenset({"object_pose_xyzquat", "q"}),
+    "goal": frozenset({"object_pose_xyzquat", "position_tol", "angle_tol"}),
+    "planner": frozenset({"name", "time_limit", "seed", "params", "space"}),
+    "workspace": frozenset({"half_extent"}),
+}
+"""Accepted fields per table (``""``: the top level; ``obstacles``: each ``[[obstacles]]``)."""
 
 
 @dataclass(frozen=True)
@@ -361,15 +388,14 @@ def _shape_fields(
 
 
 def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
-    urdf_fields = {"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"}
     if "urdf" not in h:
         for key, val in h.items():
-            if key in urdf_fields:
+            if key in HAND_URDF_FIELDS:
                 _fail(
                     f"hand.{key} (= {shorten(val, 40)}) is only used with hand.urdf; "
                     "a builtin hand defines its own"
                 )
-        _only(h, "hand", {"builtin"})
+        _only(h, "hand", HAND_BUILTIN_FIELDS)
         from dexplan.hand import BUILTIN_HANDS
 
         builtin = h.get("builtin", "paper")
@@ -381,7 +407,7 @@ def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
             f"hand.builtin (= {shorten(h['builtin'], 40)}) and hand.urdf "
             f"(= {shorten(h['urdf'], 40)}) exclude each other: give one"
         )
-    _only(h, "hand", urdf_fields)
+    _only(h, "hand", HAND_URDF_FIELDS)
     if "fingertip_frames" not in h:
         _fail("missing field hand.fingertip_frames (the URDF frames of the fingertip centres)")
     frames = h["fingertip_frames"]
@@ -486,11 +512,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     Raises:
         ScenarioError: a missing, malformed, out-of-range or unknown field.
     """
-    _only(
-        doc,
-        "",
-        {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner", "workspace"},
-    )
+    _only(doc, "", SCENARIO_FIELDS[""])
     scen_name = _string(doc, "name", "", default=name[:MAX_NAME] or "scenario")
 
     hand = _hand(_table(doc, "hand", required=False) or {"builtin": "paper"}, base_dir)
@@ -498,7 +520,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     obj = _shape_fields(_table(doc, "object"), "object", base_dir, max_size=MAX_OBJECT_SIZE)
 
     c = _table(doc, "contact", required=False)
-    _only(c, "contact", {"mu", "friction_edges", "fc_margin", "model", "torsion"})
+    _only(c, "contact", SCENARIO_FIELDS["contact"])
     mu = _number(c, "mu", "contact", 0.8, lo=0.0, hi=MAX_MU)
     edges = _integer(
         c, "friction_edges", "contact", 8, lo=MIN_FRICTION_EDGES, hi=MAX_FRICTION_EDGES
@@ -520,7 +542,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
             ob,
             prefix,
             base_dir,
-            own=frozenset({"name", "pose_xyzquat"}),
+            own=OBSTACLE_OWN_FIELDS,
             max_size=MAX_OBSTACLE_SIZE,
         )
         shape["pose_xyzquat"] = _pose(ob, "pose_xyzquat", prefix).tolist()
@@ -528,7 +550,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         obstacles.append(shape)
 
     s = _table(doc, "start")
-    _only(s, "start", {"object_pose_xyzquat", "q"})
+    _only(s, "start", SCENARIO_FIELDS["start"])
     start = StartSpec(
         _pose(s, "object_pose_xyzquat", "start"),
         _vector(s, "q", "start", None, max_len=MAX_JOINTS, max_abs=MAX_JOINT_VALUE)
@@ -536,7 +558,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         else None,
     )
     g = _table(doc, "goal")
-    _only(g, "goal", {"object_pose_xyzquat", "position_tol", "angle_tol"})
+    _only(g, "goal", SCENARIO_FIELDS["goal"])
     goal = GoalSpec(
         _pose(g, "object_pose_xyzquat", "goal"),
         _number(g, "position_tol", "goal", 0.005, lo=0.0, lo_open=True, hi=MAX_POSITION_TOL),
@@ -544,7 +566,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     )
 
     p = _table(doc, "planner", required=False)
-    _only(p, "planner", {"name", "time_limit", "seed", "params", "space"})
+    _only(p, "planner", SCENARIO_FIELDS["planner"])
     space = p.get("space", "projected")
     if space not in SPACES:
         _fail(f"planner.space must be one of {', '.join(SPACES)}, got {shorten(space)}")
@@ -559,7 +581,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     )
 
     w = _table(doc, "workspace", required=False)
-    _only(w, "workspace", {"half_extent"})
+    _only(w, "workspace", SCENARIO_FIELDS["workspace"])
     half = np.full(3, 0.02)
     if "half_extent" in w:
         half = _vector(w, "half_extent", "workspace", 3)
