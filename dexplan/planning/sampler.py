@@ -73,6 +73,10 @@ class SamplerSettings:
         combination_draws: random combinations ranked to choose those.
         joint_margin: pool solutions keep this far (rad) from joint limits
             (transfers stop short of them, ``TransitionSettings.joint_margin``).
+        grasps_per_pose: with random poses (:meth:`GraspSampler.sample`),
+            up to this many valid grasps are returned, one per call, from the
+            ranked combinations of a pose before a new pose is drawn (the
+            pools are the costly part; 1: a new pose every call).
     """
 
     candidates: int = 48
@@ -87,6 +91,7 @@ class SamplerSettings:
     combinations: int = 40
     combination_draws: int = 4000
     joint_margin: float = 0.03
+    grasps_per_pose: int = 8
 
 
 @dataclass
@@ -162,6 +167,9 @@ class GraspSampler:
         self.per_finger = bool(per_finger)
         self._finger_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
         self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
+        # ranked combinations left at the last random pose that gave a valid grasp
+        self._pending: list[FloatArray] = []
+        self._pending_left = 0
 
     def _reach_voxels(self, finger: int) -> tuple[FloatArray, float, np.ndarray]:
         """Voxels (world frame) the fingertip centre reaches: ``(origin, size, occupied)``.
@@ -352,6 +360,16 @@ class GraspSampler:
         s = self.settings
         try:
             budget = s.max_attempts
+            if pose is None:
+                while self._pending and self._pending_left > 0 and budget > 0:
+                    x = self._pending.pop(0)
+                    self.stats.attempts += 1
+                    budget -= 1
+                    if self.validity.is_valid(x):
+                        self._pending_left -= 1
+                        self.stats.valid += 1
+                        return x
+                self._pending = []
             while budget > 0:
                 if self.deadline.expired():
                     return None
@@ -370,13 +388,16 @@ class GraspSampler:
                     self.stats.attempts += 1
                     budget -= 1
                     continue
-                for x in combos[:budget]:
+                for k, x in enumerate(combos[:budget]):
                     if self.deadline.expired():
                         return None
                     self.stats.attempts += 1
                     budget -= 1
                     if self.validity.is_valid(x):
                         self.stats.valid += 1
+                        if pose is None:
+                            self._pending = combos[k + 1 :]
+                            self._pending_left = s.grasps_per_pose - 1
                         return x
             return None
         finally:
