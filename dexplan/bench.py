@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Any
 
 from dexplan.exceptions import DependencyError, InvalidInputError, PlannerError, ScenarioError
-from dexplan.files import atomic_output
+from dexplan.files import atomic_output, file_sha256
 from dexplan.planning.plan_stats import PlanStats
 from dexplan.planning.progress import ProgressEvent, Stage
 from dexplan.scenario import Scenario, builtin_scenario_path, load_scenario
@@ -316,7 +316,7 @@ def _canonical(value: Any) -> Any:
 
 def _file_digest(path: Path) -> str:
     try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
+        return file_sha256(path)
     except OSError:
         return f"unreadable:{path}"
 

@@ -334,10 +334,9 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def _plan_sha256(path: str) -> str:
-    import hashlib
-    from pathlib import Path
+    from dexplan.files import file_sha256
 
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return file_sha256(path)
 
 
 def cmd_export(args: argparse.Namespace) -> int:

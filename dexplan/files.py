@@ -8,6 +8,7 @@ is removed and the destination is left as it was.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import tempfile
 from collections.abc import Iterator
@@ -68,3 +69,19 @@ def check_output_path(path: str | Path, what: str) -> Path:
     if not os.access(folder, os.W_OK | os.X_OK):
         raise InvalidInputError(f"{what}: folder is not writable: {str(folder)!r}")
     return path
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 hex digest of a file's bytes: the one file identity of dexplan.
+
+    Meshes in plan files, URDFs and meshes in benchmark scenario hashes and
+    plans in trajectory files are identified by it.
+
+    Raises:
+        OSError: the file cannot be read.
+    """
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

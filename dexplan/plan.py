@@ -20,7 +20,6 @@ a crash or a silent pass.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -33,7 +32,7 @@ import numpy as np
 
 from dexplan import plan_schema
 from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, shorten
-from dexplan.files import atomic_output
+from dexplan.files import atomic_output, file_sha256
 from dexplan.plan_schema import FORMAT, validate_plan
 from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
@@ -193,11 +192,6 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
             f"got {shorten(list(h['joint_names']))}"
         )
     return hand
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file's bytes (mesh identity in plan files)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 # ---------------------------------------------------------------- contacts

@@ -17,12 +17,12 @@ before calling :func:`shape_from_dict`.
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from dexplan import files
 from dexplan.exceptions import InvalidInputError, MeshError, shorten, unknown_field
 from dexplan.objects.mesh import Mesh
 from dexplan.objects.primitives import Box, Capsule, Cylinder, Sphere
@@ -190,6 +190,6 @@ def file_sha256(path: str | Path) -> str:
 
     """
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return files.file_sha256(path)
     except OSError as exc:
         raise MeshError(f"cannot read {str(path)!r}: {exc}") from exc
