@@ -12,8 +12,10 @@ Samples: at ``k / rate`` from each segment's start, plus the segment's end;
 consecutive segments share their boundary sample (at rest). At a sample inside
 a waypoint step the contacts are those of the step's first waypoint, except a
 finger that is free at the step's last waypoint (it is lifting off, or not yet
-landed): free. A regrasp's free finger carries no load at any of its samples,
-the boundary samples included (it lifts off and lands unloaded).
+landed): free. A regrasp's free finger carries no load at any of its samples
+(it lifts off unloaded), except the last one when another segment follows
+(it has landed and takes its share there); at a boundary sample the next
+regrasp's finger carries none.
 """
 
 from __future__ import annotations
@@ -176,8 +178,13 @@ def build_trajectory(
                     c = None
                 contacts.append(None if c is None else np.asarray(c, dtype=float))
             end = j == ts.size - 1
+            # a regrasp's free finger is unloaded until it has landed (its last
+            # sample, shared with the next segment); the next regrasp's finger
+            # is unloaded from that shared sample on
             loaded = tuple(
-                c is not None and i != free_here and not (end and i == free_next)
+                c is not None
+                and not (i == free_here and not (end and nxt is not None))
+                and not (end and i == free_next)
                 for i, c in enumerate(contacts)
             )
             g = solver.solve(

@@ -510,7 +510,7 @@ def _solve(
 
 def _dense_ratios(seg: SegmentTiming, vj: FloatArray, limits: TimingLimits) -> tuple[float, float]:
     """Largest velocity and acceleration over their limits, :data:`DENSE` per grid interval."""
-    f = np.linspace(0.0, 1.0, DENSE + 1)[:-1]
+    f = np.append(np.linspace(0.0, 1.0, DENSE + 1)[:-1], 1.0 - 1e-9)  # and each end's left limit
     ts = (seg.times[:-1, None] + f[None, :] * np.diff(seg.times)[:, None]).ravel()
     smp = seg.sample(np.concatenate([ts, seg.times[-1:]]))
     ov, oa = smp.object_velocity, _object_acceleration(seg, smp)
