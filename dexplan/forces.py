@@ -376,7 +376,7 @@ class GripForceSolver:
             max_iter=4000,
             polish=True,
         )
-        res = prob.solve()
+        res = prob.solve(raise_error=False)
         x = res.x
         if x is None or not np.all(np.isfinite(x)) or "infeasible" in str(res.info.status).lower():
             return None

@@ -1,0 +1,105 @@
+"""dexplan export: dexplan-trajectory/1 JSON and CSV round-trip and pass the limits check."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+from cli_contract import assert_bad_input, run_cli
+
+from dexplan import cli
+from dexplan.export import check_trajectory, read_trajectory
+from dexplan.plan import read_plan
+
+
+@pytest.fixture(scope="module")
+def plan_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("export") / "plan.json"
+    assert cli.run(["plan", "--seed", "3", "-q", "-o", str(path)]) == 0
+    return path
+
+
+@pytest.fixture(scope="module")
+def exported(plan_file):
+    out = plan_file.with_name("traj.json")
+    assert cli.run(["export", str(plan_file), "-o", str(out), "--rate", "50"]) == 0
+    return read_trajectory(out)
+
+
+def test_json_document_passes_limits_check(exported, plan_file) -> None:
+    doc = exported
+    plan = read_plan(plan_file)
+    assert doc["format"] == "dexplan-trajectory/1"
+    assert doc["joint_names"] == plan["hand"]["joint_names"]
+    assert check_trajectory(doc) == []
+    pts = doc["points"]
+    t = np.array([p["time_from_start"] for p in pts])
+    assert t[0] == 0.0 and np.all(np.diff(t) >= 0.0)
+    assert len(doc["segments"]) == len(plan["segments"])
+    for a, b in zip(doc["segments"], doc["segments"][1:], strict=False):
+        assert a["last_point"] == b["first_point"]  # shared boundary sample
+    assert doc["segments"][-1]["last_point"] == len(pts) - 1
+    last = pts[-1]["object_pose_xyzquat"]
+    wl = plan["segments"][-1]["waypoints"][-1]["object_pose_xyzquat"]
+    assert np.allclose(last[:3], wl[:3], atol=1e-9)
+    for p in pts:
+        assert len(p["positions"]) == len(p["velocities"]) == len(p["accelerations"])
+        for c, f in zip(p["contacts"], p["grip_forces"], strict=True):
+            assert (c is None) == (f is None)
+
+
+def test_limits_check_catches_violations(exported) -> None:
+    doc = copy.deepcopy(exported)
+    doc["points"][5]["velocities"][0] = 10.0 * doc["limits"]["joint_velocity"][0]
+    f = next(p for p in doc["points"][10:] if p["grip_forces"][0] is not None)
+    f["grip_forces"][0] = [50.0 * x for x in f["contact_normals"][0]]
+    f["grip_forces"][0][0] += 100.0  # far outside the cone
+    seg = doc["segments"][1]
+    doc["points"][seg["first_point"]]["velocities"][1] = 1e-3
+    found = " ".join(check_trajectory(doc))
+    assert "velocity limit" in found and "friction cone" in found and "not at rest" in found
+
+
+def test_csv_round_trips(exported, plan_file) -> None:
+    out = plan_file.with_name("traj.csv")
+    assert cli.run(["export", str(plan_file), "-o", str(out), "--rate", "50"]) == 0
+    csv = read_trajectory(out)
+    h = csv["header"]
+    pts = exported["points"]
+    assert len(csv["rows"]) == len(pts)
+    joints = exported["joint_names"]
+    col = {name: k for k, name in enumerate(h)}
+    for j in (0, len(pts) // 2, len(pts) - 1):
+        row, p = csv["rows"][j], pts[j]
+        assert row[col["time_from_start"]] == p["time_from_start"]
+        assert [row[col[f"position_{n}"]] for n in joints] == p["positions"]
+        assert [row[col[f"torque_{n}"]] for n in joints] == p["joint_torques"]
+        for i, f in enumerate(p["grip_forces"]):
+            got = [row[col[f"force{i}_{a}"]] for a in "xyz"]
+            if f is None:
+                assert all(np.isnan(got))
+            else:
+                assert got == f
+
+
+def test_json_is_plain_json(plan_file) -> None:
+    out = plan_file.with_name("t2.json")
+    assert cli.run(["export", str(plan_file), "-o", str(out), "--rate", "20", "--mass", "0.2"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["object_mass"] == 0.2
+    assert [p.name for p in out.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def test_bad_input(capfd, plan_file, tmp_path) -> None:
+    code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "t.txt")
+    assert_bad_input(code, err, names=[".json or .csv"], outputs=[tmp_path / "t.txt"])
+    code, _, err = run_cli(capfd, "export", tmp_path / "none.json", "-o", tmp_path / "t.json")
+    assert_bad_input(code, err, names=["not found"], outputs=[tmp_path / "t.json"])
+    code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "no" / "t.json")
+    assert_bad_input(code, err, names=["folder does not exist"])
+    code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "t.json", "--rate", "0")
+    assert_bad_input(code, err, names=["rate"], outputs=[tmp_path / "t.json"])
+    code, _, err = run_cli(
+        capfd, "export", plan_file, "-o", tmp_path / "t.json", "--max-object-speed", "-1"
+    )
+    assert_bad_input(code, err, names=["object_speed"], outputs=[tmp_path / "t.json"])

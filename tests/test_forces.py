@@ -1,0 +1,102 @@
+"""Grip forces (dexplan.forces): inside the cones, balancing the weight, with J^T f torques."""
+
+import copy
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dexplan import cli
+from dexplan.forces import ForceSettings, GripForceError, plan_waypoint_forces
+from dexplan.plan import hand_from_plan, read_plan
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    path = tmp_path_factory.mktemp("forces") / "plan.json"
+    assert cli.run(["plan", "--seed", "2", "-q", "-o", str(path)]) == 0
+    doc = read_plan(path)
+    return doc, hand_from_plan(doc["hand"])
+
+
+def _rot(pose):
+    return pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+
+
+def test_forces_in_cones_and_balance_independently(planned) -> None:
+    doc, hand = planned
+    st = ForceSettings(mass=0.1)
+    forces = plan_waypoint_forces(doc, st, hand=hand)
+    mu = doc["mu"]
+    g = np.array(st.gravity)
+    for seg, rows in zip(doc["segments"], forces, strict=True):
+        for w, gf in zip(seg["waypoints"], rows, strict=True):
+            pose = np.asarray(w["object_pose_xyzquat"])
+            R = _rot(pose)
+            total_f = st.mass * g.copy()
+            total_t = np.zeros(3)
+            for i, c in enumerate(w["contacts"]):
+                f = gf.forces[i]
+                if not gf.loaded[i]:
+                    assert np.allclose(f, 0.0)
+                    continue
+                c = np.asarray(c)
+                n_in = -c / np.linalg.norm(c)  # a sphere centred at the object origin
+                fn = f @ n_in
+                ft = np.linalg.norm(f - fn * n_in)
+                assert fn >= st.min_normal_force - 1e-7
+                assert ft <= mu * fn + 1e-7
+                fw = R @ f
+                total_f += fw
+                total_t += np.cross(R @ c, fw)
+            assert np.allclose(total_f, 0.0, atol=1e-6)
+            assert np.allclose(total_t, 0.0, atol=1e-6)
+            if seg["kind"] == "regrasp":
+                assert not gf.loaded[seg["finger"]]
+
+
+def test_joint_torques_are_jacobian_transpose(planned) -> None:
+    doc, hand = planned
+    gf = plan_waypoint_forces(doc, hand=hand)[0][0]
+    w = doc["segments"][0]["waypoints"][0]
+    q = np.asarray(w["q"])
+    pose = np.asarray(w["object_pose_xyzquat"])
+    R = _rot(pose)
+    # independent: finite differences of the work of the forces (virtual work)
+    eps = 1e-6
+    tau = np.zeros(hand.nq)
+    for j in range(hand.nq):
+        dq = np.zeros(hand.nq)
+        dq[j] = eps
+        for i in range(hand.n_fingers):
+            if not gf.loaded[i]:
+                continue
+            fid = hand.tip_frame_ids[i]
+            # displacement of the contact point as a point of the fingertip body
+            p_c = pose[:3] + R @ gf.contacts[i]
+            pin.framesForwardKinematics(hand.model, hand.data, q)
+            M0 = hand.data.oMf[fid].copy()
+            pin.framesForwardKinematics(hand.model, hand.data, q + dq)
+            M1 = hand.data.oMf[fid]
+            local = M0.actInv(p_c)
+            disp = M1.act(local) - p_c
+            tau[j] += gf.forces_world[i] @ disp / eps
+    assert np.allclose(gf.joint_torques, tau, atol=1e-5)
+
+
+def test_no_gravity_only_squeeze(planned) -> None:
+    doc, hand = planned
+    st = ForceSettings(gravity=(0.0, 0.0, 0.0))
+    gf = plan_waypoint_forces(doc, st, hand=hand)[0][0]
+    assert np.allclose(gf.residual, 0.0, atol=1e-6)
+
+
+def test_not_force_closure_names_the_waypoint(planned) -> None:
+    doc, hand = planned
+    bad = copy.deepcopy(doc)
+    w = bad["segments"][0]["waypoints"][1]
+    held = [i for i, c in enumerate(w["contacts"]) if c is not None]
+    for i in held[1:]:
+        w["contacts"][i] = None  # one finger cannot hold the weight
+    with pytest.raises(GripForceError, match="segment 0, waypoint 1"):
+        plan_waypoint_forces(bad, hand=hand)

@@ -1,0 +1,91 @@
+"""Time parameterisation (dexplan.timing): toppra's profile respects every limit."""
+
+import numpy as np
+import pytest
+
+from dexplan import cli
+from dexplan.exceptions import InvalidInputError
+from dexplan.plan import hand_from_plan, read_plan
+from dexplan.timing import (
+    DEFAULT_JOINT_VELOCITY,
+    TimingLimits,
+    joint_velocity_limits,
+    time_plan,
+)
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    path = tmp_path_factory.mktemp("timing") / "plan.json"
+    assert cli.run(["plan", "--seed", "1", "-q", "-o", str(path)]) == 0
+    doc = read_plan(path)
+    return doc, hand_from_plan(doc["hand"])
+
+
+def _dense(seg, n=4000):
+    return seg.sample(np.linspace(0.0, seg.duration, n))
+
+
+def test_limits_respected_between_grid_points(planned) -> None:
+    doc, hand = planned
+    lim = TimingLimits()
+    timing = time_plan(doc, lim, hand)
+    vj = timing.joint_velocity
+    assert timing.duration > 0
+    for seg in timing.segments:
+        s = _dense(seg)
+        assert np.all(np.abs(s.qd) <= vj * (1 + 1e-9))
+        assert np.all(np.abs(s.qdd) <= lim.max_acceleration * (1 + 1e-9))
+        assert np.all(
+            np.linalg.norm(s.object_velocity[:, :3], axis=1) <= lim.object_speed * 1.000001
+        )
+        w = np.linalg.norm(s.object_velocity[:, 3:], axis=1)
+        assert np.all(w <= lim.object_angular_speed * 1.000001)
+        # at rest at both ends
+        ends = seg.sample([0.0, seg.duration])
+        assert np.allclose(ends.qd, 0.0, atol=1e-12)
+        assert np.allclose(ends.object_velocity, 0.0, atol=1e-12)
+
+
+def test_waypoints_are_passed_in_order(planned) -> None:
+    doc, hand = planned
+    timing = time_plan(doc, TimingLimits(), hand)
+    for seg, sd in zip(timing.segments, doc["segments"], strict=True):
+        assert np.all(np.diff(seg.waypoint_times) >= -1e-12)
+        at = seg.sample(seg.waypoint_times)
+        q = np.array([w["q"] for w in sd["waypoints"]])
+        pose = np.array([w["object_pose_xyzquat"] for w in sd["waypoints"]])
+        assert np.allclose(at.q, q, atol=1e-9)
+        assert np.allclose(at.object_pose[:, :3], pose[:, :3], atol=1e-9)
+        dots = np.abs(np.sum(at.object_pose[:, 3:] * pose[:, 3:], axis=1))
+        assert np.all(dots > 1 - 1e-9)
+
+
+def test_tighter_limits_take_longer(planned) -> None:
+    doc, hand = planned
+    fast = time_plan(doc, TimingLimits(), hand).duration
+    slow = time_plan(doc, TimingLimits(object_angular_speed=0.25), hand).duration
+    assert slow > fast
+
+
+def test_regrasp_slowed_near_contact(planned) -> None:
+    doc, hand = planned
+    si = next(i for i, s in enumerate(doc["segments"]) if s["kind"] == "regrasp")
+    plain = time_plan(doc, TimingLimits(approach_scale=1.0), hand).segments[si].duration
+    slowed = time_plan(doc, TimingLimits(approach_scale=0.1), hand).segments[si].duration
+    assert slowed > plain
+
+
+def test_velocity_limits_from_urdf(paper_hand) -> None:
+    v = joint_velocity_limits(paper_hand.model)
+    assert v.shape == (paper_hand.nq,) and np.allclose(v, 2.0)  # the URDF's velocity="2"
+    m = paper_hand.model.copy()
+    m.velocityLimit[:] = 0.0
+    assert np.allclose(joint_velocity_limits(m), DEFAULT_JOINT_VELOCITY)
+
+
+def test_bad_limits_rejected() -> None:
+    with pytest.raises(InvalidInputError, match="object_speed"):
+        TimingLimits(object_speed=0.0)
+    with pytest.raises(InvalidInputError, match="approach_scale"):
+        TimingLimits(approach_scale=2.0)
