@@ -23,6 +23,9 @@ def run_example(name: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     )
     assert res.returncode == 0, f"{name} exited {res.returncode}:\n{res.stdout}\n{res.stderr}"
     assert "Traceback" not in res.stderr
+    # library users see no nanobind "leaked instances" report at exit (the CLI
+    # leaves through os._exit; a plain script exits normally)
+    assert "leaked" not in res.stderr, res.stderr
     return res
 
 
