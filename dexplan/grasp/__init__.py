@@ -103,7 +103,8 @@ Its variables are ``x_c = (f_c, sigma_c)``, ``sigma_c = tau_c / L``,
 ``G_c = [I_3, 0; [p_c]_x / L, n_c]`` (6 x 4), the cone ``K_c`` is the bipyramid of
 the ``E`` edges ``(u_ce, 0)`` and ``(n_c, +-t)``, ``t = torsion / L``, and
 ``phi(d) = min{|x|_2 : G x = d, x_c in K_c}``. Everything above carries over with
-``r = 4`` force coordinates per contact; the bounds become::
+``r = 4`` force coordinates per contact (pairs are solved by Lawson-Hanson: OSQP
+left those of 2-contact soft subgrasps unsolved at ``max_iter``); the bounds become::
 
     eps / sqrt(1 + t^2) <= q / sqrt(1 + t^2) <= Q <= sqrt(k (1 + mu^2)) q
                                                  <= sqrt(6 k (1 + mu^2)) eps.
