@@ -38,6 +38,7 @@ from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
 if TYPE_CHECKING:  # models only: the plan file never imports planning
+    from dexplan.collision import CollisionWorld, Obstacle
     from dexplan.hand import Hand
     from dexplan.objects import Shape
     from dexplan.scenario import Scenario
@@ -162,7 +163,7 @@ def _clip(text: str, limit: int = 200) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Any:
+def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
     """The :class:`~dexplan.hand.Hand` of a validated plan's ``hand`` table.
 
     Args:
@@ -192,6 +193,88 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
             f"got {shorten(list(h['joint_names']))}"
         )
     return hand
+
+
+# ---------------------------------------------------------------- models
+#: Fields of an object or obstacle table that are not shape (mass, placement, label).
+NOT_SHAPE_FIELDS = ("mass", "pose_xyzquat", "name")
+
+
+@dataclass(frozen=True)
+class PlanModels:
+    """The models a plan file describes, rebuilt from the file alone.
+
+    Attributes:
+        hand: the hand (its URDF text, fingertips, exclusions).
+        obj: the object shape.
+        obstacles: static obstacles, world frame.
+        world: the collision world of hand, object and obstacles.
+        mu: friction coefficient. friction_edges: edges of the linearized cone.
+        contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
+    """
+
+    hand: Hand
+    obj: Shape
+    obstacles: tuple[Obstacle, ...]
+    world: CollisionWorld
+    mu: float
+    friction_edges: int
+    contact_model: str
+    torsion: float
+
+
+def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
+    """The shape of an object or obstacle table (its non-shape fields set aside)."""
+    from dexplan.objects import shape_from_dict
+
+    shape = {k: v for k, v in table.items() if k not in NOT_SHAPE_FIELDS}
+    return shape_from_dict(shape, base_dir, field=field)
+
+
+def models_from_document(
+    doc: Mapping[str, Any],
+    base_dir: str | Path = ".",
+    *,
+    hand: Hand | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> PlanModels:
+    """Hand, object, obstacles and collision world of a validated plan document.
+
+    The one way to rebuild a plan's models: the verifier, the viewer, the
+    trajectory export and the replay all use it.
+
+    Args:
+        doc: a ``dexplan-plan/1`` document (see :func:`read_plan`).
+        base_dir: folder relative mesh paths resolve against.
+        hand: the hand if already rebuilt (:func:`hand_from_plan`).
+        package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.
+
+    Raises:
+        PlanFileError: the hand does not build from the file.
+    """
+    from dexplan.collision import CollisionWorld, Obstacle
+
+    base = Path(base_dir)
+    hand = hand if hand is not None else hand_from_plan(doc["hand"], package_dirs)
+    obj = shape_of(doc["object"], base, "object")
+    obstacles = tuple(
+        Obstacle(
+            shape_of(ob, base, f"obstacles[{k}]"),
+            tuple(float(v) for v in ob["pose_xyzquat"]),
+            str(ob.get("name", f"obstacle{k}")),
+        )
+        for k, ob in enumerate(doc.get("obstacles", []))
+    )
+    return PlanModels(
+        hand=hand,
+        obj=obj,
+        obstacles=obstacles,
+        world=CollisionWorld(hand, obj, list(obstacles)),
+        mu=float(doc["mu"]),
+        friction_edges=int(doc.get("friction_edges", 8)),
+        contact_model=str(doc.get("contact_model", "point")),
+        torsion=float(doc.get("torsion", 0.0)),
+    )
 
 
 # ---------------------------------------------------------------- contacts
@@ -260,28 +343,10 @@ class _Checker:
     """Rebuilds the models from a plan document and checks every rule."""
 
     def __init__(self, doc: Mapping[str, Any], base_dir: Path) -> None:
-        from dexplan.collision import CollisionWorld, Obstacle
-        from dexplan.objects import shape_from_dict
-
-        self.hand = hand_from_plan(doc["hand"])
-        self.obj = shape_from_dict(doc["object"], base_dir)
-        obstacles = [
-            Obstacle(
-                shape_from_dict(
-                    {k: v for k, v in ob.items() if k not in ("pose_xyzquat", "name")},
-                    base_dir,
-                    field=f"obstacles[{k}]",
-                ),
-                tuple(float(v) for v in ob["pose_xyzquat"]),
-                str(ob.get("name", f"obstacle{k}")),
-            )
-            for k, ob in enumerate(doc.get("obstacles", []))
-        ]
-        self.world = CollisionWorld(self.hand, self.obj, obstacles)
-        self.mu = float(doc["mu"])
-        self.edges = int(doc.get("friction_edges", 8))
-        self.contact_model = str(doc.get("contact_model", "point"))
-        self.torsion = float(doc.get("torsion", 0.0))
+        m = models_from_document(doc, base_dir)
+        self.hand, self.obj, self.world = m.hand, m.obj, m.world
+        self.mu, self.edges = m.mu, m.friction_edges
+        self.contact_model, self.torsion = m.contact_model, m.torsion
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
         self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}

@@ -218,23 +218,21 @@ def _scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> _Scene:
             field; :func:`dexplan.plan_schema.validate_plan`) or its hand does
             not build.
     """
-    from dexplan.objects import shape_from_dict
+    from dexplan.plan import models_from_document
     from dexplan.plan_schema import validate_plan
 
     validate_plan(doc, base_dir)
-    hand = _hand_from_doc(doc["hand"], base_dir)
-    obj = shape_from_dict(doc["object"], base_dir)
-    obstacles = _obstacles(doc.get("obstacles", []), base_dir)
+    m = models_from_document(doc, base_dir, hand=_hand_from_doc(doc["hand"], base_dir))
     goal = doc["goal"]
     start = doc["start"]
     return _Scene(
-        hand=hand,
-        obj=obj,
-        obstacles=obstacles,
-        mu=float(doc.get("mu", 0.8)),
-        friction_edges=int(doc.get("friction_edges", 8)),
-        contact_model=str(doc.get("contact_model", "point")),
-        torsion=float(doc.get("torsion", 0.0)),
+        hand=m.hand,
+        obj=m.obj,
+        obstacles=[(o.name, o.shape, np.asarray(o.pose_xyzquat)) for o in m.obstacles],
+        mu=m.mu,
+        friction_edges=m.friction_edges,
+        contact_model=m.contact_model,
+        torsion=m.torsion,
         goal_pose=_pose_or_none(goal.get("object_pose_xyzquat")),
         start_pose=_pose_or_none(start.get("object_pose_xyzquat")),
         start_q=None if start.get("q") is None else np.asarray(start["q"], dtype=float),
