@@ -86,3 +86,26 @@ def test_choices_are_listed() -> None:
     planner = rows(section(HEADINGS["planner"]))
     assert all(f'"{name}"' in " ".join(planner["space"]) for name in SPACES)
     assert all(f"`{name}`" in " ".join(planner["name"]) for name in available_planners())
+
+
+def test_the_parser_checks_tables_against_the_field_table() -> None:
+    # a new table or field must go through SCENARIO_FIELDS (and so into the docs):
+    # every unknown-field check of a named table takes its fields from there
+    import ast
+
+    import dexplan.scenario
+
+    tree = ast.parse(Path(dexplan.scenario.__file__).read_text())
+    calls = [
+        node
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "_only"
+    ]
+    tables = [c for c in calls if isinstance(c.args[1], ast.Constant)]
+    assert {c.args[1].value for c in tables} == set(SCENARIO_FIELDS) - {"object", "obstacles"}
+    for call in tables:
+        allowed = call.args[2]
+        assert not isinstance(allowed, ast.Set | ast.Call), (
+            f"line {call.lineno}: _only({call.args[1].value!r}, ...) lists its fields inline; "
+            "put them in SCENARIO_FIELDS"
+        )
