@@ -27,7 +27,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +35,12 @@ import numpy as np
 
 from dexplan.exceptions import InvalidInputError, PlanFileError
 from dexplan.files import atomic_output
-from dexplan.forces import ForceSettings, force_settings_from_plan, solver_from_plan
+from dexplan.forces import (
+    ForceSettings,
+    GripForceError,
+    force_settings_from_plan,
+    solver_from_plan,
+)
 from dexplan.timing import PlanTiming, TimingLimits, time_plan
 from dexplan.typing import FloatArray
 
@@ -120,6 +125,7 @@ def build_trajectory(
     settings: ForceSettings | None = None,
     base_dir: str | Path = ".",
     hand: Any = None,
+    unbalanced: str = "raise",
 ) -> Trajectory:
     """Time, sample and add forces to a validated plan.
 
@@ -130,6 +136,9 @@ def build_trajectory(
         settings: force settings (default: the plan's mass and gravity).
         base_dir: the plan's folder (mesh paths).
         hand: the plan's hand (rebuilt from the file when None).
+        unbalanced: where no forces balance the wrench: ``"raise"`` a
+            GripForceError, or ``"zero"``: no grip forces there (NaN margin;
+            the physics replay of a tampered plan).
 
     Raises:
         InvalidInputError: a bad rate.
@@ -187,13 +196,19 @@ def build_trajectory(
                 and not (end and i == free_next)
                 for i, c in enumerate(contacts)
             )
-            g = solver.solve(
-                smp.q[j],
-                smp.object_pose[j],
-                contacts,
-                loaded,
-                where=f"segment {si}, waypoint {k} (t = {st.waypoint_times[k]:.3f} s)",
-            )
+            try:
+                g = solver.solve(
+                    smp.q[j],
+                    smp.object_pose[j],
+                    contacts,
+                    loaded,
+                    where=f"segment {si}, waypoint {k} (t = {st.waypoint_times[k]:.3f} s)",
+                )
+            except GripForceError:
+                if unbalanced != "zero":
+                    raise
+                g = solver.solve(smp.q[j], smp.object_pose[j], contacts, (False,) * n)
+                g = replace(g, margin=math.nan)
             free = np.array([c is None for c in contacts])
             f = g.forces.copy()
             tor = g.torsion.copy()

@@ -16,8 +16,10 @@ keeps a margin from the cone boundary:
   ``torsion (1 - cone_margin)`` for soft contacts): the angle to the boundary
   of the true cone is then at least the difference of the two half-angles.
   Where no balance exists with that margin (a marginal 3-finger subgrasp
-  during a regrasp), half, a quarter and then none of it are tried, and
-  :attr:`GripForces.margin` says which was kept;
+  during a regrasp), half, a quarter and then none of it are tried, then no
+  margin with the densest pyramid (64 edges, closer to the round cone the
+  verifier judges force closure by), and :attr:`GripForces.margin` says which
+  was kept;
 - each normal force is at least ``min_normal_force`` (N): the fingers always
   squeeze, which also keeps a margin from the cone's apex;
 - objective ``sum |f_c|^2 + (tau_c / L)^2`` (``tau_c`` the soft-finger
@@ -77,7 +79,8 @@ DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 DEFAULT_CONE_MARGIN = 0.2
 #: Least normal force of every loaded contact (N).
 DEFAULT_MIN_NORMAL_FORCE = 0.2
-#: Largest acceptable balance residual (N, N m) of an OSQP solution.
+#: Largest acceptable balance residual of an OSQP solution (N, N m; relative to the
+#: largest force when that exceeds 1 N).
 BALANCE_TOL = 1e-6
 
 
@@ -257,7 +260,7 @@ class GripForceSolver:
             f, t, margin = hit
             forces[idx] = f
             tors[idx] = t
-        elif np.linalg.norm(w_ext) > BALANCE_TOL:
+        elif np.linalg.norm(w_ext) > BALANCE_TOL and any(loaded):
             raise GripForceError(f"{where}: no finger holds the object against its weight")
         fw = forces @ R.T
         # residual (world): sum f + F_ext, sum (R p) x f + tau n + T_ext
@@ -277,8 +280,13 @@ class GripForceSolver:
         """:meth:`_qp` with the largest margin of ``cone_margin * (1, 1/2, 1/4, 0)`` that works."""
         m0 = self.settings.cone_margin
         margins = [m0, m0 / 2, m0 / 4, 0.0] if m0 > 0 else [0.0]
-        for margin in margins:
-            out = self._qp(P, N, w_ext, margin, None)
+        from dexplan.grasp import MAX_FRICTION_EDGES
+
+        # the plan's linearization, then the densest one (closer to the round
+        # cone the verifier judges by) without margin
+        tries = [(mg, self.edges) for mg in margins] + [(0.0, MAX_FRICTION_EDGES)]
+        for margin, edges in tries:
+            out = self._qp(P, N, w_ext, margin, edges)
             if out is not None:
                 return (*out, margin)
         st = self.settings
@@ -294,7 +302,7 @@ class GripForceSolver:
         )
 
     def _qp(
-        self, P: FloatArray, N: FloatArray, w_ext: FloatArray, margin: float, cones: Any
+        self, P: FloatArray, N: FloatArray, w_ext: FloatArray, margin: float, edges: int
     ) -> tuple[FloatArray, FloatArray] | None:
         """Least-norm contact forces, cones shrunk by ``margin``; None if infeasible.
 
@@ -319,10 +327,10 @@ class GripForceSolver:
         m = k * r
         if soft:
             facets = soft_finger_facets(
-                N, mu_eff, self.torsion * (1.0 - margin), self.edges, torque_scale=L
+                N, mu_eff, self.torsion * (1.0 - margin), edges, torque_scale=L
             )
         else:
-            facets = friction_cone_facets(N, mu_eff, self.edges)
+            facets = friction_cone_facets(N, mu_eff, edges)
         rows = []
         for c in range(k):
             fc = facets[c]
@@ -373,8 +381,8 @@ class GripForceSolver:
             verbose=False,
             eps_abs=1e-8,
             eps_rel=1e-8,
-            max_iter=4000,
-            polish=True,
+            max_iter=10000,
+            polishing=True,
         )
         res = prob.solve(raise_error=False)
         x = res.x
@@ -385,7 +393,7 @@ class GripForceSolver:
             float(np.max(cone @ x, initial=0.0)),
             float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
         )
-        if resid > BALANCE_TOL:
+        if resid > BALANCE_TOL * max(1.0, float(np.max(np.abs(x)))):
             return None
         X = x.reshape(k, r)
         return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))

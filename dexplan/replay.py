@@ -109,6 +109,8 @@ class ReplayResult:
         dropped: the object strayed more than :data:`DROP_TOL` from the plan.
         drop_time: when it first did (s), or None.
         max_penetration: deepest hand-object penetration (m).
+        unbalanced_samples: trajectory samples where no grip forces balance
+            the wrench (not force closure: no feed-forward there).
     """
 
     gravity: bool
@@ -128,6 +130,7 @@ class ReplayResult:
     dropped: bool
     drop_time: float | None
     max_penetration: float
+    unbalanced_samples: int = 0
 
     @property
     def tracked(self) -> bool:
@@ -158,7 +161,8 @@ class ReplayResult:
             f"({'within' if self.at_goal else 'outside'} the goal tolerance)",
             f"contact losses: {len(self.contact_losses)}  slips: {len(self.slips)}  "
             f"dropped: {f'yes at {self.drop_time:.2f} s' if self.dropped else 'no'}  "
-            f"max penetration: {self.max_penetration * 1e3:.2f} mm",
+            f"max penetration: {self.max_penetration * 1e3:.2f} mm  "
+            f"samples without balancing grip forces: {self.unbalanced_samples}",
         ]
         if self.tracked:
             verdict = f"TRACKED within {POSITION_TOL * 1e3:g} mm and {ANGLE_TOL:g} rad"
@@ -382,10 +386,14 @@ def replay_plan(
         gravity_vector: (3,) overrides the plan's gravity (world frame).
         hand: the plan's hand (rebuilt from the file when None).
 
+    Where no grip forces balance the wrench (a tampered plan) the fingers get
+    no feed-forward there and only follow their targets; the result counts
+    those samples (:attr:`ReplayResult.unbalanced_samples`).
+
     Raises:
         DependencyError: mujoco is not installed.
         PlanFileError: MuJoCo rejects the model built from the plan.
-        TimingError, GripForceError: the plan cannot be timed or held.
+        TimingError: the plan cannot be timed.
     """
     mujoco = require_mujoco()
     from dexplan.export import build_trajectory
@@ -404,7 +412,9 @@ def replay_plan(
         cone_margin=settings.cone_margin,
         min_normal_force=settings.min_normal_force,
     )
-    traj = build_trajectory(doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand)
+    traj = build_trajectory(
+        doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced="zero"
+    )
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
     try:
         m = mujoco.MjModel.from_xml_string(xml)
@@ -537,6 +547,7 @@ def replay_plan(
         dropped=drop_time is not None,
         drop_time=drop_time,
         max_penetration=max_pen,
+        unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
     )
 
 

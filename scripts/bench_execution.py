@@ -10,12 +10,14 @@ trajectory and check its limits, replay without and with gravity (palm up,
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import sys
 import time
 from pathlib import Path
 
 from dexplan import cli
+from dexplan.exceptions import DexplanError
 from dexplan.export import build_trajectory, check_trajectory, trajectory_document
 from dexplan.plan import hand_from_plan, read_plan
 from dexplan.replay import replay_plan
@@ -40,7 +42,12 @@ def main() -> int:
         doc = read_plan(plan)
         hand = hand_from_plan(doc["hand"])
         t0 = time.perf_counter()
-        traj = build_trajectory(doc, hand=hand, base_dir=out)
+        try:
+            traj = build_trajectory(doc, hand=hand, base_dir=out)
+        except DexplanError as exc:
+            print(f"seed {seed}: export failed: {exc}", flush=True)
+            rows.append(dict(seed=seed, duration=math.nan, ok=False, export_s=0.0, r=None))
+            continue
         problems = check_trajectory(trajectory_document(traj, doc))
         t_exp = time.perf_counter() - t0
         r = {}
@@ -71,7 +78,7 @@ def main() -> int:
         f"(min {min(r['duration'] for r in rows):.2f}, max {max(r['duration'] for r in rows):.2f})"
     )
     for g in (False, True):
-        rs = [r["r"][g] for r in rows]
+        rs = [r["r"][g] for r in rows if r["r"] is not None]
         good = sum(x.tracked and x.at_goal and not x.dropped for x in rs)
         print(
             f"replay {'with' if g else 'without'} gravity: tracked+goal+no drop {good}/{n}; "
