@@ -134,3 +134,15 @@ def test_validity_keeps_the_object_clear_of_obstacles(scenario) -> None:
     strict = dataclasses.replace(ctx.validity.settings, object_clearance=clearance + 1e-4)
     verdict = GraspValidity(ctx.gsn, ctx.world, strict).check(x)
     assert not verdict.valid and verdict.reason == "collision"
+
+
+def test_roadmap_key_depends_on_the_contact_model():
+    import dataclasses
+
+    from dexplan.planning.context import build_context
+    from dexplan.planning.roadmap import scenario_key
+    from dexplan.scenario import default_scenario
+
+    point = default_scenario()
+    soft = dataclasses.replace(point, contact_model="soft", torsion=0.005)
+    assert scenario_key(build_context(point)) != scenario_key(build_context(soft))

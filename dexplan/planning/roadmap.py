@@ -536,6 +536,10 @@ def scenario_key(ctx: PlanningContext) -> str:
             "mu": s.mu,
             "edges": s.friction_edges,
             "fc_margin": s.fc_margin,
+            # GSn validity depends on the contact model: a soft-contact roadmap
+            # must not answer a point-contact query
+            "contact_model": s.contact_model,
+            "torsion": s.torsion,
         },
         sort_keys=True,
         default=str,
