@@ -96,6 +96,7 @@ class ReplayResult:
         t: (m,) times of the trajectory samples (s from the trajectory's start).
         planned_pose: (m, 7) the plan's object pose at those times, world frame.
         sim_pose: (m, 7) the simulated object pose, world frame.
+        planned_q: (m, nq) the planned (timed) joints at those times.
         sim_q: (m, nq) the simulated joints.
         position_error: (m,) |p_sim - p_plan| (m).
         angle_error: (m,) rotation angle between the two orientations (rad).
@@ -117,6 +118,7 @@ class ReplayResult:
     t: FloatArray
     planned_pose: FloatArray
     sim_pose: FloatArray
+    planned_q: FloatArray
     sim_q: FloatArray
     position_error: FloatArray
     angle_error: FloatArray
@@ -531,6 +533,7 @@ def replay_plan(
         t=t,
         planned_pose=traj.object_pose,
         sim_pose=sim_pose,
+        planned_q=traj.q,
         sim_q=sim_q,
         position_error=pos_err,
         angle_error=ang_err,
