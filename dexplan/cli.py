@@ -184,8 +184,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dexplan.viz import record_rejections
 
         n = record_rejections(result.rejections.samples, args.debug_rrd, scenario=scenario)
-        if not args.quiet:
-            _err(f"{n} rejected samples recorded in {args.debug_rrd}")
+        _err(f"{n} rejected samples recorded in {args.debug_rrd}")  # asked for: even with -q
     if args.save_roadmap is not None and result.roadmap is not None:
         result.roadmap.save(args.save_roadmap)
         if not args.quiet:
