@@ -42,6 +42,8 @@ MAX_SCENARIO_BYTES = 1_000_000  # a scenario file is a few hundred bytes
 MAX_POSITION = 10.0  # m: |x|, |y|, |z| of start, goal and obstacle positions
 MAX_HALF_EXTENT = 1.0  # m: workspace.half_extent per axis
 MAX_OBJECT_SIZE = 2.0  # m: object radius, length, box edge, mesh bounding diameter
+MAX_OBJECT_MASS = 1000.0  # kg
+MAX_GRAVITY = 1000.0  # m/s^2, each component of [world] gravity
 MAX_OBSTACLE_SIZE = 2.0 * MAX_POSITION  # m: the same for an obstacle
 MAX_MESH_SCALE = 1000.0  # object and obstacle mesh ``scale``
 MAX_OBSTACLES = 256  # [[obstacles]] tables
@@ -69,18 +71,31 @@ MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
 HAND_BUILTIN_FIELDS = frozenset({"builtin"})
 HAND_URDF_FIELDS = frozenset({"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"})
 OBSTACLE_OWN_FIELDS = frozenset({"name", "pose_xyzquat"})  # beside its shape fields
+OBJECT_OWN_FIELDS = frozenset({"mass"})  # a property of the object, not of its shape
 SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
     "": frozenset(
-        {"name", "hand", "object", "contact", "obstacles", "start", "goal", "planner", "workspace"}
+        {
+            "name",
+            "hand",
+            "object",
+            "contact",
+            "obstacles",
+            "start",
+            "goal",
+            "planner",
+            "workspace",
+            "world",
+        }
     ),
     "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS,  # builtin, or urdf and its fields
-    "object": ALL_SHAPE_FIELDS,  # those of its shape kind (SHAPE_FIELDS)
+    "object": ALL_SHAPE_FIELDS | OBJECT_OWN_FIELDS,  # its shape kind's (SHAPE_FIELDS), mass
     "contact": frozenset({"mu", "friction_edges", "fc_margin", "model", "torsion"}),
     "obstacles": ALL_SHAPE_FIELDS | OBSTACLE_OWN_FIELDS,
     "start": frozenset({"object_pose_xyzquat", "q"}),
     "goal": frozenset({"object_pose_xyzquat", "position_tol", "angle_tol"}),
     "planner": frozenset({"name", "time_limit", "seed", "params", "space"}),
     "workspace": frozenset({"half_extent"}),
+    "world": frozenset({"gravity"}),
 }
 """Accepted fields per table (``""``: the top level; ``obstacles``: each ``[[obstacles]]``)."""
 
@@ -146,6 +161,10 @@ class Scenario:
             (soft finger: also torsional friction about the normal).
         torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
             in (0, ``MAX_TORSION``] for soft contacts; 0 for point contacts.
+        object_mass: ``[object] mass`` (kg), or None (executing a plan then
+            assumes :data:`dexplan.forces.DEFAULT_MASS`).
+        gravity: ``[world] gravity`` (m/s^2, world frame), or None
+            (:data:`dexplan.forces.DEFAULT_GRAVITY`).
     """
 
     name: str
@@ -162,6 +181,8 @@ class Scenario:
     base_dir: Path
     contact_model: str = "point"
     torsion: float = 0.0
+    object_mass: float | None = None
+    gravity: tuple[float, float, float] | None = None
 
 
 # ---------------------------------------------------------------- field checks
@@ -517,7 +538,22 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
 
     hand = _hand(_table(doc, "hand", required=False) or {"builtin": "paper"}, base_dir)
 
-    obj = _shape_fields(_table(doc, "object"), "object", base_dir, max_size=MAX_OBJECT_SIZE)
+    obj_table = _table(doc, "object")
+    obj = _shape_fields(
+        obj_table, "object", base_dir, own=OBJECT_OWN_FIELDS, max_size=MAX_OBJECT_SIZE
+    )
+    mass = (
+        _number(obj_table, "mass", "object", lo=0.0, lo_open=True, hi=MAX_OBJECT_MASS)
+        if "mass" in obj_table
+        else None
+    )
+    wt = _table(doc, "world", required=False)
+    _only(wt, "world", SCENARIO_FIELDS["world"])
+    gravity = (
+        tuple(float(v) for v in _vector(wt, "gravity", "world", 3, max_abs=MAX_GRAVITY))
+        if "gravity" in wt
+        else None
+    )
 
     c = _table(doc, "contact", required=False)
     _only(c, "contact", SCENARIO_FIELDS["contact"])
@@ -606,6 +642,8 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         base_dir=base_dir,
         contact_model=model,
         torsion=torsion,
+        object_mass=mass,
+        gravity=gravity,  # type: ignore[arg-type]
     )
 
 

@@ -25,6 +25,7 @@ HEADINGS = {
     "goal": "`[goal]`",
     "planner": "`[planner]`",
     "workspace": "`[workspace]`",
+    "world": "`[world]`",
 }
 
 
