@@ -29,6 +29,7 @@ from dexplan.bench import (
     summarize,
     write_csv,
 )
+from dexplan.bench.records import empty_record, set_status
 from dexplan.exceptions import InvalidInputError, PlannerError, ScenarioError
 from dexplan.scenario import builtin_scenario_path, load_scenario
 
@@ -67,8 +68,8 @@ needs_matplotlib = pytest.mark.skipif(
 
 
 def _fake_record(task: RunTask, solved: bool, time_s: float, nodes: int) -> dict:
-    rec = bench._empty_record(task)
-    bench._set_status(rec, "solved" if solved else "no_gsn_path")
+    rec = empty_record(task)
+    set_status(rec, "solved" if solved else "no_gsn_path")
     rec.update(
         time=time_s,
         memory=300.0,
@@ -330,7 +331,7 @@ def test_plots_from_records(tmp_path, sphere, cube):
     # a planner that never solves one scenario still plots
     for r in recs:
         if r["planner"] == "KPIECE1" and r["scenario"] == "cube_obstacle":
-            bench._set_status(r, "no_gsn_path")
+            set_status(r, "no_gsn_path")
             r["regrasps"] = None
     paths = plot_results(recs, tmp_path, "PRM")
     assert [p.name for p in paths] == list(bench.PLOT_NAMES)

@@ -1,0 +1,189 @@
+"""Benchmark plots (PNG, matplotlib, the ``bench`` extra): time, success, nodes, regrasps."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dexplan.bench.schema import DEFAULT_BASELINE, PLOT_NAMES
+from dexplan.exceptions import DependencyError
+from dexplan.files import atomic_output
+
+
+def require_matplotlib() -> None:
+    """Raise a clear error when matplotlib (the ``bench`` extra) is missing.
+
+    Raises:
+        DependencyError: matplotlib is not installed.
+    """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError as exc:
+        raise DependencyError(
+            "benchmark plots need matplotlib: pip install 'dexplan[bench]' (or pass --no-plots)"
+        ) from exc
+
+
+def _ordered(records: Sequence[Mapping[str, Any]], key: str) -> list[str]:
+    """The distinct values of a record field, in first-seen order."""
+    out: list[str] = []
+    for rec in records:
+        if rec[key] not in out:
+            out.append(str(rec[key]))
+    return out
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """Records by (scenario, planner), and the folder the plots go to.
+
+    Attributes:
+        plt: ``matplotlib.pyplot`` (Agg backend).
+        out_dir: output folder.
+        scenarios: scenario names, in first-seen order.
+        planners: planner names, the baseline first.
+        by: the records of each (scenario, planner).
+    """
+
+    plt: Any
+    out_dir: Path
+    scenarios: list[str]
+    planners: list[str]
+    by: dict[tuple[str, str], list[Mapping[str, Any]]]
+
+    def save(self, fig: Any, name: str) -> Path:
+        """Write a figure as ``out_dir/name`` (PNG, atomically) and close it."""
+        path = self.out_dir / name
+        with atomic_output(path, "plot") as tmp:
+            fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+        self.plt.close(fig)
+        return path
+
+
+def plot_results(
+    records: Sequence[Mapping[str, Any]],
+    out_dir: str | Path,
+    baseline: str | None = DEFAULT_BASELINE,
+) -> list[Path]:
+    """Write the benchmark plots (PNG) of some run records.
+
+    ``bench_time.png``: box plots of planning time per planner (all runs; the
+    time limit dashed), one panel per scenario. ``bench_success.png``: success
+    rate per planner and scenario. ``bench_nodes.png``: box plots of roadmap
+    nodes (``graph_states``). ``bench_regrasps.png``: regrasps per solved plan.
+
+    Returns:
+        The paths written.
+
+    Raises:
+        DependencyError: matplotlib is not installed.
+    """
+    require_matplotlib()
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    scenarios = _ordered(records, "scenario")
+    planners = _ordered(records, "planner")
+    if baseline in planners:
+        planners.remove(baseline)
+        planners.insert(0, baseline)
+    by = {(s, p): [r for r in records if r["scenario"] == s and r["planner"] == p]
+          for s in scenarios for p in planners}  # fmt: skip
+    grid = _Grid(plt, Path(out_dir), scenarios, planners, by)
+    return [
+        _boxes(grid, "time", "planning time per run (all runs)", "time (s)", PLOT_NAMES[0]),
+        _success(grid, PLOT_NAMES[1]),
+        _boxes(grid, "graph_states", "roadmap nodes generated (all runs)", "nodes", PLOT_NAMES[2]),
+        _boxes(
+            grid,
+            "regrasps",
+            "regrasps per plan (solved runs)",
+            "regrasps",
+            PLOT_NAMES[3],
+            solved_only=True,
+            log=False,
+        ),
+    ]
+
+
+def _boxes(
+    grid: _Grid,
+    column: str,
+    title: str,
+    ylabel: str,
+    name: str,
+    *,
+    solved_only: bool = False,
+    log: bool = True,
+) -> Path:
+    """Box plots of a column per planner, one panel per scenario, every run a point."""
+    n_panels, n_planners = len(grid.scenarios), len(grid.planners)
+    fig, axes = grid.plt.subplots(
+        1, n_panels, figsize=(1.3 + 1.5 * n_planners * n_panels, 3.8), squeeze=False
+    )
+    for ax, scen in zip(axes[0], grid.scenarios, strict=True):
+        data, labels = [], []
+        for i, p in enumerate(grid.planners):
+            rs = [r for r in grid.by[(scen, p)] if r.get("solved") or not solved_only]
+            rs = [r for r in rs if r.get(column) is not None]
+            vals = [float(r[column]) for r in rs]
+            data.append(vals)
+            labels.append(f"{p}\n(n={len(vals)})")
+            # every run as a point (deterministic jitter): solved o, unsolved x
+            for j, r in enumerate(rs):
+                x = i + 1 + 0.3 * ((j * 0.618034) % 1.0 - 0.5)
+                ok = bool(r.get("solved"))
+                ax.plot(
+                    x, float(r[column]), "o" if ok else "x", ms=3, alpha=0.5,
+                    color="tab:green" if ok else "tab:red", zorder=3,
+                )  # fmt: skip
+        ax.boxplot(data, showfliers=False)
+        ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=8)
+        if column == "time":
+            limits = {float(r["time_limit"]) for p in grid.planners for r in grid.by[(scen, p)]}
+            for lim in limits:
+                ax.axhline(lim, color="0.5", ls="--", lw=0.8)
+        if log and any(v > 0 for d in data for v in d if not math.isnan(v)):
+            ax.set_yscale("log")
+        ax.set_title(scen)
+        ax.set_ylabel(ylabel)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle(title)
+    return grid.save(fig, name)
+
+
+def _success(grid: _Grid, name: str) -> Path:
+    """Bars of the success rate per planner, one colour per scenario, each with its n."""
+    scenarios, planners = grid.scenarios, grid.planners
+    fig, ax = grid.plt.subplots(figsize=(1.5 + 1.1 * len(planners) * max(1, len(scenarios)), 3.8))
+    width = 0.8 / max(1, len(scenarios))
+    for k, scen in enumerate(scenarios):
+        rates = []
+        for p in planners:
+            rs = grid.by[(scen, p)]
+            rates.append(100.0 * sum(1 for r in rs if r.get("solved")) / len(rs) if rs else 0.0)
+        xs = [i + (k - (len(scenarios) - 1) / 2) * width for i in range(len(planners))]
+        bars = ax.bar(xs, rates, width, label=scen)
+        for bar, p in zip(bars, planners, strict=True):
+            n = len(grid.by[(scen, p)])
+            ax.annotate(
+                f"{bar.get_height():.0f}%\nn={n}",
+                (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                ha="center",
+                va="bottom",
+                fontsize=7,
+            )
+    ax.set_xticks(range(len(planners)), planners)
+    ax.set_ylim(0, 118)
+    ax.set_ylabel("success rate (%)")
+    ax.set_title("solved runs (plans that passed the verifier)")
+    ax.legend(
+        fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=max(1, len(scenarios))
+    )
+    ax.grid(axis="y", alpha=0.3)
+    return grid.save(fig, name)

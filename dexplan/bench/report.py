@@ -1,0 +1,139 @@
+"""Reports of a sweep: the summary table (medians, success rates, ratios to a baseline), CSVs."""
+
+from __future__ import annotations
+
+import csv
+import math
+import statistics
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from dexplan.bench.schema import CSV_COLUMNS, DEFAULT_BASELINE
+from dexplan.files import atomic_output
+
+
+def _median(values: Iterable[Any]) -> float:
+    """Median of the finite values (None and NaN left out); NaN when there are none."""
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    return statistics.median(vals) if vals else math.nan
+
+
+def _ratio(a: float, b: float) -> float:
+    """``a / b``, NaN when either is NaN or ``b`` is 0."""
+    if math.isnan(a) or math.isnan(b) or b == 0:
+        return math.nan
+    return a / b
+
+
+def summarize(
+    records: Sequence[Mapping[str, Any]], baseline: str | None = DEFAULT_BASELINE
+) -> list[dict[str, Any]]:
+    """Per scenario and planner: success rate, medians, and ratios to the baseline.
+
+    Medians of ``time`` and ``graph_states`` are over all runs (failed runs
+    count with the time they used, as in OMPL's benchmarks); regrasps,
+    transfers, verification time and the planning/verification ratio are over
+    solved runs. Ratios (``*_vs_base``) divide by the baseline planner's figure
+    on the same scenario (NaN without a baseline).
+
+    Returns:
+        One dict per (scenario, planner), in first-seen order.
+    """
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for rec in records:
+        groups.setdefault((str(rec["scenario"]), str(rec["planner"])), []).append(rec)
+    rows = []
+    for (scen, planner), recs in groups.items():
+        solved = [r for r in recs if r.get("solved")]
+        rows.append(
+            {
+                "scenario": scen,
+                "planner": planner,
+                "runs": len(recs),
+                "solved": len(solved),
+                "success_rate": len(solved) / len(recs),
+                "time_median": _median(r.get("time") for r in recs),
+                "time_solved_median": _median(r.get("time") for r in solved),
+                "nodes_median": _median(r.get("graph_states") for r in recs),
+                "components_median": _median(r.get("components") for r in recs),
+                "regrasps_median": _median(r.get("regrasps") for r in solved),
+                "transfers_median": _median(r.get("transfers") for r in solved),
+                "verify_ok": sum(1 for r in solved if r.get("correct_solution")),
+                "verify_time_median": _median(r.get("verify_time") for r in solved),
+                "plan_verify_ratio_median": _median(r.get("plan_verify_ratio") for r in solved),
+                "memory_median": _median(r.get("memory") for r in recs),
+            }
+        )
+    base = {row["scenario"]: row for row in rows if row["planner"] == baseline}
+    for row in rows:
+        b = base.get(row["scenario"])
+        for name in ("success_rate", "time_median", "nodes_median", "regrasps_median"):
+            row[f"{name}_vs_base"] = _ratio(row[name], b[name]) if b else math.nan
+    return rows
+
+
+def _fmt(value: Any, spec: str) -> str:
+    """Format a table cell; a missing or NaN value as ``-`` in the field's width."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        width = spec.split(".")[0]
+        return "-".rjust(int(width) if width.isdigit() else 1)
+    return format(value, spec)
+
+
+def format_summary(rows: Sequence[Mapping[str, Any]], baseline: str | None = None) -> str:
+    """A fixed-width text table of :func:`summarize` rows (the CLI prints it)."""
+    head = (
+        f"{'scenario':<16} {'planner':<11} {'runs':>4} {'solved':>7} {'x base':>6} "
+        f"{'time med':>8} {'x base':>6} {'nodes med':>9} {'x base':>6} "
+        f"{'regrasps':>8} {'transf':>6} {'verify':>6} {'plan/ver':>8} {'MB':>5}"
+    )
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        mark = "*" if baseline is not None and r["planner"] == baseline else ""
+        lines.append(
+            f"{r['scenario'][:16]:<16} {(r['planner'] + mark)[:11]:<11} {r['runs']:>4} "
+            f"{_fmt(100 * r['success_rate'], '6.0f')}% {_fmt(r['success_rate_vs_base'], '6.2f')} "
+            f"{_fmt(r['time_median'], '7.2f')}s {_fmt(r['time_median_vs_base'], '6.2f')} "
+            f"{_fmt(r['nodes_median'], '9.0f')} {_fmt(r['nodes_median_vs_base'], '6.2f')} "
+            f"{_fmt(r['regrasps_median'], '8.1f')} {_fmt(r['transfers_median'], '6.1f')} "
+            f"{r['verify_ok']:>3}/{r['solved']:<2} {_fmt(r['plan_verify_ratio_median'], '8.1f')} "
+            f"{_fmt(r['memory_median'], '5.0f')}"
+        )
+    lines.append(
+        "time and nodes: medians over all runs; regrasps, transfers, plan/verify: over solved "
+        "runs; verify: plans passing dexplan verify / solved"
+        + (f"; x base: ratio to {baseline} (*)" if baseline else "")
+    )
+    return "\n".join(lines)
+
+
+def write_csv(records: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
+    """Write run records (:data:`CSV_COLUMNS`) to a CSV file, atomically."""
+    return _write_table(records, list(CSV_COLUMNS), path)
+
+
+def write_summary_csv(rows: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
+    """Write :func:`summarize` rows to a CSV file, atomically."""
+    fields = list(rows[0]) if rows else ["scenario", "planner"]
+    return _write_table(rows, fields, path)
+
+
+def _write_table(rows: Sequence[Mapping[str, Any]], fields: list[str], path: str | Path) -> Path:
+    """Write the ``fields`` of some rows to a CSV file, atomically (other keys left out)."""
+    path = Path(path)
+    with atomic_output(path, "CSV") as tmp, open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: _csv_value(row.get(k)) for k in fields})
+    return path
+
+
+def _csv_value(value: Any) -> Any:
+    """A value as the CSV gives it: missing and NaN empty, floats in full (``repr``)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return value

@@ -1,0 +1,213 @@
+"""The runs of a sweep: scenarios resolved and hashed, run tasks and their resume keys.
+
+A run is one (scenario, planner, seed, time limit). Its resume key names the
+scenario by name and content hash (:func:`scenario_hash`), so a sweep run again
+skips what is already stored, and an edited scenario is run afresh.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dexplan.bench.schema import DEFAULT_BASELINE
+from dexplan.exceptions import InvalidInputError, PlannerError, ScenarioError
+from dexplan.files import file_sha256
+from dexplan.scenario import Scenario, builtin_scenario_path, load_scenario
+
+
+def resolve_scenario(arg: str | Path) -> Scenario:
+    """Load a scenario from a TOML path, or a builtin scenario by name.
+
+    Args:
+        arg: a scenario file, or the name of a builtin scenario (``paper_sphere``).
+
+    Raises:
+        ScenarioError: no such file or builtin scenario, or an invalid scenario.
+    """
+    path = Path(arg)
+    if path.is_file():
+        return load_scenario(path)
+    if path.suffix == "" and path.name == str(arg):
+        try:
+            return load_scenario(builtin_scenario_path(str(arg)))
+        except ScenarioError as exc:
+            raise ScenarioError(
+                f"scenario file not found: {str(arg)!r}, and it is not a builtin scenario ({exc})"
+            ) from exc
+    raise ScenarioError(f"scenario file not found: {str(arg)!r}")
+
+
+def _canonical(value: Any) -> Any:
+    """JSON-ready view of scenario fields (arrays as lists, paths as strings)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): _canonical(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_canonical(v) for v in value]
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a file the scenario refers to (a marker when it cannot be read)."""
+    try:
+        return file_sha256(path)
+    except OSError:
+        return f"unreadable:{path}"
+
+
+def scenario_description(scenario: Scenario) -> dict[str, Any]:
+    """The fields of a scenario that decide its runs, as plain JSON values.
+
+    The folder of the file, and the planner name, seed and time limit (a sweep
+    sets them) are left out; files the scenario refers to (URDF, meshes) enter
+    by their SHA-256. The contact model and its torsion enter when the model is
+    not the default ``point`` (whose torsion is 0), so the hashes of point-contact
+    scenarios are those they had before contact models existed.
+    """
+    doc = _canonical(scenario)
+    doc.pop("base_dir", None)
+    if doc.get("contact_model", "point") == "point":
+        doc.pop("contact_model", None)
+        doc.pop("torsion", None)
+    doc["planner"] = {k: v for k, v in doc["planner"].items() if k in ("params", "space")}
+    if scenario.hand.urdf is not None:
+        doc["hand"]["urdf"] = _file_digest(Path(scenario.base_dir) / scenario.hand.urdf)
+    for shape in [doc["object"], *doc["obstacles"]]:
+        if isinstance(shape, dict) and "path" in shape:
+            shape["path_sha256"] = _file_digest(Path(scenario.base_dir) / str(shape["path"]))
+    return doc
+
+
+def scenario_hash(scenario: Scenario) -> str:
+    """Short content hash of a scenario (:func:`scenario_description`), 16 hex digits."""
+    text = json.dumps(scenario_description(scenario), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One run of a sweep: a scenario solved by one planner with one seed.
+
+    Attributes:
+        scenario: the problem.
+        scenario_hash: :func:`scenario_hash` of it.
+        planner: OMPL planner name.
+        seed: random seed.
+        time_limit: seconds for the plan() call.
+        plan_dir: folder to write the plan JSON to (None: don't).
+    """
+
+    scenario: Scenario
+    scenario_hash: str
+    planner: str
+    seed: int
+    time_limit: float
+    plan_dir: str | None = None
+
+    @property
+    def key(self) -> str:
+        """Resume key: scenario name and hash, planner, seed, time limit."""
+        return run_key(
+            self.scenario.name, self.scenario_hash, self.planner, self.seed, self.time_limit
+        )
+
+
+def run_key(scenario: str, digest: str, planner: str, seed: int, time_limit: float) -> str:
+    """The resume key of a run (``name@hash/planner/seed/time limit``)."""
+    return f"{scenario}@{digest}/{planner}/{int(seed)}/{float(time_limit)!r}"
+
+
+def parse_planners(planners: str | Sequence[str]) -> list[str]:
+    """Planner names from a list or a comma-separated string, stripped, without repeats.
+
+    Raises:
+        InvalidInputError: no planner name.
+    """
+    names = planners.split(",") if isinstance(planners, str) else list(planners)
+    out: list[str] = []
+    for name in (str(n).strip() for n in names):
+        if name and name not in out:
+            out.append(name)
+    if not out:
+        raise InvalidInputError(f"--planners: give at least one planner name, got {planners!r}")
+    return out
+
+
+def validate_sweep(
+    planners: Sequence[str],
+    seeds: int,
+    time_limit: float | None,
+    *,
+    first_seed: int = 1,
+    jobs: int | None = None,
+    baseline: str | None = DEFAULT_BASELINE,
+) -> None:
+    """Check a sweep's arguments before any work.
+
+    Raises:
+        InvalidInputError: seeds < 1, first seed < 0, time limit not > 0, jobs < 1.
+        PlannerError: an unknown planner or baseline.
+    """
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise InvalidInputError(f"--seeds must be an integer >= 1, got {seeds!r}")
+    if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
+        raise InvalidInputError(f"--first-seed must be an integer >= 0, got {first_seed!r}")
+    if time_limit is not None and not (
+        isinstance(time_limit, int | float) and math.isfinite(time_limit) and time_limit > 0
+    ):
+        raise InvalidInputError(f"--time-limit must be a finite number > 0, got {time_limit!r}")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise InvalidInputError(f"--jobs must be an integer >= 1, got {jobs!r}")
+    from dexplan.planning.ompl import available_planners
+
+    valid = available_planners()
+    for name in [*planners, *([baseline] if baseline else [])]:
+        if name not in valid:
+            raise PlannerError(f"unknown planner {name!r}; valid planners: {', '.join(valid)}")
+
+
+def make_tasks(
+    scenarios: Sequence[Scenario],
+    planners: Sequence[str],
+    seeds: Iterable[int],
+    time_limit: float | None = None,
+    plan_dir: str | Path | None = None,
+) -> list[RunTask]:
+    """The runs of a sweep, seed-major (a partial sweep covers every planner).
+
+    Args:
+        scenarios: problems.
+        planners: planner names.
+        seeds: random seeds.
+        time_limit: seconds per run (None: each scenario's own).
+        plan_dir: folder to write plans to (None: don't write them).
+    """
+    digests = [scenario_hash(s) for s in scenarios]
+    out = []
+    for seed in seeds:
+        for scenario, digest in zip(scenarios, digests, strict=True):
+            limit = float(scenario.planner.time_limit if time_limit is None else time_limit)
+            for planner in planners:
+                out.append(
+                    RunTask(
+                        scenario,
+                        digest,
+                        planner,
+                        int(seed),
+                        limit,
+                        None if plan_dir is None else str(plan_dir),
+                    )
+                )
+    return out

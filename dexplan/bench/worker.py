@@ -1,0 +1,104 @@
+"""One run, in a worker process of its own: plan, read the verifier's verdict, return a record.
+
+Each run gets a fresh process (OMPL's random generator is process-global and
+PRM solves with two threads, so runs that share a process are neither
+independent nor reproducible). The fork server preloads this module
+(:data:`PRELOAD`); it imports lightly, the planner being imported inside
+:func:`execute_run`.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from dexplan.bench.records import (
+    empty_record,
+    fill_stats,
+    jsonable,
+    segments_sha256,
+    set_status,
+)
+from dexplan.bench.schema import PLAN_STATUSES
+from dexplan.bench.tasks import RunTask
+from dexplan.planning.progress import ProgressEvent, Stage
+
+PRELOAD: tuple[str, ...] = (__name__, "dexplan.planning.planner")
+"""Modules a fork server imports once, before it forks the workers."""
+
+
+def execute_run(task: RunTask) -> dict[str, Any]:
+    """Plan one run, time ``dexplan verify`` on its plan, and return its record.
+
+    Meant to run in a fresh process (see the module docstring). Never raises:
+    an exception becomes a record with status ``error``.
+
+    Returns:
+        A dict with every key of :data:`CSV_COLUMNS`, plus ``key``, ``progress``
+        (``[(seconds, stage), ...]``) and ``stats`` (the planner's statistics).
+    """
+    t_wall = time.perf_counter()
+    rec = empty_record(task)
+    events: list[tuple[float, int]] = [(0.0, 0)]
+    try:
+        from dexplan.api import plan
+
+        t0 = time.perf_counter()
+
+        def on_event(event: ProgressEvent) -> None:
+            events.append((time.perf_counter() - t0, int(event.stage)))
+
+        # the planner runs the plan-file verifier itself (once): a plan that
+        # fails it comes back as invalid_plan, with its violations
+        planned = plan(
+            task.scenario,
+            planner=task.planner,
+            seed=task.seed,
+            time_limit=task.time_limit,
+            progress=on_event,
+        )
+        result = planned.result
+        stats = result.stats
+        rec["stats"] = jsonable(stats.as_dict())
+        rec["message"] = result.message
+        fill_stats(rec, stats)
+        set_status(rec, result.status if result.status in PLAN_STATUSES else "error")
+        if result.solved or result.violations:
+            rec["verify_time"] = stats.verify_time_s
+            rec["correct_solution"] = int(result.solved)
+            rec["verify_violations"] = len(result.violations)
+            if rec["verify_time"] and rec["time"] is not None:
+                rec["plan_verify_ratio"] = rec["time"] / rec["verify_time"]
+        if result.solved:
+            base = task.scenario.base_dir
+            rec["plan_sha256"] = segments_sha256(planned.to_document(base)["segments"])
+            if task.plan_dir is not None:
+                name = f"{task.scenario.name}_{task.planner}_seed{task.seed}.json"
+                planned.save(Path(task.plan_dir) / name)
+        events.append((time.perf_counter() - t0, int(Stage.DONE)))
+    except Exception as exc:  # a run that raises is a data point, not the end of a sweep
+        set_status(rec, "error")
+        rec["message"] = f"{type(exc).__name__}: {exc}"
+    rec["memory"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    rec["wall_time"] = time.perf_counter() - t_wall
+    rec["progress"] = events
+    return rec
+
+
+def child_main(task: RunTask, conn: Connection) -> None:
+    """Worker process entry: run, send the record, exit without interpreter teardown."""
+    # Ctrl-C reaches the whole process group: the parent stops the sweep and kills
+    # the workers; a worker must not turn it into a failed run of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        rec = execute_run(task)
+        conn.send(rec)
+        conn.close()
+    finally:
+        # nanobind (ompl) reports "leaked instances" at interpreter exit; skip it
+        os._exit(0)
