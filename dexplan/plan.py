@@ -650,6 +650,15 @@ class _StatsLike(Protocol):
     def as_dict(self) -> Mapping[str, Any]: ...
 
 
+def _object_table(scenario: Any, base: Path, out_dir: Path) -> dict[str, Any]:
+    """The plan's ``object`` table: the shape, and ``mass`` when the scenario gives one."""
+    d = _portable_shape(scenario.object, base, out_dir)
+    mass = getattr(scenario, "object_mass", None)
+    if mass is not None:
+        d["mass"] = float(mass)
+    return d
+
+
 def build_plan_document(
     scenario: Scenario, hand: Hand, result: PlannedPath, out_dir: str | Path = "."
 ) -> dict[str, Any]:
@@ -664,7 +673,7 @@ def build_plan_document(
     out_dir = Path(out_dir)
     base = scenario.base_dir
     g = scenario.goal
-    return {
+    doc = {
         "format": FORMAT,
         "scenario": scenario.name,
         "hand": {
@@ -674,7 +683,7 @@ def build_plan_document(
             "fingertip_radius": hand.fingertip_radius,
             "collision_exclude": [list(p) for p in hand.collision_exclude],
         },
-        "object": _portable_shape(scenario.object, base, out_dir),
+        "object": _object_table(scenario, base, out_dir),
         "mu": scenario.mu,
         "friction_edges": scenario.friction_edges,
         "contact_model": scenario.contact_model,
@@ -692,6 +701,10 @@ def build_plan_document(
         "segments": [segment_to_dict(s) for s in result.segments],
         "stats": _jsonable(result.stats.as_dict()),
     }
+    gravity = getattr(scenario, "gravity", None)
+    if gravity is not None:  # [world] gravity, for executing the plan
+        doc["world"] = {"gravity": [float(v) for v in gravity]}
+    return doc
 
 
 def _jsonable(value: Any) -> Any:

@@ -85,7 +85,7 @@ SEGMENT_KINDS: tuple[str, ...] = ("transfer", "regrasp")
 # hold anything.
 _TOP = (
     {"format", "hand", "object", "mu", "start", "goal", "segments"},
-    {"scenario", "friction_edges", "contact_model", "torsion", "obstacles", "stats"},
+    {"scenario", "friction_edges", "contact_model", "torsion", "obstacles", "world", "stats"},
 )
 _HAND = (
     {"urdf_xml", "joint_names", "fingertip_frames", "fingertip_radius"},
@@ -96,6 +96,8 @@ _GOAL = ({"object_pose_xyzquat"}, {"position_tol", "angle_tol"})
 _SEGMENT = ({"kind", "finger", "waypoints"}, set())
 _WAYPOINT = ({"object_pose_xyzquat", "q", "contacts"}, set())
 _OBSTACLE_EXTRA = ("pose_xyzquat", "name")
+_OBJECT_EXTRA = ("mass",)  # a property of the object, not of its shape
+_WORLD = (set(), {"gravity"})
 
 _POSE = "7 numbers [x, y, z, qx, qy, qz, qw]"
 
@@ -315,7 +317,15 @@ def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
     if "scenario" in doc and not isinstance(doc["scenario"], str):
         _fail("scenario", "must be a string", doc["scenario"])
     n_joints, n_fingers = _hand(doc["hand"])
-    _shape(doc["object"], "object", base)
+    obj = doc["object"]
+    if isinstance(obj, Mapping) and "mass" in obj:
+        _number(obj["mass"], "object.mass", lo=0.0, lo_open=True)
+        obj = {k: v for k, v in obj.items() if k not in _OBJECT_EXTRA}
+    _shape(obj, "object", base)
+    if "world" in doc:
+        world = _table(doc["world"], "world", _WORLD)
+        if "gravity" in world:
+            _vector(world["gravity"], "world.gravity", 3, "3 numbers [gx, gy, gz] (m/s^2)")
     _number(doc["mu"], "mu", lo=0.0)
     if "friction_edges" in doc:
         _integer(doc["friction_edges"], "friction_edges", MIN_FRICTION_EDGES, MAX_FRICTION_EDGES)
