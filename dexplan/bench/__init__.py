@@ -16,6 +16,7 @@ The package, along its seams:
 - :mod:`~dexplan.bench.database`: the Planner Arena database.
 - :mod:`~dexplan.bench.runners`: the local process pool and the Ray backend.
 - :mod:`~dexplan.bench.report` and :mod:`~dexplan.bench.plots`: summary, CSVs, plots.
+- :mod:`~dexplan.bench.extras`: the optional dependencies (matplotlib, Ray).
 - :mod:`~dexplan.bench.sweep`: :func:`run_benchmark`.
 
 The package never prints: progress goes to a callback and the CLI owns output.
@@ -25,7 +26,8 @@ It does not import ``ompl`` (only the :mod:`dexplan.planning.ompl` package does)
 from __future__ import annotations
 
 from dexplan.bench.database import BenchDatabase, code_fingerprint
-from dexplan.bench.plots import plot_results, require_matplotlib
+from dexplan.bench.extras import require_matplotlib
+from dexplan.bench.plots import plot_results
 from dexplan.bench.records import failure_record, segments_sha256
 from dexplan.bench.report import format_summary, summarize, write_csv, write_summary_csv
 from dexplan.bench.runners import BenchProgress, ProgressCallback, default_run_timeout

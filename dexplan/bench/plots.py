@@ -8,23 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dexplan.bench.extras import require_matplotlib
 from dexplan.bench.schema import DEFAULT_BASELINE, PLOT_NAMES
-from dexplan.exceptions import DependencyError
 from dexplan.files import atomic_output
-
-
-def require_matplotlib() -> None:
-    """Raise a clear error when matplotlib (the ``bench`` extra) is missing.
-
-    Raises:
-        DependencyError: matplotlib is not installed.
-    """
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError as exc:
-        raise DependencyError(
-            "benchmark plots need matplotlib: pip install 'dexplan[bench]' (or pass --no-plots)"
-        ) from exc
 
 
 def _ordered(records: Sequence[Mapping[str, Any]], key: str) -> list[str]:

@@ -24,10 +24,11 @@ from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_connections
 from typing import Any, Protocol
 
+from dexplan.bench.extras import require_ray
 from dexplan.bench.records import failure_record
 from dexplan.bench.tasks import RunTask
 from dexplan.bench.worker import PRELOAD, child_main, execute_run
-from dexplan.exceptions import DependencyError, InvalidInputError
+from dexplan.exceptions import InvalidInputError
 
 
 @dataclass(frozen=True)
@@ -200,21 +201,6 @@ def run_local(
 
 
 # ------------------------------------------------------------------ Ray
-
-
-def require_ray() -> Any:
-    """The ``ray`` module.
-
-    Raises:
-        DependencyError: Ray is not installed.
-    """
-    try:
-        import ray
-    except ImportError as exc:
-        raise DependencyError(
-            "--ray needs Ray: pip install 'dexplan[ray]' (or pip install ray)"
-        ) from exc
-    return ray
 
 
 def check_ray_address(address: str) -> None:

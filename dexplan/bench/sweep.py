@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from dexplan.bench.database import BenchDatabase, code_fingerprint
-from dexplan.bench.plots import plot_results, require_matplotlib
+from dexplan.bench.extras import require_matplotlib, require_ray
+from dexplan.bench.plots import plot_results
 from dexplan.bench.report import summarize, write_csv, write_summary_csv
 from dexplan.bench.runners import (
     BenchProgress,
@@ -28,7 +29,6 @@ from dexplan.bench.runners import (
     ProgressCallback,
     check_ray_address,
     default_run_timeout,
-    require_ray,
     run_local,
     run_ray,
 )
