@@ -114,7 +114,6 @@ def reduce_object_path(
     segments: list[Segment] = []
     idx, q = 0, q_start.copy()
     regrasps = stall = 0
-    r = trans.hand.fingertip_radius
     while True:
         if trans.deadline.expired():
             return ReductionResult(
@@ -139,17 +138,13 @@ def reduce_object_path(
         future = poses[idx:]
         # the blocking finger first, then the others, least remaining follow first
         others = [i for i in range(n) if i != tr.blocking]
-        follow = {
-            i: int(
-                trans.follow_scores(i, (grasp.points[i] + r * grasp.normals_out[i])[None], future)[
-                    0
-                ]
-            )
-            for i in others
-        }
+        follow = {i: _current_follow(trans, i, q, grasp, future) for i in others}
         order = [tr.blocking, *sorted(others, key=lambda i: follow[i])]
+        # then, when nothing works, any other finger out of the way, even
+        # onto a landing it follows less far from (it may clear the blocker's)
+        passes = [(f, True) for f in order] + [(f, False) for f in order[1:]]
         done = False
-        for f in order:
+        for f, must_gain in passes:
             hint = None
             if hints is not None:
                 h = hints[min(idx, len(hints) - 1), f]
@@ -157,7 +152,7 @@ def reduce_object_path(
             for point, normal, score in trans.landing_candidates(
                 f, poses[idx], q, grasp, future, hint
             ):
-                if f != tr.blocking and score <= follow[f]:
+                if f != tr.blocking and must_gain and score <= follow[f]:
                     break  # moving this finger would not help it follow further
                 seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
                 if seg is not None:
@@ -187,6 +182,24 @@ def reduce_object_path(
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
                 _stats(trans, regrasps),
             )
+
+
+def _current_follow(
+    trans: Transitions, finger: int, q: FloatArray, grasp: GraspContacts, future: FloatArray
+) -> int:
+    """How many of the ``future`` poses ``finger`` can follow on its current contact.
+
+    The IK-only bound (:meth:`Transitions.follow_scores`), tightened by
+    tracking the finger with its links collision-checked
+    (:meth:`Transitions.track_score`) when ``tracked_landings`` is set.
+    """
+    r = trans.hand.fingertip_radius
+    tip = grasp.points[finger] + r * grasp.normals_out[finger]
+    bound = int(trans.follow_scores(finger, tip[None], future)[0])
+    if trans.settings.tracked_landings <= 0 or bound <= 0:
+        return bound
+    limit = bound + max(1, trans.settings.follow_stride)
+    return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
 
 
 def _stats(trans: Transitions, regrasps: int) -> dict[str, int]:

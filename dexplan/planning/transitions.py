@@ -31,8 +31,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
-from dexplan.collision import CollisionWorld
+from dexplan.collision import CollisionWorld, pose_to_se3
 from dexplan.grasp import min_subgrasp_quality
 from dexplan.hand import Hand
 from dexplan.objects import Shape
@@ -55,7 +56,9 @@ class TransitionSettings:
             waypoints (rad); the verifier allows 0.05.
         joint_margin: transfers stop this far (rad) from joint limits.
         lift_height: fingertip clearance above the surface before moving (m).
-        landing_candidates: contacts sampled when choosing a landing.
+        landing_candidates: surface points sampled when choosing a landing.
+        landing_reachable: of those, the ones the finger reaches now that
+            are scored (the first ``landing_reachable``, in sampling order).
         via_points: random via points tried for a free-finger move.
         tip_clearance: minimum gap between fingertip spheres (m).
         follow_stride: pose stride when scoring how long a landing can be followed.
@@ -73,13 +76,18 @@ class TransitionSettings:
             whose last link is within ``acos(landing_alignment)`` of the
             inward normal (its side would touch the surface otherwise);
             None: no such filter. Non-redundant fingers are not filtered.
+        tracked_landings: landing candidates (best IK-only follow scores
+            first) whose follow is re-scored by tracking the finger along the
+            rest of the motion with its links collision-checked against the
+            palm, the object and the obstacles (:meth:`Transitions.track_score`);
+            0: IK-only scores.
     """
 
     max_step_m: float = 0.008
     max_step_rad: float = 0.04
     joint_margin: float = 0.02
     lift_height: float = 0.008
-    landing_candidates: int = 300
+    landing_candidates: int = 1200
     via_points: int = 96
     tip_clearance: float = 0.004
     follow_stride: int = 2
@@ -89,6 +97,8 @@ class TransitionSettings:
     landing_solutions: int = 8
     posture_options: int = 6
     landing_alignment: float | None = 0.4
+    tracked_landings: int = 16
+    landing_reachable: int = 96
 
 
 @dataclass(frozen=True)
@@ -191,6 +201,38 @@ class Transitions:
         for i, idx in enumerate(hand.finger_q_index):
             self._finger_of_joint[idx] = i
         self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
+        self._own_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
+        # landing postures found by track_score, keyed by (finger, fingertip centre)
+        self._postures: dict[tuple[int, bytes], FloatArray] = {}
+
+    def _pairs_of_finger(self, finger: int) -> list[int]:
+        """Collision pairs of a finger's links against the palm, object and obstacles.
+
+        The fingertip-object pair (the contact) and pairs with other fingers
+        are left out: those move with the other fingers.
+        """
+        world = self.world
+        mine = set(world.finger_geoms[finger])
+        on_fingers = {g for geoms in world.finger_geoms for g in geoms}
+        tip = world.tip_geoms[finger]
+        out = []
+        for k, cp in enumerate(world.geom_model.collisionPairs):
+            for g, other in ((cp.first, cp.second), (cp.second, cp.first)):
+                if g not in mine or other in mine:
+                    continue
+                if other == world.object_geom and g == tip:
+                    continue
+                if other not in on_fingers:
+                    out.append(k)
+        return out
+
+    def _finger_free(self, finger: int, q: FloatArray, M_obj: pin.SE3) -> bool:
+        """``finger``'s links at ``q: (nq,)`` clear of palm, object (pose ``M_obj``), obstacles."""
+        world, hand = self.world, self.hand
+        gm, gd = world.geom_model, world.geom_data
+        pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
+        gd.oMg[world.object_geom] = M_obj
+        return not any(pin.computeCollision(gm, gd, k) for k in self._own_pairs[finger])
 
     # ------------------------------------------------------------------ helpers
     def tip_targets(self, pose: FloatArray, grasp: GraspContacts) -> FloatArray:
@@ -383,6 +425,109 @@ class Transitions:
         follow = np.cumprod(ok, axis=0).sum(axis=0)
         return follow * stride
 
+    def track_score(
+        self,
+        finger: int,
+        q: FloatArray,
+        tip_obj: FloatArray,
+        normal_obj: FloatArray,
+        future_poses: FloatArray,
+        limit: int,
+    ) -> tuple[int, FloatArray | None]:
+        """How many consecutive future poses the finger follows from a contact, links checked.
+
+        The finger lands at ``future_poses[0]`` in its collision-free posture
+        whose last link points most into the surface (or, when ``q`` already
+        touches there, in ``q``'s own posture), then follows the contact as a
+        transfer does (tracking IK with the inward normal, other postures one
+        step away when one collides), its links checked against the palm, the
+        object and the obstacles (not the other fingers, which move too).
+
+        Args:
+            finger: the finger.
+            q: (nq,) current hand configuration.
+            tip_obj: (3,) fingertip centre (contact + r * normal), object frame.
+            normal_obj: (3,) outward normal there, object frame.
+            future_poses: (P, 7) the rest of the object trajectory (first = now).
+            limit: stop counting after this many poses.
+
+        Returns:
+            ``(count, q_finger)``: poses followed from the first (0: the
+            finger cannot touch there collision-free) and the landing posture.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        lo, hi = self._lo[idx], self._hi[idx]
+        qh = q.copy()
+        count, q_land = 0, None
+        for j in range(min(limit, len(future_poses))):
+            pose = future_poses[j]
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            tip = R @ tip_obj + pose[:3]
+            inward = -(R @ normal_obj)
+            M = pose_to_se3(pose)
+            if j == 0:
+                q_f = self._landing_posture(finger, q, tip, inward, M)
+                if q_f is None:
+                    return 0, None
+                q_land = q_f
+                qh[idx] = q_f
+                count = 1
+                continue
+            q_f = hand.finger_ik_fast(finger, tip, qh, inward)
+            ok = q_f is not None and bool(np.all(q_f >= lo) and np.all(q_f <= hi))
+            if ok:
+                q_try = qh.copy()
+                q_try[idx] = q_f
+                ok = self._finger_free(finger, q_try, M)
+            if not ok:
+                q_f = None
+                for alt in hand.finger_ik_alternatives(finger, tip, qh, inward)[
+                    : self.settings.posture_options
+                ]:
+                    if np.any(alt < lo) or np.any(alt > hi):
+                        continue
+                    q_try = qh.copy()
+                    q_try[idx] = alt
+                    if self._finger_free(finger, q_try, M):
+                        q_f = alt
+                        break
+                if q_f is None:
+                    break
+            qh[idx] = q_f
+            count += 1
+        return count, q_land
+
+    def _landing_posture(
+        self, finger: int, q: FloatArray, tip: FloatArray, inward: FloatArray, M: pin.SE3
+    ) -> FloatArray | None:
+        """A collision-free posture of ``finger`` with its tip centre at ``tip`` (world).
+
+        ``q``'s own when it is there already, else the IK solution (within
+        the joint margin) whose last link points most along ``inward``.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        if np.linalg.norm(hand.fingertip_positions(q)[finger] - tip) < 1e-6:
+            return q[idx].copy() if self._finger_free(finger, q, M) else None
+        cands, ok = hand.finger_ik_candidates(finger, tip[None])
+        cands, ok = cands[0], ok[0]
+        ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=1)
+        rows = np.flatnonzero(ok)
+        if not len(rows):
+            return None
+        split = hand._split_ik[finger]
+        if split is not None:
+            rows = rows[np.argsort(-split.alignment(cands[rows], inward), kind="stable")]
+        else:
+            rows = rows[np.argsort(np.linalg.norm(cands[rows] - q[idx], axis=1), kind="stable")]
+        qh = q.copy()
+        for k in rows[: self.settings.landing_solutions]:
+            qh[idx] = cands[k]
+            if self._finger_free(finger, qh, M):
+                return cands[k].copy()
+        return None
+
     def landing_candidates(
         self,
         finger: int,
@@ -420,30 +565,68 @@ class Transitions:
         keep = np.flatnonzero(apart & moved)
         if len(keep) == 0:
             return
+        # reachable now (one IK batch), then at most landing_reachable of them
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        idx = self.hand.finger_q_index[finger]
+        q_now, ok_now = self.hand.finger_ik_batch(finger, tip_obj[keep] @ R.T + pose[:3])
+        ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
+        keep = keep[ok_now][: s.landing_reachable + (hint is not None)]
+        if len(keep) == 0:
+            return
         scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
         reach = scores > 0
         keep, scores = keep[reach], scores[reach]
         if s.landing_alignment is not None and len(keep):
             # the distal link must be able to point into the surface there,
             # or the finger's side touches the object (redundant fingers)
-            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
             aligned = self._alignment(finger, tip_obj[keep] @ R.T + pose[:3], -nrm[keep] @ R.T)
             good = aligned >= s.landing_alignment
             keep, scores = keep[good], scores[good]
         order = np.lexsort((self.rng.random(len(keep)), -scores))
-        found = 0
-        for k in order:
-            if self.deadline.expired():
-                return
-            c = keep[k]
-            self.stats["landing_checks"] += 1
-            new = grasp.replace(finger, pts[c], nrm[c])
-            if self.grasp_quality(new) <= self.validity.fc_margin:
+        keep, scores = keep[order], scores[order]
+        # Best IK-only score first, each candidate that keeps force closure is
+        # tracked (links collision-checked) until the next IK-only score, an
+        # upper bound, cannot beat the best tracked one; tracked landings come
+        # first by tracked score, then the untracked ones by their bound.
+        self._postures.clear()
+        tracked: list[tuple[int, int]] = []
+        best, pos = 0, 0
+        while pos < len(keep) and len(tracked) < s.tracked_landings and scores[pos] > best:
+            c = keep[pos]
+            pos += 1
+            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
                 continue
-            yield pts[c], nrm[c], int(scores[k])
+            horizon = int(scores[pos - 1]) + max(1, s.follow_stride)
+            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
+            if q_land is None:
+                continue
+            self._postures[(finger, pts[c].tobytes())] = q_land
+            tracked.append((count, int(c)))
+            best = max(best, count)
+        tracked.sort(key=lambda t: -t[0])
+        found = 0
+        for count, c in tracked:
+            yield pts[c], nrm[c], count
             found += 1
             if found >= limit:
                 return
+        for c, score in zip(keep[pos:], scores[pos:], strict=True):
+            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+                continue
+            yield pts[c], nrm[c], int(score)
+            found += 1
+            if found >= limit:
+                return
+
+    def _landing_fc(
+        self, finger: int, grasp: GraspContacts, point: FloatArray, normal: FloatArray
+    ) -> bool:
+        """Every (n-1) subgrasp stays force closure with ``finger`` moved there (certified)."""
+        if self.deadline.expired():
+            return False
+        self.stats["landing_checks"] += 1
+        new = grasp.replace(finger, point, normal)
+        return self.grasp_quality(new) > self.validity.fc_margin
 
     def _alignment(self, finger: int, tips: FloatArray, inward: FloatArray) -> FloatArray:
         """Best cosine ``(C,)`` between the last link and ``inward: (C, 3)`` over IK solutions.
@@ -496,7 +679,7 @@ class Transitions:
         lift = self._straight_tip_move(finger, q, tip_now, n_now, pose, free_mask)
         if lift is None:
             return None
-        q_touch = self._landing_configuration(finger, q, tip_new, pose)
+        q_touch = self._landing_configuration(finger, q, tip_new, pose, new_point)
         if q_touch is None:
             return None
         land = self._straight_tip_move(finger, q_touch, tip_new, n_new, pose, free_mask)
@@ -521,7 +704,12 @@ class Transitions:
         return Segment("regrasp", finger, tuple(wps))
 
     def _landing_configuration(
-        self, finger: int, q: FloatArray, tip: FloatArray, pose: FloatArray
+        self,
+        finger: int,
+        q: FloatArray,
+        tip: FloatArray,
+        pose: FloatArray,
+        point: FloatArray | None = None,
     ) -> FloatArray | None:
         """Hand configuration with ``finger`` touching at fingertip centre ``tip: (3,)``.
 
@@ -531,8 +719,15 @@ class Transitions:
         """
         hand = self.hand
         idx = hand.finger_q_index[finger]
-        q_f = hand.finger_ik_fast(finger, tip, q)
         tried: list[FloatArray] = []
+        cached = None if point is None else self._postures.get((finger, point.tobytes()))
+        if cached is not None:
+            q1 = q.copy()
+            q1[idx] = cached
+            if self.world.is_free(q1, pose, self.all_contact):
+                return q1
+            tried.append(cached)
+        q_f = hand.finger_ik_fast(finger, tip, q)
         if q_f is not None:
             q1 = q.copy()
             q1[idx] = q_f
