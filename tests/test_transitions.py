@@ -100,3 +100,29 @@ def test_needless_regrasps_are_dropped() -> None:
     assert [s.kind for s in drop_regrasps(tr, [transfer, r2])] == ["transfer"]
     # the only segment is kept even if it is a regrasp
     assert drop_regrasps(tr, [r1]) == [r1]
+
+
+def test_tracked_follow_bounds_the_transfer() -> None:
+    """A transfer stops no later than the finger that tracks the least far (links checked)."""
+    scenario = default_scenario()
+    ctx = build_context(scenario, seed=2)
+    x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+    assert x is not None
+    pose, q = x[:7], x[7:]
+    tr = ctx.transitions
+    grasp = grasp_from_state(tr, pose, q)
+    goal = pose.copy()
+    goal[3:] = [0.0, 0.0, 1.0, 0.0]  # 180 degrees about z
+    poses = densify_poses(np.stack([pose, goal]), 0.008, 0.04)
+    r = ctx.hand.fingertip_radius
+    counts = []
+    for f in range(ctx.hand.n_fingers):
+        tip = grasp.points[f] + r * grasp.normals_out[f]
+        bound = int(tr.follow_scores(f, tip[None], poses)[0])
+        count, q_land = tr.track_score(f, q, tip, grasp.normals_out[f], poses, len(poses))
+        assert q_land is not None  # the current contact: its own posture
+        np.testing.assert_allclose(q_land, q[ctx.hand.finger_q_index[f]])
+        assert 1 <= count <= bound + tr.settings.follow_stride
+        counts.append(count)
+    res = tr.transfer(poses, 0, q, grasp)
+    assert res.reached + 1 <= min(counts)
