@@ -28,9 +28,6 @@ def __getattr__(name: str) -> Any:
     if name in _API:
         from dexplan import api
 
-        # importing api imports the plan-file module dexplan/plan.py, which
-        # binds the attribute ``dexplan.plan`` to that module: bind the front
-        # door's names over it, so the next ``dexplan.plan`` is the function
-        globals().update({n: getattr(api, n) for n in _API})
+        globals().update({n: getattr(api, n) for n in _API})  # once: no more lookups here
         return getattr(api, name)
     raise AttributeError(f"module 'dexplan' has no attribute {name!r}")

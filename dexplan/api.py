@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from dexplan.hand import Hand
-from dexplan.plan import VerifyReport, build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.plan_file import VerifyReport, build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import PlanResult
 from dexplan.planning.planner import plan as _plan

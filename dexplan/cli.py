@@ -123,7 +123,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     """Plan a scenario; write the plan (and optionally roadmap and recording)."""
     from dexplan.api import plan
     from dexplan.files import check_output_path
-    from dexplan.plan import write_plan
+    from dexplan.plan_file import write_plan
     from dexplan.planning.context import build_hand
     from dexplan.planning.roadmap import Roadmap
     from dexplan.scenario import MAX_TIME_LIMIT, SEED_LIMIT
@@ -226,7 +226,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     """Verify a plan file from the file alone."""
     from pathlib import Path
 
-    from dexplan.plan import read_plan, verify_plan
+    from dexplan.plan_file import read_plan, verify_plan
 
     doc = read_plan(args.plan)
     report = verify_plan(doc, Path(args.plan).resolve().parent)
@@ -350,7 +350,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     )
     from dexplan.files import check_output_path
     from dexplan.forces import force_settings_from_plan
-    from dexplan.plan import hand_from_plan, read_plan
+    from dexplan.plan_file import hand_from_plan, read_plan
     from dexplan.timing import TimingLimits
 
     out = check_output_path(args.output, "-o")
@@ -398,7 +398,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dexplan.files import check_output_path
-    from dexplan.plan import read_plan
+    from dexplan.plan_file import read_plan
     from dexplan.replay import replay_plan, require_mujoco
 
     require_mujoco()

@@ -130,7 +130,7 @@ def build_trajectory(
     """Time, sample and add forces to a validated plan.
 
     Args:
-        doc: the plan (:func:`dexplan.plan.read_plan`).
+        doc: the plan (:func:`dexplan.plan_file.read_plan`).
         rate: samples per second (Hz), in (0, :data:`MAX_RATE`].
         limits: timing limits (default :class:`~dexplan.timing.TimingLimits`).
         settings: force settings (default: the plan's mass and gravity).
@@ -150,7 +150,7 @@ def build_trajectory(
     ):
         raise InvalidInputError(f"rate must be in (0, {MAX_RATE:g}] Hz, got {rate!r}")
     if hand is None:
-        from dexplan.plan import hand_from_plan
+        from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     settings = force_settings_from_plan(doc) if settings is None else settings

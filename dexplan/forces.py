@@ -456,7 +456,7 @@ def solver_from_plan(
     from dexplan.objects import shape_from_dict
 
     if hand is None:
-        from dexplan.plan import hand_from_plan
+        from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     shape = {k: v for k, v in doc["object"].items() if k != "mass"}

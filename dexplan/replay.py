@@ -380,7 +380,7 @@ def replay_plan(
     """Simulate the plan in MuJoCo and measure how far the object strays from it.
 
     Args:
-        doc: a validated plan (:func:`dexplan.plan.read_plan`).
+        doc: a validated plan (:func:`dexplan.plan_file.read_plan`).
         gravity: gravity on (the plan's ``world.gravity`` or ``(0, 0, -9.81)``) or off.
         base_dir: the plan's folder (mesh paths).
         rate: trajectory samples per second (targets in between are interpolated).
@@ -403,7 +403,7 @@ def replay_plan(
     from dexplan.pose import quat_angle
 
     if hand is None:
-        from dexplan.plan import hand_from_plan
+        from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)

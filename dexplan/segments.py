@@ -4,7 +4,7 @@ A manipulation path is an alternation of **transfer** segments (contacts fixed
 in the object frame, the object moves) and **regrasp** segments (the object is
 still, one finger leaves its contact and lands on another). Consecutive
 segments share their boundary waypoint. These are the in-memory types; the plan
-file (``dexplan.plan``) serialises them.
+file (``dexplan.plan_file``) serialises them.
 """
 
 from __future__ import annotations

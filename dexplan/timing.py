@@ -552,7 +552,7 @@ def time_plan(
     """Time-parameterise every segment of a validated ``dexplan-plan/1`` document.
 
     Args:
-        doc: the plan (:func:`dexplan.plan.read_plan`).
+        doc: the plan (:func:`dexplan.plan_file.read_plan`).
         limits: the limits (defaults: module docstring).
         hand: the plan's :class:`~dexplan.hand.Hand` (built from the file when None).
 
@@ -562,7 +562,7 @@ def time_plan(
         PlanFileError: the hand cannot be rebuilt from the file.
     """
     if hand is None:
-        from dexplan.plan import hand_from_plan
+        from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     if limits.joint_velocity is None:

@@ -182,7 +182,7 @@ class _Scene:
 
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
     from dexplan.hand import example_robot_data_file
-    from dexplan.plan import hand_from_plan
+    from dexplan.plan_file import hand_from_plan
 
     package_dirs: list[str | Path] = [base_dir]
     try:  # the allegro hand's meshes live in example-robot-data's share folder
@@ -218,7 +218,7 @@ def _scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> _Scene:
             field; :func:`dexplan.plan_schema.validate_plan`) or its hand does
             not build.
     """
-    from dexplan.plan import models_from_document
+    from dexplan.plan_file import models_from_document
     from dexplan.plan_schema import validate_plan
 
     validate_plan(doc, base_dir)
@@ -816,8 +816,8 @@ def record_plan(
     plot, mode lanes and the segment log.
 
     Args:
-        doc: the plan document (as from :func:`dexplan.plan.read_plan` or
-            :func:`dexplan.plan.build_plan_document`).
+        doc: the plan document (as from :func:`dexplan.plan_file.read_plan` or
+            :func:`dexplan.plan_file.build_plan_document`).
         path: output ``.rrd`` file.
         roadmap: the GSn roadmap the plan came from, drawn statically.
         base_dir: folder relative mesh paths resolve against (the plan's).
@@ -830,7 +830,7 @@ def record_plan(
 
     """
     rr = _rerun()
-    from dexplan.plan import segments_from_dicts
+    from dexplan.plan_file import segments_from_dicts
 
     scene = _scene_from_doc(doc, Path(base_dir))  # validates the document
     segments = segments_from_dicts(doc["segments"])
@@ -932,7 +932,7 @@ def _log_contacts_and_fc(
     than two holding fingers; for ``min_subgrasp``, while a finger is free).
     """
     rr = _rerun()
-    from dexplan.plan import fingertip_contact
+    from dexplan.plan_file import fingertip_contact
     from dexplan.pose import inverse_transform_points, transform_points
 
     hand, obj = scene.hand, scene.obj
@@ -1264,7 +1264,7 @@ def write_recording(
         PlanFileError: unreadable plan or roadmap file.
 
     """
-    from dexplan.plan import read_plan
+    from dexplan.plan_file import read_plan
     from dexplan.planning.roadmap import Roadmap
 
     require_rerun()

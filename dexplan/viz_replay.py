@@ -56,7 +56,7 @@ def record_replay(
     """
     rr = _rerun()
     from dexplan.objects import shape_from_dict
-    from dexplan.plan import hand_from_plan
+    from dexplan.plan_file import hand_from_plan
 
     base_dir = Path(base_dir)
     hand = hand_from_plan(doc["hand"])

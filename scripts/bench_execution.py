@@ -19,7 +19,7 @@ from pathlib import Path
 from dexplan import cli
 from dexplan.exceptions import DexplanError
 from dexplan.export import build_trajectory, check_trajectory, trajectory_document
-from dexplan.plan import hand_from_plan, read_plan
+from dexplan.plan_file import hand_from_plan, read_plan
 from dexplan.replay import replay_plan
 
 

@@ -12,17 +12,18 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_plan_stays_the_function_after_the_api_is_loaded() -> None:
-    # dexplan/plan.py (the plan-file module) is imported by dexplan.api and
-    # binds the attribute dexplan.plan to itself; the front door rebinds it
+    # the plan-file module is dexplan.plan_file: no submodule shadows the front
+    # door's dexplan.plan, in whatever order things are imported
     code = textwrap.dedent(
         """
         import types
+        import dexplan.api, dexplan.plan_file, dexplan.planning.planner
         import dexplan
-        dexplan.load_scenario  # loads dexplan.api, hence dexplan/plan.py
+        dexplan.load_scenario
         for name in ("plan", "verify", "load_scenario", "Plan"):
             value = getattr(dexplan, name)
             assert callable(value) and not isinstance(value, types.ModuleType), name
-        from dexplan.plan import read_plan  # the plan-file module is still importable
+        from dexplan.plan_file import read_plan  # the plan-file module is still importable
         assert callable(read_plan)
         """
     )

@@ -31,7 +31,7 @@ from dexplan.grasp import (
     min_subgrasp_quality,
     soft_finger_facets,
 )
-from dexplan.plan import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.plan_file import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.plan_schema import validate_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.planner import plan

@@ -10,7 +10,7 @@ import numpy as np
 from cli_contract import run_cli
 
 from dexplan import api
-from dexplan import plan as plan_module
+from dexplan import plan_file as plan_module
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.sampler import SamplerStats
 from dexplan.planning.validity import KEPT_PER_REASON, REASONS, ValidityStats

@@ -9,7 +9,7 @@ from cli_contract import assert_bad_input, run_cli
 
 from dexplan import cli
 from dexplan.export import check_trajectory, read_trajectory
-from dexplan.plan import read_plan
+from dexplan.plan_file import read_plan
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 
 from dexplan import cli
 from dexplan.forces import ForceSettings, GripForceError, plan_waypoint_forces
-from dexplan.plan import hand_from_plan, read_plan
+from dexplan.plan_file import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dexplan.exceptions import PlanFileError
-from dexplan.plan import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.plan_file import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import plan
 from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from dexplan import plan_schema
 from dexplan.hand import Hand
-from dexplan.plan import read_plan, verify_plan
+from dexplan.plan_file import read_plan, verify_plan
 from dexplan.pose import quat_from_axis_angle, transform_points
 
 RADIUS = 0.04

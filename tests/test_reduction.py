@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.plan import build_plan_document, verify_plan
+from dexplan.plan_file import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state

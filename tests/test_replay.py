@@ -9,7 +9,7 @@ from cli_contract import assert_bad_input, run_cli
 
 from dexplan import cli
 from dexplan.exceptions import DependencyError
-from dexplan.plan import hand_from_plan, read_plan, write_plan
+from dexplan.plan_file import hand_from_plan, read_plan, write_plan
 
 mujoco = pytest.importorskip("mujoco")
 

@@ -5,7 +5,7 @@ import pytest
 
 from dexplan import cli
 from dexplan.exceptions import InvalidInputError
-from dexplan.plan import hand_from_plan, read_plan
+from dexplan.plan_file import hand_from_plan, read_plan
 from dexplan.timing import (
     DEFAULT_JOINT_VELOCITY,
     TimingLimits,

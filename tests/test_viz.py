@@ -170,7 +170,8 @@ def test_core_modules_do_not_import_rerun() -> None:
     import subprocess
 
     code = (
-        "import sys; import dexplan.plan, dexplan.viz, dexplan.hand, dexplan.objects, dexplan.cli; "
+        "import sys; import dexplan.plan_file, dexplan.viz, dexplan.hand, dexplan.objects, "
+        "dexplan.cli; "
         "sys.exit(1 if 'rerun' in sys.modules else 0)"
     )
     root = Path(__file__).resolve().parents[1]
@@ -206,7 +207,7 @@ def fc_stub(monkeypatch: pytest.MonkeyPatch) -> bool:
 
 def test_synthetic_plan_is_consistent(paper_hand: Hand, plan_doc: dict) -> None:
     """The test plan itself: fingertips on the sphere, regrasp only moves finger 0."""
-    from dexplan.plan import segments_from_dicts
+    from dexplan.plan_file import segments_from_dicts
 
     r = RADIUS + paper_hand.fingertip_radius
     for seg in segments_from_dicts(plan_doc["segments"]):
@@ -342,7 +343,7 @@ def test_record_roadmap_alone_and_with_scene(tmp_path: Path, plan_doc: dict) -> 
 
 
 def test_write_recording_from_files(tmp_path: Path, plan_doc: dict, fc_stub) -> None:
-    from dexplan.plan import write_plan
+    from dexplan.plan_file import write_plan
     from dexplan.viz import write_recording
 
     plan_path = tmp_path / "plan.json"
