@@ -49,8 +49,10 @@ EXIT_INTERNAL = 3
 EPILOG = """exit codes:
   0  success
   1  no plan found within the time limit, or the plan fails verification
-  2  bad input (malformed scenario or plan, unknown planner, missing file)
+  2  bad input (malformed scenario, plan or roadmap, unknown planner, missing
+     file, unwritable output): one line on stderr naming the field
   3  internal error (a bug: please report it with the output of --debug)
+  130 interrupted (Ctrl-C): nothing is written
 """
 
 
@@ -421,6 +423,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return EXIT_OK if result.tracked else EXIT_FAILED
 
 
+def _command(sub: Any, name: str, help_text: str) -> argparse.ArgumentParser:
+    """A subcommand parser whose help ends with the exit codes."""
+    return sub.add_parser(
+        name,
+        help=help_text,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``dexplan`` command."""
     parser = argparse.ArgumentParser(
@@ -437,11 +449,8 @@ def build_parser() -> argparse.ArgumentParser:
     p_info.add_argument("--hand", default="paper", help="builtin hand name (default: paper)")
     p_info.set_defaults(func=cmd_info)
 
-    p_plan = sub.add_parser(
-        "plan",
-        help="plan a scenario (default: the paper's sphere) and write plan.json",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p_plan = _command(
+        sub, "plan", "plan a scenario (default: the paper's sphere) and write plan.json"
     )
     p_plan.add_argument("scenario", nargs="?", help="scenario TOML (default: paper_sphere)")
     p_plan.add_argument("--planner", help="OMPL planner name (default: the scenario's)")
@@ -467,21 +476,13 @@ def build_parser() -> argparse.ArgumentParser:
     p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_plan.set_defaults(func=cmd_plan)
 
-    p_ver = sub.add_parser(
-        "verify",
-        help="check a plan file against every rule, from the file alone",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p_ver = _command(sub, "verify", "check a plan file against every rule, from the file alone")
     p_ver.add_argument("plan", help="plan JSON file")
     p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
     p_ver.set_defaults(func=cmd_verify)
 
-    p_bench = sub.add_parser(
-        "bench",
-        help="benchmark planners: Planner Arena SQLite, CSV, plots, summary table",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p_bench = _command(
+        sub, "bench", "benchmark planners: Planner Arena SQLite, CSV, plots, summary table"
     )
     p_bench.add_argument(
         "scenarios", nargs="+", metavar="SCENARIO", help="scenario TOML files or builtin names"
@@ -528,11 +529,8 @@ def build_parser() -> argparse.ArgumentParser:
     p_bench.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_bench.set_defaults(func=cmd_bench)
 
-    p_show = sub.add_parser(
-        "show",
-        help="open a plan (.json), roadmap (.npz) or recording (.rrd) in the Rerun viewer",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p_show = _command(
+        sub, "show", "open a plan (.json), roadmap (.npz) or recording (.rrd) in the Rerun viewer"
     )
     p_show.add_argument("source", help="plan .json, roadmap .npz or recording .rrd")
     p_show.add_argument("--save", help="write the recording to this .rrd instead of opening it")
@@ -540,11 +538,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_show.add_argument("--plan", help="a plan .json giving hand and object for a roadmap")
     p_show.set_defaults(func=cmd_show)
 
-    p_exp = sub.add_parser(
+    p_exp = _command(
+        sub,
         "export",
-        help="time-parameterise a plan, add grip forces, write a trajectory (.json or .csv)",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "time-parameterise a plan, add grip forces, write a trajectory (.json or .csv)",
     )
     p_exp.add_argument("plan", help="plan JSON file")
     p_exp.add_argument("-o", "--output", required=True, help="trajectory file: .json or .csv")
@@ -562,11 +559,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_exp.add_argument("--max-acceleration", type=float, help="joint acceleration, rad/s^2 (5)")
     p_exp.set_defaults(func=cmd_export)
 
-    p_rep = sub.add_parser(
+    p_rep = _command(
+        sub,
         "replay",
-        help="replay a plan in MuJoCo physics (needs the sim extra); exit 1 if it loses track",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "replay a plan in MuJoCo physics (needs the sim extra); exit 1 if it loses track",
     )
     p_rep.add_argument("plan", help="plan JSON file")
     grav = p_rep.add_mutually_exclusive_group()
