@@ -52,6 +52,14 @@ class PlanningContext:
     rng: np.random.Generator
     deadline: Deadline
 
+    def reseed_local_planners(self, *key: int) -> None:
+        """Give the local planners a fresh random stream seeded by ``key``.
+
+        The planner starts the reduction on its own stream, so that how many
+        module-2 link attempts the clock allowed never changes its choices.
+        """
+        self.transitions.rng = np.random.default_rng(list(key))
+
 
 def build_hand(scenario: Scenario, *, check_contacts: bool = True) -> Hand:
     """The scenario's hand (builtin or URDF).

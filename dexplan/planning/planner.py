@@ -33,8 +33,13 @@ from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import check_planner
 from dexplan.planning.plan_stats import PlanStats
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
-from dexplan.planning.reduction import grasp_from_state, reduce_gsn_path, reduce_object_path
-from dexplan.planning.roadmap import GsnQuery, Roadmap, explore_gsn, query_roadmap
+from dexplan.planning.reduction import (
+    ReductionResult,
+    grasp_from_state,
+    reduce_gsn_path,
+    reduce_object_path,
+)
+from dexplan.planning.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn, query_roadmap
 from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
@@ -191,173 +196,261 @@ def plan(
     Raises:
         InvalidInputError: unknown ``reduction`` or planner name.
     """
-    t0 = time.perf_counter()
     if reduction not in REDUCTIONS:
         raise InvalidInputError(
             f"reduction must be one of {', '.join(REDUCTIONS)}, got {reduction!r}"
         )
-
-    def say(stage: Stage, message: str, **counts: int) -> None:
-        if progress is not None:
-            progress(ProgressEvent(stage, message, time.perf_counter() - t0, counts))
-
     spec = scenario.planner
     planner = planner or spec.name
-    seed = spec.seed if seed is None else seed
-    time_limit = spec.time_limit if time_limit is None else time_limit
     if roadmap is None:
         check_planner(planner, spec.params)  # bad names fail before any work
-    ctx = build_context(scenario, seed, hand=hand)
-    # every stage watches one deadline (the sampler, goal sampling and the
-    # local planners read it too), keeping a reserve for the verification
-    deadline = t0 + (1.0 - VERIFY_RESERVE) * time_limit
-    ctx.deadline.at = deadline
-    stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
-    pose0 = scenario.start.object_pose_xyzquat
+    query = _Query(
+        scenario,
+        planner,
+        spec.seed if seed is None else seed,
+        spec.time_limit if time_limit is None else time_limit,
+        roadmap,
+        progress,
+        hand,
+    )
+    x_start = query.start_grasp()
+    if x_start is None:
+        why = " within the time limit" if query.ctx.deadline.expired() else ""
+        return query.result(
+            PlanStatus.NO_START_GRASP, f"no valid grasp found at the start pose{why}"
+        )
+    gsn, failed = query.explore(x_start)
+    if failed is not None:
+        return failed
+    assert gsn is not None and gsn.path is not None
+    red = query.reduce(gsn, reduction)
+    if not red.success:
+        return query.result(
+            PlanStatus.REDUCTION_FAILED, red.reason or "", gsn_path=gsn.path, start_q=query.q0
+        )
+    return query.finish(query.smooth(red), gsn.path, verify)
 
-    def result(status: PlanStatus, message: str = "", **kw: Any) -> PlanResult:
-        stats["time_s"] = time.perf_counter() - t0
-        stats["sampler"] = ctx.sampler.stats.as_dict()
-        stats["validity"] = ctx.validity.stats.as_dict()
-        typed = PlanStats.from_mapping(stats)
-        kw.setdefault("segments", ())
-        kw.setdefault("gsn_path", np.zeros((0, ctx.gsn.ambient_dim)))
-        kw.setdefault("roadmap", roadmap)
-        kw.setdefault("start_q", None)
-        rejections = Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats)
+
+class _Query:
+    """One query's state, stage by stage: models, deadline, statistics, progress.
+
+    :func:`plan` runs the stages in order; each returns what the next needs,
+    or the :class:`PlanResult` of the failure that ends the query.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        planner: str,
+        seed: int,
+        time_limit: float,
+        roadmap: Roadmap | None,
+        progress: Progress | None,
+        hand: Hand | None,
+    ) -> None:
+        self.t0 = time.perf_counter()
+        self.scenario, self.planner, self.seed = scenario, planner, seed
+        self.roadmap = roadmap
+        self.progress = progress
+        self.ctx = build_context(scenario, seed, hand=hand)
+        # every stage watches one deadline (the sampler, goal sampling and the
+        # local planners read it too), keeping a reserve for the verification
+        self.deadline = self.t0 + (1.0 - VERIFY_RESERVE) * time_limit
+        self.ctx.deadline.at = self.deadline
+        self.stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
+        self.pose0 = scenario.start.object_pose_xyzquat
+        self.q0: FloatArray | None = None
+
+    def say(self, stage: Stage, message: str, **counts: int) -> None:
+        """Report progress (a :class:`ProgressEvent`), if anyone listens."""
+        if self.progress is not None:
+            elapsed = time.perf_counter() - self.t0
+            self.progress(ProgressEvent(stage, message, elapsed, counts))
+
+    def result(self, status: PlanStatus, message: str = "", **kw: Any) -> PlanResult:
+        """The query's result now: statistics, diagnostics, and the given fields."""
+        ctx = self.ctx
+        self.stats["time_s"] = time.perf_counter() - self.t0
+        self.stats["sampler"] = ctx.sampler.stats.as_dict()
+        self.stats["validity"] = ctx.validity.stats.as_dict()
+        fields: dict[str, Any] = {
+            "segments": (),
+            "gsn_path": np.zeros((0, ctx.gsn.ambient_dim)),
+            "roadmap": self.roadmap,
+            "start_q": self.q0,
+            **kw,
+        }
         return PlanResult(
-            status, start_pose=pose0, stats=typed, message=message, rejections=rejections, **kw
+            status,
+            start_pose=self.pose0,
+            stats=PlanStats.from_mapping(self.stats),
+            message=message,
+            rejections=Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats),
+            **fields,
         )
 
-    say(Stage.START_GRASP, "sampling a start grasp")
-    x_start = start_state(ctx)
-    if x_start is None:
-        why = " within the time limit" if ctx.deadline.expired() else ""
-        return result(PlanStatus.NO_START_GRASP, f"no valid grasp found at the start pose{why}")
-    q_start = x_start[POSE_DIM:]
-
-    goal_draws = [0, 0]  # calls, valid states: tells "no goal grasp" from "no path"
-
-    def goal_sampler() -> FloatArray | None:
-        x = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
-        goal_draws[0] += 1
-        goal_draws[1] += x is not None
+    # -- stage 1: the start grasp --------------------------------------------
+    def start_grasp(self) -> FloatArray | None:
+        """The start GSn state (``start.q`` checked, or a sampled grasp)."""
+        self.say(Stage.START_GRASP, "sampling a start grasp")
+        x = start_state(self.ctx)
+        if x is not None:
+            self.q0 = x[POSE_DIM:]
         return x
 
-    query = GsnQuery(
-        start=x_start,
-        goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
-        goal_sampler=goal_sampler,
-    )
-    say(Stage.MODULE1, f"module 1: exploring GSn with {planner}")
-    if roadmap is None:
-        gsn = explore_gsn(
-            ctx, query, planner, params=spec.params, space=spec.space, seed=seed, deadline=deadline
+    # -- stage 2: modules 1 and 2 --------------------------------------------
+    def explore(self, x_start: FloatArray) -> tuple[GsnResult | None, PlanResult | None]:
+        """A GSn path from the start to the goal region: ``(gsn, None)`` or ``(None, failure)``."""
+        ctx, scenario = self.ctx, self.scenario
+        draws = [0, 0]  # calls, valid states: tells "no goal grasp" from "no path"
+
+        def goal_sampler() -> FloatArray | None:
+            x = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
+            draws[0] += 1
+            draws[1] += x is not None
+            return x
+
+        query = GsnQuery(
+            start=x_start,
+            goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
+            goal_sampler=goal_sampler,
         )
-    else:
-        gsn = query_roadmap(ctx, roadmap, query, deadline=deadline)
-    stats.update(gsn.stats)
-    roadmap = gsn.roadmap
-    stats["goal_samples"] = goal_draws[1]
-    if gsn.path is None:
-        if goal_draws[0] and not goal_draws[1]:
-            msg = f"no valid grasp found at the goal pose ({goal_draws[0]} sampler calls)"
-            return result(PlanStatus.NO_GOAL_GRASP, msg, roadmap=roadmap, start_q=q_start)
-        return result(PlanStatus.NO_GSN_PATH, gsn.message, roadmap=roadmap, start_q=q_start)
-
-    say(
-        Stage.REDUCTION,
-        f"GSn path with {len(gsn.path)} states; reducing to transfers and regrasps",
-        states=len(gsn.path),
-    )
-    t_red = time.perf_counter()
-    poses = gsn.path[:, :POSE_DIM].copy()
-    # projected states meet |quat| = 1 to the projection tolerance only
-    poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
-    # End on the goal pose itself rather than on whichever goal-region state
-    # the planner happened to sample: the plan then depends on OMPL's
-    # (thread- and clock-dependent) search only through the object trajectory.
-    goal = scenario.goal.object_pose_xyzquat.copy()
-    if goal_reached(scenario, poses[-1])[0]:
-        if float(np.dot(goal[3:], poses[-1][3:])) < 0.0:
-            goal[3:] = -goal[3:]
-        poses = np.vstack([poses[:-1], goal[None]])
-    settings = ctx.transitions.settings
-
-    def pose_ok(p: FloatArray) -> bool:
-        inside = np.all(p[:3] >= ctx.gsn.lower[:3]) and np.all(p[:3] <= ctx.gsn.upper[:3])
-        return bool(inside) and not ctx.world.object_collides(p)
-
-    short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
-    grasp = grasp_from_state(ctx.transitions, pose0, q_start)
-    # a fresh stream: module-2 link attempts (as many as the clock allowed)
-    # must not change the reduction's choices
-    ctx.transitions.rng = np.random.default_rng([seed, 2])
-    red = None
-    attempt = 0
-    hopeless: set[str] = set()  # trajectories along which the object itself collides
-    for method, source in _reduction_schedule(reduction):
-        if time.perf_counter() >= deadline:
-            break
-        if source in hopeless:
-            continue
-        attempt += 1
-        if method == "gaits":
-            traj = short if source == "shortcut" else poses
-            dense = densify_poses(traj, settings.max_step_m, settings.max_step_rad)
-            red = reduce_object_path(ctx.transitions, dense, q_start, grasp)
+        self.say(Stage.MODULE1, f"module 1: exploring GSn with {self.planner}")
+        spec = scenario.planner
+        if self.roadmap is None:
+            gsn = explore_gsn(
+                ctx,
+                query,
+                self.planner,
+                params=spec.params,
+                space=spec.space,
+                seed=self.seed,
+                deadline=self.deadline,
+            )
         else:
-            # the GSn states' own contacts (the last state's pose may be replaced
-            # by the goal pose above: its contacts are taken at its own pose)
-            grasps = [
-                grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in gsn.path
-            ]
-            grasps[0] = grasp
-            red = reduce_gsn_path(ctx.transitions, poses, grasps, q_start, deadline=deadline)
-        stats["reduction_method"] = method
-        if red.success:
-            break
-        if red.final:
-            hopeless.add(source)
-        say(
+            gsn = query_roadmap(ctx, self.roadmap, query, deadline=self.deadline)
+        self.stats.update(gsn.stats)
+        self.stats["goal_samples"] = draws[1]
+        self.roadmap = gsn.roadmap
+        if gsn.path is not None:
+            return gsn, None
+        if draws[0] and not draws[1]:
+            msg = f"no valid grasp found at the goal pose ({draws[0]} sampler calls)"
+            return None, self.result(PlanStatus.NO_GOAL_GRASP, msg)
+        return None, self.result(PlanStatus.NO_GSN_PATH, gsn.message)
+
+    # -- stage 3: the reduction ----------------------------------------------
+    def object_trajectory(self, path: FloatArray) -> FloatArray:
+        """(K, 7) object poses of a GSn path, unit quaternions, ending on the goal pose.
+
+        Ending on the goal pose itself rather than on whichever goal-region
+        state the planner happened to sample makes the plan depend on OMPL's
+        (thread- and clock-dependent) search only through the object trajectory.
+        """
+        poses = path[:, :POSE_DIM].copy()
+        # projected states meet |quat| = 1 to the projection tolerance only
+        poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
+        goal = self.scenario.goal.object_pose_xyzquat.copy()
+        if goal_reached(self.scenario, poses[-1])[0]:
+            if float(np.dot(goal[3:], poses[-1][3:])) < 0.0:
+                goal[3:] = -goal[3:]
+            poses = np.vstack([poses[:-1], goal[None]])
+        return poses
+
+    def reduce(self, gsn: GsnResult, reduction: str) -> ReductionResult:
+        """Transfers and regrasps along the GSn path, per :func:`_reduction_schedule`."""
+        ctx, path = self.ctx, gsn.path
+        assert path is not None and self.q0 is not None
+        self.say(
             Stage.REDUCTION,
-            f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}",
-            attempt=attempt,
+            f"GSn path with {len(path)} states; reducing to transfers and regrasps",
+            states=len(path),
         )
-    stats["reduction_attempts"] = attempt
-    stats["reduction_time_s"] = time.perf_counter() - t_red
-    stats["object_poses_shortcut"] = len(short)
-    if red is None or not red.success:
-        msg = red.reason if red is not None else "time limit reached before the reduction"
-        return result(
-            PlanStatus.REDUCTION_FAILED,
-            msg or "",
-            roadmap=roadmap,
-            gsn_path=gsn.path,
-            start_q=q_start,
+        t_red = time.perf_counter()
+        poses = self.object_trajectory(path)
+        step_m, step_rad = (
+            ctx.transitions.settings.max_step_m,
+            ctx.transitions.settings.max_step_rad,
         )
-    stats.update({f"local_{k}": v for k, v in red.stats.items()})
-    segments = drop_regrasps(ctx.transitions, merge_regrasps(ctx.transitions, list(red.segments)))
-    stats.update(count_kinds(segments))
-    stats["graph_nodes"] = len(segments) + 1
-    stats["waypoints"] = sum(len(s.waypoints) for s in segments)
-    trans_m, rot_rad = object_path_length(segments)
-    stats["object_path_m"] = trans_m
-    stats["object_path_rad"] = rot_rad
-    solved = dict(segments=tuple(segments), roadmap=roadmap, gsn_path=gsn.path, start_q=q_start)
-    # re-check the whole plan with the independent verifier, as OMPL checks
-    # simplified paths: a plan that fails it is never returned as solved
-    if verify is None:
-        return result(PlanStatus.SOLVED, **solved)
-    say(Stage.VERIFICATION, "verifying the plan")
-    t_ver = time.perf_counter()
-    violations = tuple(verify(result(PlanStatus.SOLVED, **solved)))
-    stats["verify_time_s"] = time.perf_counter() - t_ver
-    if violations:
-        return result(
-            PlanStatus.INVALID_PLAN,
-            f"the reduced plan failed verification: {'; '.join(violations[:5])}",
-            violations=violations,
-            **solved,
-        )
-    return result(PlanStatus.SOLVED, **solved)
+
+        def pose_ok(p: FloatArray) -> bool:
+            inside = np.all(p[:3] >= ctx.gsn.lower[:3]) and np.all(p[:3] <= ctx.gsn.upper[:3])
+            return bool(inside) and not ctx.world.object_collides(p)
+
+        short = shortcut_object_path(poses, pose_ok, step_m, step_rad)
+        grasp = grasp_from_state(ctx.transitions, self.pose0, self.q0)
+        # a fresh stream: module-2 link attempts (as many as the clock allowed)
+        # must not change the reduction's choices
+        ctx.reseed_local_planners(self.seed, 2)
+        red = ReductionResult(False, (), 0, "time limit reached before the reduction")
+        attempt = 0
+        hopeless: set[str] = set()  # trajectories along which the object itself collides
+        for method, source in _reduction_schedule(reduction):
+            if time.perf_counter() >= self.deadline:
+                break
+            if source in hopeless:
+                continue
+            attempt += 1
+            if method == "gaits":
+                dense = densify_poses(short if source == "shortcut" else poses, step_m, step_rad)
+                red = reduce_object_path(ctx.transitions, dense, self.q0, grasp)
+            else:
+                # the GSn states' own contacts (the last state's pose may be the
+                # goal pose: its contacts are taken at the state's own pose)
+                grasps = [
+                    grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in path
+                ]
+                grasps[0] = grasp
+                red = reduce_gsn_path(
+                    ctx.transitions, poses, grasps, self.q0, deadline=self.deadline
+                )
+            self.stats["reduction_method"] = method
+            if red.success:
+                break
+            if red.final:
+                hopeless.add(source)
+            self.say(
+                Stage.REDUCTION,
+                f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}",
+                attempt=attempt,
+            )
+        self.stats["reduction_attempts"] = attempt
+        self.stats["reduction_time_s"] = time.perf_counter() - t_red
+        self.stats["object_poses_shortcut"] = len(short)
+        return red
+
+    # -- stage 4: smoothing and the final check ------------------------------
+    def smooth(self, red: ReductionResult) -> list[Segment]:
+        """Merge and drop needless regrasps; count what the plan is made of."""
+        trans = self.ctx.transitions
+        self.stats.update({f"local_{k}": v for k, v in red.stats.items()})
+        segments = drop_regrasps(trans, merge_regrasps(trans, list(red.segments)))
+        self.stats.update(count_kinds(segments))
+        self.stats["graph_nodes"] = len(segments) + 1
+        self.stats["waypoints"] = sum(len(s.waypoints) for s in segments)
+        self.stats["object_path_m"], self.stats["object_path_rad"] = object_path_length(segments)
+        return segments
+
+    def finish(
+        self, segments: list[Segment], gsn_path: FloatArray, verify: Verifier | None
+    ) -> PlanResult:
+        """The solved result, once the independent verifier (if any) passes it.
+
+        As OMPL re-checks simplified paths, the whole plan is re-checked: a
+        plan the verifier finds violations in is never returned as solved.
+        """
+        fields: dict[str, Any] = {"segments": tuple(segments), "gsn_path": gsn_path}
+        if verify is None:
+            return self.result(PlanStatus.SOLVED, **fields)
+        self.say(Stage.VERIFICATION, "verifying the plan")
+        t_ver = time.perf_counter()
+        violations = tuple(verify(self.result(PlanStatus.SOLVED, **fields)))
+        self.stats["verify_time_s"] = time.perf_counter() - t_ver
+        if violations:
+            return self.result(
+                PlanStatus.INVALID_PLAN,
+                f"the reduced plan failed verification: {'; '.join(violations[:5])}",
+                violations=violations,
+                **fields,
+            )
+        return self.result(PlanStatus.SOLVED, **fields)
