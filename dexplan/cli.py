@@ -121,16 +121,17 @@ def _load_scenario(arg: str | None):
     return default_scenario() if arg is None else load_scenario(arg)
 
 
-def cmd_plan(args: argparse.Namespace) -> int:
-    """Plan a scenario; write the plan (and optionally roadmap and recording)."""
-    from dexplan.api import plan
+def _check_plan_options(args: argparse.Namespace, scenario: Any) -> Any:
+    """Every option of ``plan`` checked before any work; returns the hand.
+
+    Every output path is checked (none is written unless all can be), and the
+    hand is built, so that a bad URDF is one line before any progress.
+    """
     from dexplan.files import check_output_path
-    from dexplan.plan_file import write_plan
     from dexplan.planning.context import build_hand
-    from dexplan.planning.roadmap import Roadmap
+    from dexplan.planning.ompl import check_planner
     from dexplan.scenario import MAX_TIME_LIMIT, SEED_LIMIT
 
-    scenario = _load_scenario(args.scenario)
     if args.time_limit is not None and not (0 < args.time_limit <= MAX_TIME_LIMIT):
         raise InvalidInputError(
             f"--time-limit must be in (0, {MAX_TIME_LIMIT:g}] s, got {args.time_limit}"
@@ -139,34 +140,77 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--seed must be in [0, {SEED_LIMIT - 1}], got {args.seed}")
     if args.planner is not None and not args.planner.strip():
         raise InvalidInputError("--planner: empty planner name")
-    from dexplan.planning.ompl import check_planner
-
     check_planner(args.planner or scenario.planner.name, scenario.planner.params)
     if args.rrd is not None or args.debug_rrd is not None:
         from dexplan.viz import require_rerun
 
         require_rerun()
-    # every output is checked before planning: none is written unless all can be
-    out = check_output_path(args.output, "-o")
-    extra = (("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap))
-    for option, value in (*extra, ("--debug-rrd", args.debug_rrd)):
+    outputs = (("-o", args.output), ("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap))
+    for option, value in (*outputs, ("--debug-rrd", args.debug_rrd)):
         if value is not None:
             check_output_path(value, option)
-    hand = build_hand(scenario)  # a bad hand model is bad input: one line, before any progress
+    hand = build_hand(scenario)
     q0 = scenario.start.q
     if q0 is not None and q0.shape != (hand.nq,):
         raise InvalidInputError(
             f"start.q must have {hand.nq} entries (the hand's joints), got {q0.shape[0]}"
         )
-    roadmap = None
-    if args.load_roadmap is not None:
-        from dexplan.planning.context import build_context
-        from dexplan.planning.roadmap import scenario_key
+    return hand
 
-        ctx = build_context(scenario, hand=hand)
-        roadmap = Roadmap.load(
-            args.load_roadmap, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim
-        )
+
+def _load_roadmap(path: str, scenario: Any, hand: Any) -> Any:
+    """The roadmap of ``--load-roadmap``, refused unless made for these models."""
+    from dexplan.planning.context import build_context
+    from dexplan.planning.roadmap import Roadmap, scenario_key
+
+    ctx = build_context(scenario, hand=hand)
+    return Roadmap.load(path, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim)
+
+
+def _report_no_plan(planned: Any, out: Any) -> int:
+    """Say why there is no plan; keep a plan that failed verification for inspection."""
+    from dexplan.plan_file import write_plan
+
+    result = planned.result
+    _err(f"no plan: {result.status}: {shorten_text(result.message)}")
+    if result.rejections is not None:
+        _err(result.rejections.describe())
+    if result.status == "invalid_plan" and result.segments:
+        bad = out.with_name(f"{out.stem}.invalid.json")  # never under the requested name
+        doc = planned.to_document(bad.resolve().parent)
+        doc["stats"]["violations"] = list(result.violations)
+        write_plan(bad, doc)
+        _err(f"the plan that failed verification is in {bad}")
+    sys.stdout.write(f"status: {result.status}\ntime_s: {result.stats.time_s:.3f}\n")
+    return EXIT_FAILED
+
+
+def _summary(out: Any, st: Any) -> str:
+    """The stdout summary of a solved plan (a :class:`PlanStats`)."""
+    return (
+        f"status: solved\nplan: {out}\nplanner: {st.planner}  seed: {st.seed}\n"
+        f"time_s: {st.time_s:.3f}  (GSn {st.gsn_time_s or 0:.3f}, "
+        f"reduction {st.reduction_time_s or 0:.3f}, verify {st.verify_time_s or 0:.3f})\n"
+        f"roadmap_nodes: {st.roadmap_nodes}  graph_nodes: {st.graph_nodes}  "
+        f"components: {st.components}\n"
+        f"transfers: {st.transfers}  regrasps: {st.regrasps}  "
+        f"waypoints: {st.waypoints}  reduction: {st.reduction_method}\n"
+    )
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """Plan a scenario; write the plan (and optionally roadmap and recordings)."""
+    from pathlib import Path
+
+    from dexplan.api import plan
+    from dexplan.plan_file import write_plan
+
+    scenario = _load_scenario(args.scenario)
+    hand = _check_plan_options(args, scenario)
+    out = Path(args.output)
+    roadmap = (
+        None if args.load_roadmap is None else _load_roadmap(args.load_roadmap, scenario, hand)
+    )
     if not args.quiet:
         _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
     planned = plan(
@@ -181,7 +225,6 @@ def cmd_plan(args: argparse.Namespace) -> int:
     )
     result = planned.result
     _check_interrupted()
-    st = result.stats
     if args.debug_rrd is not None and result.rejections is not None:
         from dexplan.viz import record_rejections
 
@@ -192,18 +235,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         if not args.quiet:
             _err(f"roadmap written to {args.save_roadmap}")
     if not result.solved:
-        _err(f"no plan: {result.status}: {shorten_text(result.message)}")
-        if result.rejections is not None:
-            _err(result.rejections.describe())
-        if result.status == "invalid_plan" and result.segments:
-            # written for inspection, never under the requested name
-            bad = out.with_name(f"{out.stem}.invalid.json")
-            doc = planned.to_document(bad.resolve().parent)
-            doc["stats"]["violations"] = list(result.violations)
-            write_plan(bad, doc)
-            _err(f"the plan that failed verification is in {bad}")
-        sys.stdout.write(f"status: {result.status}\ntime_s: {st.time_s:.3f}\n")
-        return EXIT_FAILED
+        return _report_no_plan(planned, out)
     doc = planned.to_document(out.resolve().parent)
     write_plan(out, doc)
     if args.rrd is not None:
@@ -212,15 +244,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         record_plan(doc, args.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
         if not args.quiet:
             _err(f"recording written to {args.rrd}")
-    sys.stdout.write(
-        f"status: solved\nplan: {out}\nplanner: {st.planner}  seed: {st.seed}\n"
-        f"time_s: {st.time_s:.3f}  (GSn {st.gsn_time_s or 0:.3f}, "
-        f"reduction {st.reduction_time_s or 0:.3f}, verify {st.verify_time_s or 0:.3f})\n"
-        f"roadmap_nodes: {st.roadmap_nodes}  graph_nodes: {st.graph_nodes}  "
-        f"components: {st.components}\n"
-        f"transfers: {st.transfers}  regrasps: {st.regrasps}  "
-        f"waypoints: {st.waypoints}  reduction: {st.reduction_method}\n"
-    )
+    sys.stdout.write(_summary(out, result.stats))
     return EXIT_OK
 
 
