@@ -457,22 +457,15 @@ def _command(sub: Any, name: str, help_text: str) -> argparse.ArgumentParser:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``dexplan`` command."""
-    parser = argparse.ArgumentParser(
-        prog="dexplan",
-        description="Dexterous in-hand manipulation planning in the n-finger grasp subspace.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--version", action="version", version=_version("dexplan"))
-    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_info(sub: Any) -> None:
+    """The ``info`` subcommand."""
     p_info = sub.add_parser("info", help="show the builtin hand, object and dependency versions")
     p_info.add_argument("--hand", default="paper", help="builtin hand name (default: paper)")
     p_info.set_defaults(func=cmd_info)
 
+
+def _add_plan(sub: Any) -> None:
+    """The ``plan`` subcommand."""
     p_plan = _command(
         sub, "plan", "plan a scenario (default: the paper's sphere) and write plan.json"
     )
@@ -500,11 +493,17 @@ def build_parser() -> argparse.ArgumentParser:
     p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_plan.set_defaults(func=cmd_plan)
 
+
+def _add_verify(sub: Any) -> None:
+    """The ``verify`` subcommand."""
     p_ver = _command(sub, "verify", "check a plan file against every rule, from the file alone")
     p_ver.add_argument("plan", help="plan JSON file")
     p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
     p_ver.set_defaults(func=cmd_verify)
 
+
+def _add_bench(sub: Any) -> None:
+    """The ``bench`` subcommand."""
     p_bench = _command(
         sub, "bench", "benchmark planners: Planner Arena SQLite, CSV, plots, summary table"
     )
@@ -553,6 +552,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_bench.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p_bench.set_defaults(func=cmd_bench)
 
+
+def _add_show(sub: Any) -> None:
+    """The ``show`` subcommand."""
     p_show = _command(
         sub, "show", "open a plan (.json), roadmap (.npz) or recording (.rrd) in the Rerun viewer"
     )
@@ -562,6 +564,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_show.add_argument("--plan", help="a plan .json giving hand and object for a roadmap")
     p_show.set_defaults(func=cmd_show)
 
+
+def _add_export(sub: Any) -> None:
+    """The ``export`` subcommand."""
     p_exp = _command(
         sub,
         "export",
@@ -583,6 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_exp.add_argument("--max-acceleration", type=float, help="joint acceleration, rad/s^2 (5)")
     p_exp.set_defaults(func=cmd_export)
 
+
+def _add_replay(sub: Any) -> None:
+    """The ``replay`` subcommand."""
     p_rep = _command(
         sub,
         "replay",
@@ -603,6 +611,26 @@ def build_parser() -> argparse.ArgumentParser:
         "--rrd", help="write a Rerun recording, plan and replay (needs the viz extra)"
     )
     p_rep.set_defaults(func=cmd_replay)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``dexplan`` command."""
+    parser = argparse.ArgumentParser(
+        prog="dexplan",
+        description="Dexterous in-hand manipulation planning in the n-finger grasp subspace.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=_version("dexplan"))
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_info(sub)
+    _add_plan(sub)
+    _add_verify(sub)
+    _add_bench(sub)
+    _add_show(sub)
+    _add_export(sub)
+    _add_replay(sub)
     return parser
 
 
