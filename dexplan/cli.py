@@ -439,7 +439,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     )
     _check_interrupted()
     if args.rrd is not None:
-        from dexplan.viz_replay import record_replay
+        from dexplan.viz.replay_recording import record_replay
 
         record_replay(doc, result, args.rrd, base_dir=Path(args.plan).resolve().parent)
         _err(f"recording written to {args.rrd}")

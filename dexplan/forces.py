@@ -314,10 +314,6 @@ class GripForceSolver:
         Returns:
             ``(f, tau)``: (k, 3) forces (N) and (k,) torsional moments (N m).
         """
-        import osqp
-
-        from dexplan.grasp import friction_cone_facets, soft_finger_facets
-
         st = self.settings
         mu_eff = self.mu * (1.0 - margin)
         soft = self.contact_model == "soft"
@@ -325,9 +321,56 @@ class GripForceSolver:
         k = P.shape[0]
         r = 4 if soft else 3
         m = k * r
+        cone = self._cone_rows(N, mu_eff, margin, edges, m)
+        G, nrm = _balance_rows(P, N, L if soft else None, m)
+        extra = _frictionless_rows(N, r, m) if mu_eff == 0.0 else []
+        E = np.vstack([G, *([np.array(extra)] if extra else [])])
+        A = np.vstack([E, nrm, cone])
+        lo = np.concatenate(
+            [
+                -w_ext,
+                np.zeros(len(extra)),
+                np.full(k, st.min_normal_force),
+                np.full(len(cone), -np.inf),
+            ]
+        )
+        hi = np.concatenate([-w_ext, np.zeros(len(extra)), np.full(k, np.inf), np.zeros(len(cone))])
+        x = _least_norm(A, lo, hi)
+        if x is None:
+            return None
+        resid = max(
+            float(np.max(np.abs(E @ x - np.concatenate([-w_ext, np.zeros(len(extra))])))),
+            float(np.max(cone @ x, initial=0.0)),
+            float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
+        )
+        if resid > BALANCE_TOL * max(1.0, float(np.max(np.abs(x)))):
+            return None
+        X = x.reshape(k, r)
+        return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
+
+    def _cone_rows(
+        self, N: FloatArray, mu_eff: float, margin: float, edges: int, m: int
+    ) -> FloatArray:
+        """Facet rows ``A x <= 0`` of every contact's shrunk cone over the ``m`` QP variables.
+
+        Args:
+            N: (k, 3) inward unit normals, object frame.
+            mu_eff: the shrunk friction coefficient ``mu (1 - margin)``.
+            margin: the cone margin (the soft torsion shrinks by it too).
+            edges: friction-cone edges of the linearization.
+            m: number of QP variables (``k * r``, ``r`` = 4 soft, 3 point).
+
+        Returns:
+            (rows, m) the stacked facet rows.
+        """
+        from dexplan.grasp import friction_cone_facets, soft_finger_facets
+
+        soft = self.contact_model == "soft"
+        k = N.shape[0]
+        r = 4 if soft else 3
         if soft:
             facets = soft_finger_facets(
-                N, mu_eff, self.torsion * (1.0 - margin), edges, torque_scale=L
+                N, mu_eff, self.torsion * (1.0 - margin), edges, torque_scale=self.L
             )
         else:
             facets = friction_cone_facets(N, mu_eff, edges)
@@ -342,61 +385,7 @@ class GripForceSolver:
                 blk = np.zeros((fc.shape[0], m))
                 blk[:, c * r : c * r + fc.shape[1]] = fc
             rows.append(blk)
-        cone = np.vstack(rows)
-        # balance: sum f_c + F = 0; sum p_c x f_c + L sigma_c n_c + T = 0 (object frame)
-        G = np.zeros((6, m))
-        nrm = np.zeros((k, m))
-        for c in range(k):
-            G[:3, c * r : c * r + 3] = np.eye(3)
-            px, py, pz = P[c]
-            G[3:, c * r : c * r + 3] = np.array([[0, -pz, py], [pz, 0, -px], [-py, px, 0]])
-            if soft:
-                G[3:, c * r + 3] = L * N[c]
-            nrm[c, c * r : c * r + 3] = N[c]
-        extra = []
-        if mu_eff == 0.0:  # frictionless: no tangential force at all
-            for c in range(k):
-                for t in np.linalg.svd(N[c][None, :])[2][1:]:
-                    row = np.zeros(m)
-                    row[c * r : c * r + 3] = t
-                    extra.append(row)
-        E = np.vstack([G, *([np.array(extra)] if extra else [])])
-        A = np.vstack([E, nrm, cone])
-        lo = np.concatenate(
-            [
-                -w_ext,
-                np.zeros(len(extra)),
-                np.full(k, st.min_normal_force),
-                np.full(len(cone), -np.inf),
-            ]
-        )
-        hi = np.concatenate([-w_ext, np.zeros(len(extra)), np.full(k, np.inf), np.zeros(len(cone))])
-        prob = osqp.OSQP()
-        prob.setup(
-            sp.identity(m, format="csc"),
-            np.zeros(m),
-            sp.csc_matrix(A),
-            lo,
-            hi,
-            verbose=False,
-            eps_abs=1e-8,
-            eps_rel=1e-8,
-            max_iter=10000,
-            polishing=True,
-        )
-        res = prob.solve(raise_error=False)
-        x = res.x
-        if x is None or not np.all(np.isfinite(x)) or "infeasible" in str(res.info.status).lower():
-            return None
-        resid = max(
-            float(np.max(np.abs(E @ x - np.concatenate([-w_ext, np.zeros(len(extra))])))),
-            float(np.max(cone @ x, initial=0.0)),
-            float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
-        )
-        if resid > BALANCE_TOL * max(1.0, float(np.max(np.abs(x)))):
-            return None
-        X = x.reshape(k, r)
-        return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
+        return np.vstack(rows)
 
     def _torques(
         self,
@@ -424,6 +413,85 @@ class GripForceSolver:
             m = np.cross(p_c - p_tip, fw[i]) + tors[i] * (R @ N[i])
             tau += J.T @ np.concatenate([fw[i], m])
         return tau
+
+
+def _balance_rows(
+    P: FloatArray, N: FloatArray, L: float | None, m: int
+) -> tuple[FloatArray, FloatArray]:
+    """Balance and normal-force rows of the grip-force QP (object frame).
+
+    Balance: ``sum f_c + F = 0`` and ``sum p_c x f_c + L sigma_c n_c + T = 0``.
+
+    Args:
+        P: (k, 3) contact points, object frame.
+        N: (k, 3) inward unit normals, object frame.
+        L: the torsion scale of soft contacts (variables ``(f_c, sigma_c)``),
+            or None for point contacts (variables ``f_c``).
+        m: number of QP variables.
+
+    Returns:
+        ``(G, nrm)``: (6, m) the wrench of the variables and (k, m) their normal forces.
+    """
+    k = P.shape[0]
+    r = 3 if L is None else 4
+    G = np.zeros((6, m))
+    nrm = np.zeros((k, m))
+    for c in range(k):
+        G[:3, c * r : c * r + 3] = np.eye(3)
+        px, py, pz = P[c]
+        G[3:, c * r : c * r + 3] = np.array([[0, -pz, py], [pz, 0, -px], [-py, px, 0]])
+        if L is not None:
+            G[3:, c * r + 3] = L * N[c]
+        nrm[c, c * r : c * r + 3] = N[c]
+    return G, nrm
+
+
+def _frictionless_rows(N: FloatArray, r: int, m: int) -> list[FloatArray]:
+    """Equality rows ``t . f_c = 0`` on both tangents of every contact (no friction at all).
+
+    Args:
+        N: (k, 3) inward unit normals.
+        r: QP variables per contact.
+        m: number of QP variables.
+    """
+    extra = []
+    for c in range(N.shape[0]):
+        for t in np.linalg.svd(N[c][None, :])[2][1:]:
+            row = np.zeros(m)
+            row[c * r : c * r + 3] = t
+            extra.append(row)
+    return extra
+
+
+def _least_norm(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | None:
+    """OSQP's ``argmin |x|^2`` subject to ``lo <= A x <= hi``; None if it finds none.
+
+    Args:
+        A: (rows, m) the constraint matrix.
+        lo: (rows,) lower bounds (``-inf`` for none).
+        hi: (rows,) upper bounds (``inf`` for none).
+    """
+    import osqp
+
+    m = A.shape[1]
+    prob = osqp.OSQP()
+    prob.setup(
+        sp.identity(m, format="csc"),
+        np.zeros(m),
+        sp.csc_matrix(A),
+        lo,
+        hi,
+        verbose=False,
+        eps_abs=1e-8,
+        eps_rel=1e-8,
+        max_iter=10000,
+        polishing=True,
+    )
+    res = prob.solve(raise_error=False)
+    x = res.x
+    if x is None or not np.all(np.isfinite(x)) or "infeasible" in str(res.info.status).lower():
+        return None
+    return x
 
 
 def force_settings_from_plan(

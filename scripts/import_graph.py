@@ -32,7 +32,7 @@ LAYERS: dict[str, int] = {
     "plan_file": 2, "plan_schema": 2,
     "planning": 3,
     "api": 4, "timing": 4, "forces": 4, "replay": 4, "viz": 4, "bench": 4, "cli": 4,
-    "export": 4, "trajectory": 4, "viz_replay": 4,
+    "export": 4, "trajectory": 4,
 }  # fmt: skip
 NAMES = ["foundations", "models", "plan file", "planning", "callers"]
 

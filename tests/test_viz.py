@@ -190,9 +190,9 @@ def plan_doc(paper_hand: Hand) -> dict:
 @pytest.fixture()
 def fc_stub(monkeypatch: pytest.MonkeyPatch) -> bool:
     """Use dexplan.grasp when it exists, else stand-in qualities (True when real)."""
-    from dexplan import viz
+    from dexplan.viz import contacts
 
-    if viz._fc_functions() is not None:
+    if contacts.fc_functions() is not None:
         return True
 
     def quality(P, N, mu, *, edges=8, torque_scale=None):
@@ -201,7 +201,7 @@ def fc_stub(monkeypatch: pytest.MonkeyPatch) -> bool:
     def min_sub(P, N, mu, *, edges=8, torque_scale=None):
         return 0.05
 
-    monkeypatch.setattr(viz, "_fc_functions", lambda: (quality, min_sub))
+    monkeypatch.setattr(contacts, "fc_functions", lambda: (quality, min_sub))
     return False
 
 
@@ -404,11 +404,12 @@ def test_failed_recording_leaves_no_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plan_doc: dict
 ) -> None:
     from dexplan import viz
+    from dexplan.viz import plan_recording
 
     def boom(*args: object, **kwargs: object) -> None:
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(viz, "_log_plan_states", boom)
+    monkeypatch.setattr(plan_recording, "_log_plan_states", boom)
     with pytest.raises(RuntimeError, match="boom"):
         viz.record_plan(plan_doc, tmp_path / "x.rrd")
     assert list(tmp_path.iterdir()) == []
