@@ -52,7 +52,7 @@ constant on each grid interval.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -402,17 +402,7 @@ def time_segment(
     q = np.asarray(q, dtype=float)
     poses = np.asarray(poses, dtype=float)
     K, nq = q.shape
-    # rotation coordinate and step lengths
-    c = np.zeros((K, 3))
-    steps = np.zeros(K)
-    Rs = [_rotation(p[3:]) for p in poses]
-    for k in range(1, K):
-        w = pin.log3(Rs[k - 1].T @ Rs[k])
-        c[k] = c[k - 1] + w
-        dq = float(np.max(np.abs(q[k] - q[k - 1]))) if nq else 0.0
-        dp = float(np.linalg.norm(poses[k, :3] - poses[k - 1, :3]))
-        steps[k] = max(dq / _STEP_RAD, dp / _STEP_M, float(np.linalg.norm(w)) / _STEP_RAD)
-    steps[steps < _DUPLICATE] = 0.0
+    c, steps = _rotation_and_steps(q, poses)
     ws = np.cumsum(steps)
     keep = np.concatenate([[True], steps[1:] > 0.0])
     if keep.sum() < 2:  # nothing moves: a point at rest
@@ -430,24 +420,8 @@ def time_segment(
     path = toppra.SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
     n_grid = max(2, round(ss[-1] * limits.grid_per_step) + 1)
     grid = np.linspace(0.0, ss[-1], n_grid)
-
-    approach = float(limits.approach_steps)
-    total = float(ss[-1])
-
-    def slow(sv: FloatArray) -> FloatArray:
-        out = np.ones_like(sv)
-        if kind == "regrasp" and approach > 0:
-            near = (sv <= approach) | (sv >= total - approach)
-            out[near] = limits.approach_scale
-        return out
-
-    alim = np.concatenate(
-        [
-            np.full(nq, limits.max_acceleration),
-            np.full(3, limits.object_acceleration / math.sqrt(3.0)),
-            np.full(3, limits.object_angular_acceleration / math.sqrt(3.0)),
-        ]
-    )[moving]
+    slow = _approach_slowdown(kind, limits, float(ss[-1]))
+    alim = _acceleration_limits(nq, limits)[moving]
     vj = np.asarray(joint_velocity, dtype=float)
     fv = fa = SAFETY
     for _ in range(MAX_TIGHTENING):
@@ -477,6 +451,69 @@ def time_segment(
     raise TimingError(
         f"{name}: toppra's profile exceeds the limits between its grid points "
         f"(velocity x{rv:.3f}, acceleration x{ra:.3f}) after {MAX_TIGHTENING} tightenings"
+    )
+
+
+def _rotation_and_steps(q: FloatArray, poses: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The rotation coordinate at each waypoint and the path length of each step.
+
+    Args:
+        q: (K, nq) joint values of the waypoints (rad).
+        poses: (K, 7) object poses of the waypoints, world frame, XYZW.
+
+    Returns:
+        ``(c, steps)``: (K, 3) the summed body-frame rotation vectors (rad) and
+        (K,) each waypoint's step from the previous one in path units
+        (``steps[0] = 0``; steps shorter than the duplicate threshold are 0).
+    """
+    K, nq = q.shape
+    c = np.zeros((K, 3))
+    steps = np.zeros(K)
+    Rs = [_rotation(p[3:]) for p in poses]
+    for k in range(1, K):
+        w = pin.log3(Rs[k - 1].T @ Rs[k])
+        c[k] = c[k - 1] + w
+        dq = float(np.max(np.abs(q[k] - q[k - 1]))) if nq else 0.0
+        dp = float(np.linalg.norm(poses[k, :3] - poses[k - 1, :3]))
+        steps[k] = max(dq / _STEP_RAD, dp / _STEP_M, float(np.linalg.norm(w)) / _STEP_RAD)
+    steps[steps < _DUPLICATE] = 0.0
+    return c, steps
+
+
+def _approach_slowdown(
+    kind: str, limits: TimingLimits, total: float
+) -> Callable[[FloatArray], FloatArray]:
+    """Factor on the joint velocity limits along ``s``: slower near a regrasp's ends.
+
+    Args:
+        kind: ``"transfer"`` or ``"regrasp"`` (a transfer is never slowed).
+        limits: ``approach_steps`` and ``approach_scale``.
+        total: the path length of the segment.
+    """
+    approach = float(limits.approach_steps)
+
+    def slow(sv: FloatArray) -> FloatArray:
+        out = np.ones_like(sv)
+        if kind == "regrasp" and approach > 0:
+            near = (sv <= approach) | (sv >= total - approach)
+            out[near] = limits.approach_scale
+        return out
+
+    return slow
+
+
+def _acceleration_limits(nq: int, limits: TimingLimits) -> FloatArray:
+    """(nq + 6,) acceleration bounds of the path coordinates ``(q, p, c)``.
+
+    The object's are per component, ``limit / sqrt(3)``, so that the norm stays
+    within the limit.
+    """
+    return np.concatenate(
+        [
+            np.full(nq, limits.max_acceleration),
+            np.full(3, limits.object_acceleration / math.sqrt(3.0)),
+            np.full(3, limits.object_angular_acceleration / math.sqrt(3.0)),
+        ]
     )
 
 
