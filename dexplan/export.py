@@ -38,10 +38,12 @@ from dexplan.files import atomic_output
 from dexplan.forces import (
     ForceSettings,
     GripForceError,
+    GripForces,
+    GripForceSolver,
     force_settings_from_plan,
     solver_from_plan,
 )
-from dexplan.timing import PlanTiming, TimingLimits, time_plan
+from dexplan.timing import PlanTiming, SegmentTiming, TimingLimits, TrajectorySample, time_plan
 from dexplan.typing import FloatArray
 
 __all__ = [
@@ -157,101 +159,199 @@ def build_trajectory(
     timing = time_plan(doc, TimingLimits() if limits is None else limits, hand)
     solver = solver_from_plan(doc, settings, hand, base_dir)
     segs = doc["segments"]
-    n, nq = hand.n_fingers, hand.nq
-    cols: dict[str, list[Any]] = {k: [] for k in ("t", "q", "qd", "qdd", "pose", "vel", "acc")}
-    C, Nn, F, T, TAU, M = [], [], [], [], [], []
+    n = hand.n_fingers
+    samples = _Samples()
     ranges = []
     for si, (seg, st) in enumerate(zip(segs, timing.segments, strict=True)):
-        d = st.duration
-        ts = np.arange(0.0, d, 1.0 / rate) if d > 0 else np.zeros(1)
-        if d > 0:
-            ts = ts[ts < d - 1e-9]
-            ts = np.append(ts, d)
-        if si > 0:
-            ts = ts[1:] if ts.size > 1 else ts[:0]  # the shared boundary sample
-        first = len(cols["t"]) - (1 if si > 0 else 0)
+        ts = _sample_times(st.duration, rate, shared_start=si > 0)
+        first = len(samples.t) - (1 if si > 0 else 0)
         smp = st.sample(ts)
-        wps = seg["waypoints"]
-        free_here = seg["finger"] if seg["kind"] == "regrasp" else None
         nxt = segs[si + 1] if si + 1 < len(segs) else None
-        free_next = nxt["finger"] if nxt is not None and nxt["kind"] == "regrasp" else None
         for j in range(ts.size):
-            k = int(smp.step[j])
-            wp = wps[k]
-            at_wp = abs(ts[j] - st.waypoint_times[k]) <= 1e-12 or k == len(wps) - 1
-            contacts = []
-            for i in range(n):
-                c = wp["contacts"][i]
-                lifting = not at_wp and k + 1 < len(wps) and wps[k + 1]["contacts"][i] is None
-                if lifting:
-                    c = None
-                contacts.append(None if c is None else np.asarray(c, dtype=float))
-            end = j == ts.size - 1
-            # a regrasp's free finger is unloaded until it has landed (its last
-            # sample, shared with the next segment); the next regrasp's finger
-            # is unloaded from that shared sample on
-            loaded = tuple(
-                c is not None
-                and not (i == free_here and not (end and nxt is not None))
-                and not (end and i == free_next)
-                for i, c in enumerate(contacts)
+            contacts, loaded = _sample_contacts(seg, st, nxt, ts, j, int(smp.step[j]), n)
+            samples.add_forces(
+                _grip_forces(solver, smp, j, contacts, loaded, unbalanced, si, st), contacts
             )
-            try:
-                g = solver.solve(
-                    smp.q[j],
-                    smp.object_pose[j],
-                    contacts,
-                    loaded,
-                    where=f"segment {si}, waypoint {k} (t = {st.waypoint_times[k]:.3f} s)",
-                )
-            except GripForceError:
-                if unbalanced != "zero":
-                    raise
-                g = solver.solve(smp.q[j], smp.object_pose[j], contacts, (False,) * n)
-                g = replace(g, margin=math.nan)
-            free = np.array([c is None for c in contacts])
-            f = g.forces.copy()
-            tor = g.torsion.copy()
-            f[free] = np.nan
-            tor[free] = np.nan
-            C.append(g.contacts)
-            Nn.append(g.normals)
-            F.append(f)
-            T.append(tor)
-            TAU.append(g.joint_torques)
-            M.append(g.margin)
-        t0 = float(timing.start_times[si])
-        cols["t"].extend((t0 + ts).tolist())
-        for key, arr in (
-            ("q", smp.q),
-            ("qd", smp.qd),
-            ("qdd", smp.qdd),
-            ("pose", smp.object_pose),
-            ("vel", smp.object_velocity),
-            ("acc", smp.object_acceleration),
-        ):
-            cols[key].extend(list(arr))
-        ranges.append((seg["kind"], seg["finger"], first, len(cols["t"]) - 1))
-    # a segment's last sample is shared with the next: the later one's contacts
-    # and forces (computed last) are the ones kept; drop the earlier duplicates
-    return Trajectory(
-        np.asarray(cols["t"]),
-        np.asarray(cols["q"]).reshape(-1, nq),
-        np.asarray(cols["qd"]).reshape(-1, nq),
-        np.asarray(cols["qdd"]).reshape(-1, nq),
-        np.asarray(cols["pose"]).reshape(-1, 7),
-        np.asarray(cols["vel"]).reshape(-1, 6),
-        np.asarray(cols["acc"]).reshape(-1, 6),
-        np.asarray(C).reshape(-1, n, 3),
-        np.asarray(Nn).reshape(-1, n, 3),
-        np.asarray(F).reshape(-1, n, 3),
-        np.asarray(T).reshape(-1, n),
-        np.asarray(TAU).reshape(-1, nq),
-        np.asarray(M),
-        tuple(ranges),
-        timing,
-        settings,
+        samples.add_states(float(timing.start_times[si]) + ts, smp)
+        ranges.append((seg["kind"], seg["finger"], first, len(samples.t) - 1))
+    return samples.trajectory(n, hand.nq, tuple(ranges), timing, settings)
+
+
+def _sample_times(duration: float, rate: float, *, shared_start: bool) -> FloatArray:
+    """A segment's sample times (s from its start): every ``1 / rate`` plus its end.
+
+    Args:
+        duration: the segment's duration (s); 0: one sample at 0.
+        rate: samples per second (Hz).
+        shared_start: the first sample is the previous segment's last: dropped
+            (the boundary sample is the earlier segment's, with its contacts
+            and forces).
+    """
+    ts = np.arange(0.0, duration, 1.0 / rate) if duration > 0 else np.zeros(1)
+    if duration > 0:
+        ts = ts[ts < duration - 1e-9]
+        ts = np.append(ts, duration)
+    if shared_start:
+        ts = ts[1:] if ts.size > 1 else ts[:0]  # the shared boundary sample
+    return ts
+
+
+def _sample_contacts(
+    seg: Mapping[str, Any],
+    st: SegmentTiming,
+    nxt: Mapping[str, Any] | None,
+    ts: FloatArray,
+    j: int,
+    k: int,
+    n: int,
+) -> tuple[list[FloatArray | None], tuple[bool, ...]]:
+    """The contacts of sample ``j`` of a segment and the fingers loaded there.
+
+    Inside a waypoint step the contacts are those of the step's first waypoint,
+    except a finger free at the step's last one (lifting off, or not yet
+    landed). A regrasp's free finger is unloaded until it has landed (its last
+    sample, shared with the next segment); the next regrasp's finger is
+    unloaded from that shared sample on.
+
+    Args:
+        seg: the plan segment.
+        st: its timing.
+        nxt: the next plan segment, or None.
+        ts: the segment's sample times (s from its start).
+        j: the sample.
+        k: the waypoint that starts the step sample ``j`` lies in.
+        n: number of fingers.
+
+    Returns:
+        ``(contacts, loaded)``: per finger the contact point (object frame) or
+        None, and whether it carries load.
+    """
+    wps = seg["waypoints"]
+    wp = wps[k]
+    at_wp = abs(ts[j] - st.waypoint_times[k]) <= 1e-12 or k == len(wps) - 1
+    contacts = []
+    for i in range(n):
+        c = wp["contacts"][i]
+        lifting = not at_wp and k + 1 < len(wps) and wps[k + 1]["contacts"][i] is None
+        if lifting:
+            c = None
+        contacts.append(None if c is None else np.asarray(c, dtype=float))
+    free_here = seg["finger"] if seg["kind"] == "regrasp" else None
+    free_next = nxt["finger"] if nxt is not None and nxt["kind"] == "regrasp" else None
+    end = j == ts.size - 1
+    loaded = tuple(
+        c is not None
+        and not (i == free_here and not (end and nxt is not None))
+        and not (end and i == free_next)
+        for i, c in enumerate(contacts)
     )
+    return contacts, loaded
+
+
+def _grip_forces(
+    solver: GripForceSolver,
+    smp: TrajectorySample,
+    j: int,
+    contacts: list[FloatArray | None],
+    loaded: tuple[bool, ...],
+    unbalanced: str,
+    si: int,
+    st: SegmentTiming,
+) -> GripForces:
+    """Grip forces at sample ``j``; with ``unbalanced="zero"`` none (NaN margin) where none balance.
+
+    Args:
+        solver: the plan's grip-force solver.
+        smp: the segment's samples.
+        j: the sample.
+        contacts: per finger, the contact point or None.
+        loaded: the fingers that carry load.
+        unbalanced: ``"raise"`` or ``"zero"`` (:func:`build_trajectory`).
+        si: the segment's index (error messages).
+        st: the segment's timing (error messages).
+
+    Raises:
+        GripForceError: no forces balance the wrench and ``unbalanced`` is not ``"zero"``.
+    """
+    k = int(smp.step[j])
+    try:
+        return solver.solve(
+            smp.q[j],
+            smp.object_pose[j],
+            contacts,
+            loaded,
+            where=f"segment {si}, waypoint {k} (t = {st.waypoint_times[k]:.3f} s)",
+        )
+    except GripForceError:
+        if unbalanced != "zero":
+            raise
+        g = solver.solve(smp.q[j], smp.object_pose[j], contacts, (False,) * len(contacts))
+        return replace(g, margin=math.nan)
+
+
+class _Samples:
+    """The columns of a trajectory, filled segment by segment."""
+
+    _STATES = ("q", "qd", "qdd", "object_pose", "object_velocity", "object_acceleration")
+
+    def __init__(self) -> None:
+        self.t: list[float] = []
+        self.states: dict[str, list[Any]] = {key: [] for key in self._STATES}
+        self.contacts: list[FloatArray] = []
+        self.normals: list[FloatArray] = []
+        self.forces: list[FloatArray] = []
+        self.torsion: list[FloatArray] = []
+        self.joint_torques: list[FloatArray] = []
+        self.margins: list[float] = []
+
+    def add_forces(self, g: GripForces, contacts: list[FloatArray | None]) -> None:
+        """Append one sample's grip forces (NaN forces and torsion for free fingers)."""
+        free = np.array([c is None for c in contacts])
+        f = g.forces.copy()
+        tor = g.torsion.copy()
+        f[free] = np.nan
+        tor[free] = np.nan
+        self.contacts.append(g.contacts)
+        self.normals.append(g.normals)
+        self.forces.append(f)
+        self.torsion.append(tor)
+        self.joint_torques.append(g.joint_torques)
+        self.margins.append(g.margin)
+
+    def add_states(self, t: FloatArray, smp: TrajectorySample) -> None:
+        """Append a segment's times (from the plan's start) and states."""
+        self.t.extend(t.tolist())
+        for key in self._STATES:
+            self.states[key].extend(list(getattr(smp, key)))
+
+    def trajectory(
+        self,
+        n: int,
+        nq: int,
+        ranges: tuple[tuple[str, int | None, int, int], ...],
+        timing: PlanTiming,
+        settings: ForceSettings,
+    ) -> Trajectory:
+        """The :class:`Trajectory` of the columns (``n`` fingers, ``nq`` joints)."""
+        s = self.states
+        return Trajectory(
+            np.asarray(self.t),
+            np.asarray(s["q"]).reshape(-1, nq),
+            np.asarray(s["qd"]).reshape(-1, nq),
+            np.asarray(s["qdd"]).reshape(-1, nq),
+            np.asarray(s["object_pose"]).reshape(-1, 7),
+            np.asarray(s["object_velocity"]).reshape(-1, 6),
+            np.asarray(s["object_acceleration"]).reshape(-1, 6),
+            np.asarray(self.contacts).reshape(-1, n, 3),
+            np.asarray(self.normals).reshape(-1, n, 3),
+            np.asarray(self.forces).reshape(-1, n, 3),
+            np.asarray(self.torsion).reshape(-1, n),
+            np.asarray(self.joint_torques).reshape(-1, nq),
+            np.asarray(self.margins),
+            ranges,
+            timing,
+            settings,
+        )
 
 
 def _vec(a: FloatArray) -> list[float] | None:
@@ -457,61 +557,16 @@ def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str
     mu, model, torsion = float(con["mu"]), con["contact_model"], float(con["torsion"])
     pts = doc["points"]
     prev_t = -math.inf
-
-    def bad(j: int, msg: str) -> None:
-        if len(out) < 1000:
-            out.append(f"point {j} (t = {pts[j]['time_from_start']:.3f} s): {msg}")
-
     for j, p in enumerate(pts):
         t = float(p["time_from_start"])
-        if t < prev_t:
-            bad(j, "time goes backwards")
+        msgs = ["time goes backwards"] if t < prev_t else []
         prev_t = t
-        qd = np.asarray(p["velocities"], dtype=float)
-        qdd = np.asarray(p["accelerations"], dtype=float)
-        r = np.abs(qd) / vj
-        if r.size and r.max() > 1 + tol:
-            bad(
-                j,
-                f"joint {doc['joint_names'][int(r.argmax())]} at {r.max():.4f} x its "
-                "velocity limit",
-            )
-        a = float(np.max(np.abs(qdd), initial=0.0)) / lim["joint_acceleration"]
-        if a > 1 + tol:
-            bad(j, f"joint acceleration at {a:.4f} x the limit")
-        ov = np.asarray(p["object_velocity"], dtype=float)
-        oa = np.asarray(p["object_acceleration"], dtype=float)
-        for val, key, what in (
-            (np.linalg.norm(ov[:3]), "object_speed", "object speed"),
-            (np.linalg.norm(ov[3:]), "object_angular_speed", "object angular speed"),
-            (np.linalg.norm(oa[:3]), "object_acceleration", "object acceleration"),
-            (np.linalg.norm(oa[3:]), "object_angular_acceleration", "object angular acceleration"),
-        ):
-            if val > lim[key] * (1 + tol):
-                bad(j, f"{what} {val:.4g} above its limit {lim[key]:g}")
-        for i, f in enumerate(p["grip_forces"]):
-            if f is None:
-                continue
-            f = np.asarray(f, dtype=float)
-            nrm = np.asarray(p["contact_normals"][i], dtype=float)
-            fn = float(f @ nrm)
-            ft = float(np.linalg.norm(f - fn * nrm))
-            eps = tol * max(1.0, float(np.linalg.norm(f)))
-            if fn < -eps:
-                bad(j, f"finger {i} pulls ({fn:.4g} N)")
-                continue
-            if model == "soft":
-                tau = float(p["torsional_moments"][i] or 0.0)
-                lhs = (ft / mu) ** 2 if mu > 0 else (0.0 if ft <= eps else math.inf)
-                lhs += (tau / torsion) ** 2
-                if math.sqrt(lhs) > fn + eps:
-                    bad(j, f"finger {i}: force outside its soft-finger contact set")
-            elif ft > mu * fn + eps:
-                bad(
-                    j,
-                    f"finger {i}: force outside its friction cone "
-                    f"({ft / max(fn, 1e-300):.4f} > mu)",
-                )
+        msgs += _joint_violations(p, lim, vj, doc["joint_names"], tol)
+        msgs += _object_violations(p, lim, tol)
+        msgs += _force_violations(p, mu, model, torsion, tol)
+        for msg in msgs:
+            if len(out) < 1000:
+                out.append(f"point {j} (t = {t:.3f} s): {msg}")
     for si, s in enumerate(doc["segments"]):
         for j in (s["first_point"], s["last_point"]):
             p = pts[j]
@@ -522,3 +577,90 @@ def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str
             if v > REST_TOL:
                 out.append(f"segment {si}: not at rest at point {j} (speed {v:.3g})")
     return out
+
+
+def _joint_violations(
+    p: Mapping[str, Any],
+    lim: Mapping[str, Any],
+    vj: FloatArray,
+    joint_names: list[str],
+    tol: float,
+) -> list[str]:
+    """A point's joint velocities and accelerations beyond their limits.
+
+    Args:
+        p: the point.
+        lim: the document's ``limits``.
+        vj: (nq,) the joint velocity limits.
+        joint_names: the joints, in the point's order.
+        tol: relative tolerance.
+    """
+    msgs = []
+    qd = np.asarray(p["velocities"], dtype=float)
+    qdd = np.asarray(p["accelerations"], dtype=float)
+    r = np.abs(qd) / vj
+    if r.size and r.max() > 1 + tol:
+        msgs.append(f"joint {joint_names[int(r.argmax())]} at {r.max():.4f} x its velocity limit")
+    a = float(np.max(np.abs(qdd), initial=0.0)) / lim["joint_acceleration"]
+    if a > 1 + tol:
+        msgs.append(f"joint acceleration at {a:.4f} x the limit")
+    return msgs
+
+
+def _object_violations(p: Mapping[str, Any], lim: Mapping[str, Any], tol: float) -> list[str]:
+    """A point's object speeds and accelerations (norms) beyond their limits.
+
+    Args:
+        p: the point.
+        lim: the document's ``limits``.
+        tol: relative tolerance.
+    """
+    msgs = []
+    ov = np.asarray(p["object_velocity"], dtype=float)
+    oa = np.asarray(p["object_acceleration"], dtype=float)
+    for val, key, what in (
+        (np.linalg.norm(ov[:3]), "object_speed", "object speed"),
+        (np.linalg.norm(ov[3:]), "object_angular_speed", "object angular speed"),
+        (np.linalg.norm(oa[:3]), "object_acceleration", "object acceleration"),
+        (np.linalg.norm(oa[3:]), "object_angular_acceleration", "object angular acceleration"),
+    ):
+        if val > lim[key] * (1 + tol):
+            msgs.append(f"{what} {val:.4g} above its limit {lim[key]:g}")
+    return msgs
+
+
+def _force_violations(
+    p: Mapping[str, Any], mu: float, model: str, torsion: float, tol: float
+) -> list[str]:
+    """A point's grip forces that pull or lie outside their exact contact sets.
+
+    Args:
+        p: the point.
+        mu: friction coefficient.
+        model: ``"point"`` (round Coulomb cone) or ``"soft"`` (elliptic set).
+        torsion: soft-finger torsion coefficient (m).
+        tol: relative tolerance (of the force's norm, at least 1 N).
+    """
+    msgs = []
+    for i, f in enumerate(p["grip_forces"]):
+        if f is None:
+            continue
+        f = np.asarray(f, dtype=float)
+        nrm = np.asarray(p["contact_normals"][i], dtype=float)
+        fn = float(f @ nrm)
+        ft = float(np.linalg.norm(f - fn * nrm))
+        eps = tol * max(1.0, float(np.linalg.norm(f)))
+        if fn < -eps:
+            msgs.append(f"finger {i} pulls ({fn:.4g} N)")
+            continue
+        if model == "soft":
+            tau = float(p["torsional_moments"][i] or 0.0)
+            lhs = (ft / mu) ** 2 if mu > 0 else (0.0 if ft <= eps else math.inf)
+            lhs += (tau / torsion) ** 2
+            if math.sqrt(lhs) > fn + eps:
+                msgs.append(f"finger {i}: force outside its soft-finger contact set")
+        elif ft > mu * fn + eps:
+            msgs.append(
+                f"finger {i}: force outside its friction cone ({ft / max(fn, 1e-300):.4f} > mu)"
+            )
+    return msgs
