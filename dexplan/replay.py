@@ -257,77 +257,20 @@ def build_mjcf(
     from dexplan.objects import shape_from_dict
 
     base_dir = Path(base_dir)
-    model, gm = hand.model, hand.geom_model
-    mu = float(doc["mu"])
-    soft = doc.get("contact_model", "point") == "soft"
-    torsion = float(doc.get("torsion", 0.0))
-    condim = 4 if soft else 3
-    fr = f'friction="{mu:.6g} {max(torsion, 1e-6) if soft else 0.0:.6g} 0"'
-    contact = f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
+    model = hand.model
+    contact = _contact_attrs(doc)
     shape = {k: v for k, v in doc["object"].items() if k != "mass"}
     obj = shape_from_dict(shape, base_dir)
     world = CollisionWorld(hand, obj)
     tips = list(world.tip_geoms)
 
-    geoms_of: dict[int, list[str]] = {}
-    for k, go in enumerate(gm.geometryObjects):
-        g = _geom_xml(go.geometry)
-        if g is None:
-            continue
-        pos = _pose_attrs(go.placement)
-        if ' pos="' in g:  # a bounding box centred off the geometry frame
-            c = np.array([float(x) for x in g.split(' pos="')[1].split('"')[0].split()])
-            M = go.placement * pin.SE3(np.eye(3), c)
-            g = g.split(' pos="')[0]
-            pos = _pose_attrs(M)
-        geoms_of.setdefault(int(go.parentJoint), []).append(
-            f'<geom name="hand{k}" {g} {pos} contype="1" conaffinity="2" {contact}/>'
-        )
+    geoms_of = _hand_geoms(hand.geom_model, contact)
     children: dict[int, list[int]] = {}
     for j in range(1, model.njoints):
         children.setdefault(int(model.parents[j]), []).append(j)
-
-    def body(j: int, indent: str) -> str:
-        name = model.names[j]
-        jm = model.joints[j]
-        short = jm.shortname()
-        kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
-        axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
-        if axis is None:
-            axis = tuple(np.asarray(jm.extract().axis, dtype=float))
-        inertia = model.inertias[j]
-        m = max(float(inertia.mass), 1e-4)
-        Ic = np.asarray(inertia.inertia, dtype=float)
-        Ic = Ic + np.eye(3) * 1e-8
-        full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
-        iq = jm.idx_q
-        lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
-        parts = [
-            f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
-            f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" '
-            f'fullinertia="{_f(full)}"/>',
-            f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
-            f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
-        ]
-        parts += [indent + "  " + g for g in geoms_of.get(j, [])]
-        for c in children.get(j, []):
-            parts.append(body(c, indent + "  "))
-        parts.append(f"{indent}</body>")
-        return "\n".join(parts)
-
-    assets = []
     a_obj, g_obj = _shape_xml(shape, base_dir, "object")
-    assets.append(a_obj)
-    obstacles = []
-    for k, ob in enumerate(doc.get("obstacles", [])):
-        sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
-        a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
-        assets.append(a)
-        p = np.asarray(ob["pose_xyzquat"], dtype=float)
-        obstacles.append(
-            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
-            f'contype="2" conaffinity="1" {contact}/>'
-        )
+    obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
+    assets = [a_obj, *obstacle_assets]
     start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
     actuators = "\n".join(
         f'    <position name="a_{n}" joint="{n}" kp="{KP:g}" dampratio="1" '
@@ -336,7 +279,7 @@ def build_mjcf(
         for n in hand.joint_names
     )
     palm = "\n".join("    " + g for g in geoms_of.get(0, []))
-    tree = "\n".join(body(c, "    ") for c in children.get(0, []))
+    tree = "\n".join(_body_xml(model, c, "    ", geoms_of, children) for c in children.get(0, []))
     xml = f"""<mujoco model="dexplan replay">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{TIMESTEP:g}" gravity="{_f(gravity)}" cone="elliptic" impratio="10"
@@ -359,6 +302,119 @@ def build_mjcf(
 </mujoco>
 """
     return xml, tips
+
+
+def _contact_attrs(doc: Mapping[str, Any]) -> str:
+    """MJCF contact attributes of every geom: ``condim``, friction ``mu`` (and torsion), solver.
+
+    Args:
+        doc: a validated plan (``mu``, ``contact_model``, ``torsion``).
+    """
+    mu = float(doc["mu"])
+    soft = doc.get("contact_model", "point") == "soft"
+    torsion = float(doc.get("torsion", 0.0))
+    condim = 4 if soft else 3
+    fr = f'friction="{mu:.6g} {max(torsion, 1e-6) if soft else 0.0:.6g} 0"'
+    return f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
+
+
+def _hand_geoms(gm: Any, contact: str) -> dict[int, list[str]]:
+    """MJCF geoms of the hand's collision geometry, by parent joint.
+
+    Args:
+        gm: the hand's Pinocchio geometry model.
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        Per Pinocchio joint, its ``<geom name="hand{k}" .../>`` lines (geometry
+        that is no collision shape is left out).
+    """
+    geoms_of: dict[int, list[str]] = {}
+    for k, go in enumerate(gm.geometryObjects):
+        g = _geom_xml(go.geometry)
+        if g is None:
+            continue
+        pos = _pose_attrs(go.placement)
+        if ' pos="' in g:  # a bounding box centred off the geometry frame
+            c = np.array([float(x) for x in g.split(' pos="')[1].split('"')[0].split()])
+            M = go.placement * pin.SE3(np.eye(3), c)
+            g = g.split(' pos="')[0]
+            pos = _pose_attrs(M)
+        geoms_of.setdefault(int(go.parentJoint), []).append(
+            f'<geom name="hand{k}" {g} {pos} contype="1" conaffinity="2" {contact}/>'
+        )
+    return geoms_of
+
+
+def _body_xml(
+    model: pin.Model,
+    j: int,
+    indent: str,
+    geoms_of: Mapping[int, list[str]],
+    children: Mapping[int, list[int]],
+) -> str:
+    """MJCF body of Pinocchio joint ``j`` and, nested, of every joint below it.
+
+    Args:
+        model: the hand's Pinocchio model.
+        j: the joint.
+        indent: the body's indentation.
+        geoms_of: the hand geoms by joint (:func:`_hand_geoms`).
+        children: the child joints of each joint.
+    """
+    name = model.names[j]
+    jm = model.joints[j]
+    short = jm.shortname()
+    kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
+    axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
+    if axis is None:
+        axis = tuple(np.asarray(jm.extract().axis, dtype=float))
+    inertia = model.inertias[j]
+    m = max(float(inertia.mass), 1e-4)
+    Ic = np.asarray(inertia.inertia, dtype=float)
+    Ic = Ic + np.eye(3) * 1e-8
+    full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
+    iq = jm.idx_q
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    parts = [
+        f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
+        f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
+        f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
+        f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
+    ]
+    parts += [indent + "  " + g for g in geoms_of.get(j, [])]
+    for c in children.get(j, []):
+        parts.append(_body_xml(model, c, indent + "  ", geoms_of, children))
+    parts.append(f"{indent}</body>")
+    return "\n".join(parts)
+
+
+def _obstacles_xml(
+    doc: Mapping[str, Any], base_dir: Path, contact: str
+) -> tuple[list[str], list[str]]:
+    """The obstacles' mesh assets and static geoms.
+
+    Args:
+        doc: a validated plan (its ``obstacles``).
+        base_dir: the plan's folder (mesh paths).
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        ``(assets, geoms)``: one asset line per obstacle (empty for a
+        primitive) and one ``<geom name="obstacle{k}" .../>`` line each.
+    """
+    assets = []
+    geoms = []
+    for k, ob in enumerate(doc.get("obstacles", [])):
+        sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
+        a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
+        assets.append(a)
+        p = np.asarray(ob["pose_xyzquat"], dtype=float)
+        geoms.append(
+            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
+            f'contype="2" conaffinity="1" {contact}/>'
+        )
+    return assets, geoms
 
 
 # ------------------------------------------------------------------ replay
@@ -399,21 +455,13 @@ def replay_plan(
     """
     mujoco = require_mujoco()
     from dexplan.export import build_trajectory
-    from dexplan.forces import force_settings_from_plan
     from dexplan.pose import quat_angle
 
     if hand is None:
         from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
-    settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)
-    g = np.asarray(settings.gravity, dtype=float) if gravity else np.zeros(3)
-    settings = type(settings)(
-        mass=settings.mass,
-        gravity=tuple(float(v) for v in g),
-        cone_margin=settings.cone_margin,
-        min_normal_force=settings.min_normal_force,
-    )
+    settings, g = _replay_settings(doc, gravity, mass, gravity_vector)
     traj = build_trajectory(
         doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced="zero"
     )
@@ -422,35 +470,146 @@ def replay_plan(
         m = mujoco.MjModel.from_xml_string(xml)
     except Exception as exc:  # mujoco's ValueError
         raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
-    d = mujoco.MjData(m)
-    nq = hand.nq
-    jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
-    jv = np.array([m.jnt_dofadr[m.joint(n).id] for n in hand.joint_names])
-    oq = m.jnt_qposadr[m.joint("object").id]
-    obj_geom = m.geom("object").id
-    tip_ids = [m.geom(f"hand{k}").id for k in tips]
-    tip_of = {gid: i for i, gid in enumerate(tip_ids)}
-    hand_geoms = {m.geom(f"hand{k}").id for k in range(hand.geom_model.ngeoms) if _has(m, k)}
+    run = _Replay(mujoco, m, hand, tips, traj)
+    run.simulate()
+    sim_pose = run.sim_pose
+    pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
+    ang_err = np.array(
+        [_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
+    )
+    wp_pos, wp_ang = _waypoint_errors(doc, traj, sim_pose)
+    goal = doc["goal"]
+    gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+    fin = sim_pose[-1]
+    return ReplayResult(
+        gravity=gravity,
+        t=traj.t,
+        planned_pose=traj.object_pose,
+        sim_pose=sim_pose,
+        planned_q=traj.q,
+        sim_q=run.sim_q,
+        position_error=pos_err,
+        angle_error=ang_err,
+        waypoint_position_error=wp_pos,
+        waypoint_angle_error=wp_ang,
+        goal_position_error=float(np.linalg.norm(fin[:3] - gp[:3])),
+        goal_angle_error=float(quat_angle(fin[3:], gp[3:])),
+        goal_tolerances=(
+            float(goal.get("position_tol", 0.005)),
+            float(goal.get("angle_tol", 0.05)),
+        ),
+        contact_losses=tuple(run.losses),
+        slips=tuple(run.slips),
+        dropped=run.drop_time is not None,
+        drop_time=run.drop_time,
+        max_penetration=run.max_pen,
+        unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
+    )
 
-    t = traj.t
-    d.qpos[jq] = traj.q[0]
-    d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
-    d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
-    mujoco.mj_forward(m, d)
-    n = hand.n_fingers
-    loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
-    steps_total = math.ceil((SETTLE_TIME + t[-1]) / TIMESTEP) + 1
-    rec_idx = 0
-    sim_pose = np.empty((t.size, 7))
-    sim_q = np.empty((t.size, nq))
-    missing = np.zeros(n)
-    losses: list[tuple[int, float]] = []
-    slips: list[tuple[int, float, float]] = []
-    slipping = np.zeros(n, dtype=bool)
-    max_pen = 0.0
-    drop_time = None
-    for step in range(steps_total):
-        now = step * TIMESTEP - SETTLE_TIME
+
+def _replay_settings(
+    doc: Mapping[str, Any],
+    gravity: bool,
+    mass: float | None,
+    gravity_vector: FloatArray | None,
+) -> tuple[Any, FloatArray]:
+    """The force settings of the replay and its gravity vector (zero with gravity off).
+
+    Args:
+        doc: a validated plan.
+        gravity: gravity on or off.
+        mass: object mass (kg) overriding the plan's, or None.
+        gravity_vector: (3,) gravity overriding the plan's, or None.
+
+    Returns:
+        ``(settings, g)``: the :class:`~dexplan.forces.ForceSettings` (their
+        gravity ``g``) and (3,) ``g`` (m/s^2, world frame).
+    """
+    from dexplan.forces import force_settings_from_plan
+
+    settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)
+    g = np.asarray(settings.gravity, dtype=float) if gravity else np.zeros(3)
+    settings = type(settings)(
+        mass=settings.mass,
+        gravity=tuple(float(v) for v in g),
+        cone_margin=settings.cone_margin,
+        min_normal_force=settings.min_normal_force,
+    )
+    return settings, g
+
+
+class _Replay:
+    """One MuJoCo run of a timed trajectory and what it records (``m`` samples, ``n`` fingers).
+
+    Attributes:
+        sim_pose: (m, 7) the simulated object pose at each sample, world frame, XYZW.
+        sim_q: (m, nq) the simulated joints at each sample.
+        losses: (finger, time) of each contact loss.
+        slips: (finger, time, distance) of each slip event.
+        max_pen: deepest hand-object penetration (m).
+        drop_time: when the object first strayed more than :data:`DROP_TOL` (s), or None.
+    """
+
+    def __init__(self, mujoco: Any, m: Any, hand: Any, tips: list[int], traj: Any) -> None:
+        self.mujoco, self.m, self.traj = mujoco, m, traj
+        self.d = mujoco.MjData(m)
+        self.nq = hand.nq
+        self.jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
+        self.jv = np.array([m.jnt_dofadr[m.joint(n).id] for n in hand.joint_names])
+        self.oq = m.jnt_qposadr[m.joint("object").id]
+        self.obj_geom = m.geom("object").id
+        tip_ids = [m.geom(f"hand{k}").id for k in tips]
+        self.tip_of = {gid: i for i, gid in enumerate(tip_ids)}
+        self.hand_geoms = {
+            m.geom(f"hand{k}").id for k in range(hand.geom_model.ngeoms) if _has(m, k)
+        }
+        n = hand.n_fingers
+        self.n = n
+        self.loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
+        self.sim_pose = np.empty((traj.t.size, 7))
+        self.sim_q = np.empty((traj.t.size, self.nq))
+        self.rec_idx = 0
+        self.missing = np.zeros(n)
+        self.losses: list[tuple[int, float]] = []
+        self.slips: list[tuple[int, float, float]] = []
+        self.slipping = np.zeros(n, dtype=bool)
+        self.max_pen = 0.0
+        self.drop_time: float | None = None
+
+    def simulate(self) -> None:
+        """Settle at the start, then follow the trajectory to its end, recording every sample."""
+        mujoco, m, d, traj, oq = self.mujoco, self.m, self.d, self.traj, self.oq
+        d.qpos[self.jq] = traj.q[0]
+        d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
+        d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
+        mujoco.mj_forward(m, d)
+        steps_total = math.ceil((SETTLE_TIME + traj.t[-1]) / TIMESTEP) + 1
+        for step in range(steps_total):
+            i, target, ff = self._targets(step * TIMESTEP - SETTLE_TIME)
+            d.ctrl[: self.nq] = target
+            d.qfrc_applied[:] = 0.0
+            d.qfrc_applied[self.jv] = ff
+            mujoco.mj_step(m, d)
+            now = (step + 1) * TIMESTEP - SETTLE_TIME
+            pose_now = np.concatenate(
+                [d.qpos[oq : oq + 3], d.qpos[oq + 4 : oq + 7], d.qpos[oq + 3 : oq + 4]]
+            )
+            touching = self._scan_contacts(i, now, pose_now)
+            if now >= 0.0:
+                self._count_losses(i, now, touching)
+            self._record(now, pose_now)
+        while self.rec_idx < traj.t.size:  # numerical end: the last state
+            self.sim_pose[self.rec_idx] = self.sim_pose[self.rec_idx - 1]
+            self.sim_q[self.rec_idx] = self.sim_q[self.rec_idx - 1]
+            self.rec_idx += 1
+
+    def _targets(self, now: float) -> tuple[int, FloatArray, FloatArray]:
+        """The sample before ``now`` and the joint targets and feed-forward torques at ``now``.
+
+        Both are interpolated linearly between samples; ``now`` is clipped to
+        the trajectory (before its start: the start; after its end: the end).
+        """
+        t, traj = self.traj.t, self.traj
         tt = min(max(now, 0.0), t[-1])
         i = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 1))
         if i + 1 < t.size and t[i + 1] > t[i]:
@@ -459,16 +618,21 @@ def replay_plan(
             ff = (1 - w) * traj.joint_torques[i] + w * traj.joint_torques[i + 1]
         else:
             target, ff = traj.q[i], traj.joint_torques[i]
-        d.ctrl[:nq] = target
-        d.qfrc_applied[:] = 0.0
-        d.qfrc_applied[jv] = ff
-        mujoco.mj_step(m, d)
-        now = (step + 1) * TIMESTEP - SETTLE_TIME
-        # contacts
-        touching = np.zeros(n, dtype=bool)
-        pose_now = np.concatenate(
-            [d.qpos[oq : oq + 3], d.qpos[oq + 4 : oq + 7], d.qpos[oq + 3 : oq + 4]]
-        )
+        return i, target, ff
+
+    def _scan_contacts(self, i: int, now: float, pose_now: FloatArray) -> np.ndarray:
+        """The fingertips touching the object; records penetration depth and slips.
+
+        Args:
+            i: the trajectory sample the step started from.
+            now: the time after the step (s from the trajectory's start).
+            pose_now: (7,) the object pose after the step.
+
+        Returns:
+            (n,) whether each fingertip has a MuJoCo contact with the object.
+        """
+        d, obj_geom = self.d, self.obj_geom
+        touching = np.zeros(self.n, dtype=bool)
         R = pin.Quaternion(pose_now[6], pose_now[3], pose_now[4], pose_now[5]).normalized()
         Rm = R.toRotationMatrix()
         for c in range(d.ncon):
@@ -477,42 +641,57 @@ def replay_plan(
             if obj_geom not in (g1, g2):
                 continue
             other = g2 if g1 == obj_geom else g1
-            if other in hand_geoms:
-                max_pen = max(max_pen, -float(con.dist))
-            f = tip_of.get(other)
+            if other in self.hand_geoms:
+                self.max_pen = max(self.max_pen, -float(con.dist))
+            f = self.tip_of.get(other)
             if f is None:
                 continue
             touching[f] = True
-            if now >= 0.0 and loaded[i, f]:
+            if now >= 0.0 and self.loaded[i, f]:
                 p_obj = Rm.T @ (np.asarray(con.pos) - pose_now[:3])
-                dist = float(np.linalg.norm(p_obj - traj.contacts[i, f]))
-                if dist > SLIP_TOL and not slipping[f]:
-                    slips.append((f, now, dist))
-                slipping[f] = dist > SLIP_TOL
-        if now >= 0.0:
-            for f in range(n):
-                if loaded[i, f] and not touching[f]:
-                    missing[f] += TIMESTEP
-                    if missing[f] > LOSS_TIME and missing[f] - TIMESTEP <= LOSS_TIME:
-                        losses.append((f, now))
-                else:
-                    missing[f] = 0.0
-        while rec_idx < t.size and now >= t[rec_idx] - 1e-9:
-            sim_pose[rec_idx] = pose_now
-            sim_q[rec_idx] = d.qpos[jq]
-            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[rec_idx, :3]))
-            if err > DROP_TOL and drop_time is None:
-                drop_time = float(t[rec_idx])
-            rec_idx += 1
-    while rec_idx < t.size:  # numerical end: the last state
-        sim_pose[rec_idx] = sim_pose[rec_idx - 1]
-        sim_q[rec_idx] = sim_q[rec_idx - 1]
-        rec_idx += 1
-    pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
-    ang_err = np.array(
-        [_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
-    )
-    # the waypoints: their times in the trajectory
+                dist = float(np.linalg.norm(p_obj - self.traj.contacts[i, f]))
+                if dist > SLIP_TOL and not self.slipping[f]:
+                    self.slips.append((f, now, dist))
+                self.slipping[f] = dist > SLIP_TOL
+        return touching
+
+    def _count_losses(self, i: int, now: float, touching: np.ndarray) -> None:
+        """A contact loss where a loaded finger has gone without contact for :data:`LOSS_TIME`."""
+        for f in range(self.n):
+            if self.loaded[i, f] and not touching[f]:
+                self.missing[f] += TIMESTEP
+                if self.missing[f] > LOSS_TIME and self.missing[f] - TIMESTEP <= LOSS_TIME:
+                    self.losses.append((f, now))
+            else:
+                self.missing[f] = 0.0
+
+    def _record(self, now: float, pose_now: FloatArray) -> None:
+        """Record the state at every sample reached by ``now`` (and the first drop)."""
+        t, traj = self.traj.t, self.traj
+        while self.rec_idx < t.size and now >= t[self.rec_idx] - 1e-9:
+            k = self.rec_idx
+            self.sim_pose[k] = pose_now
+            self.sim_q[k] = self.d.qpos[self.jq]
+            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[k, :3]))
+            if err > DROP_TOL and self.drop_time is None:
+                self.drop_time = float(t[k])
+            self.rec_idx += 1
+
+
+def _waypoint_errors(
+    doc: Mapping[str, Any], traj: Any, sim_pose: FloatArray
+) -> tuple[float, float]:
+    """Largest position (m) and angle (rad) error at the plan's waypoints.
+
+    Each waypoint is compared with the first simulated sample at or after its
+    time in the trajectory.
+
+    Args:
+        doc: the plan (its waypoints' object poses).
+        traj: its :class:`~dexplan.export.Trajectory`.
+        sim_pose: (m, 7) the simulated object pose at each sample.
+    """
+    t = traj.t
     wp_t = np.concatenate(
         [
             traj.timing.start_times[s] + seg.waypoint_times
@@ -525,33 +704,7 @@ def replay_plan(
     idx = np.clip(np.searchsorted(t, wp_t - 1e-9), 0, t.size - 1)
     wp_pos = float(np.max(np.linalg.norm(sim_pose[idx, :3] - wp_pose[:, :3], axis=1)))
     wp_ang = float(max(_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
-    goal = doc["goal"]
-    gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
-    fin = sim_pose[-1]
-    return ReplayResult(
-        gravity=gravity,
-        t=t,
-        planned_pose=traj.object_pose,
-        sim_pose=sim_pose,
-        planned_q=traj.q,
-        sim_q=sim_q,
-        position_error=pos_err,
-        angle_error=ang_err,
-        waypoint_position_error=wp_pos,
-        waypoint_angle_error=wp_ang,
-        goal_position_error=float(np.linalg.norm(fin[:3] - gp[:3])),
-        goal_angle_error=float(quat_angle(fin[3:], gp[3:])),
-        goal_tolerances=(
-            float(goal.get("position_tol", 0.005)),
-            float(goal.get("angle_tol", 0.05)),
-        ),
-        contact_losses=tuple(losses),
-        slips=tuple(slips),
-        dropped=drop_time is not None,
-        drop_time=drop_time,
-        max_penetration=max_pen,
-        unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
-    )
+    return wp_pos, wp_ang
 
 
 def _has(m: Any, k: int) -> bool:
