@@ -6,10 +6,12 @@ goal, the transfer/regrasp segments and statistics. It is written atomically
 (temporary file in the same folder, then rename), so a reader never sees half a
 plan.
 
-:func:`verify_plan` re-checks a plan from the file alone. It rebuilds the
-models (Pinocchio hand, object, coal world, force closure) but shares no code
-path with the planner: every rule of DESIGN.md is checked again and each
-violation names the segment, the waypoint and the rule.
+:func:`verify_plan` re-checks a plan from the file alone: it lives in
+:mod:`dexplan.plan_verify` (one function per rule family, the rule names in
+its :data:`~dexplan.plan_verify.RULES` table) and is re-exported here with
+:class:`VerifyReport`, :class:`Violation` and :func:`fingertip_contact`. This
+module keeps the format: building, writing and reading documents and
+rebuilding their models (:func:`models_from_document`).
 
 Every document is first checked for structure by
 :func:`dexplan.plan_schema.validate_plan` (:func:`read_plan` and
@@ -34,6 +36,7 @@ from dexplan import plan_schema
 from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, shorten
 from dexplan.files import atomic_output, file_sha256
 from dexplan.plan_schema import FORMAT, validate_plan
+from dexplan.plan_verify import RULES, VerifyReport, Violation, fingertip_contact, verify_plan
 from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
@@ -45,9 +48,11 @@ if TYPE_CHECKING:  # models only: the plan file never imports planning
 
 __all__ = [
     "FORMAT",
+    "RULES",
     "VerifyReport",
     "Violation",
     "build_plan_document",
+    "fingertip_contact",
     "hand_from_plan",
     "read_plan",
     "segments_from_dicts",
@@ -55,19 +60,6 @@ __all__ = [
     "verify_plan",
     "write_plan",
 ]
-
-#: Verification tolerances (DESIGN.md).
-TIP_DISTANCE_TOL = 1e-3  # |fingertip distance to surface - r| (m)
-PENETRATION_TOL = 1e-3  # (m)
-MAX_STEP_M = 0.01  # object translation between waypoints (m)
-MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
-CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
-STILL_TOL = 1e-9  # "does not move" (m, rad)
-FC_MIN = 0.0  # force-closure quality must exceed this
-#: Verdicts of :func:`dexplan.grasp.exact_force_closure` that pass.
-FC_PASS = ("fc_linear", "fc_dense")
-GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
-GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
 
 
 # ------------------------------------------------------------------ writing
@@ -275,347 +267,6 @@ def models_from_document(
         contact_model=str(doc.get("contact_model", "point")),
         torsion=float(doc.get("torsion", 0.0)),
     )
-
-
-# ---------------------------------------------------------------- contacts
-def fingertip_contact(
-    obj: Shape, c_obj: FloatArray, tip_obj: FloatArray, radius: float
-) -> tuple[FloatArray, FloatArray, float]:
-    """Where and along which normal a fingertip pushes on the object (the one rule).
-
-    The fingertip sphere touches the surface at the closest point to its
-    centre, pushing along the normal there. On a face that is the stated
-    contact's own normal (exact per contact, so equal contacts give equal
-    answers); at a box edge or corner, the direction from the edge to the
-    fingertip centre. The verifier and the viewer both read contacts this way.
-
-    Args:
-        obj: the object shape.
-        c_obj: (3,) the stated contact, object frame.
-        tip_obj: (3,) the fingertip centre, object frame.
-        radius: fingertip radius (m).
-
-    Returns:
-        ``(p, n_out, gap)``: (3,) the surface point of the contact and (3,) the
-        outward unit normal the fingertip pushes along, both object frame, and
-        the distance (m) between the stated contact and the fingertip's own.
-    """
-    p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(c_obj))
-    gap = float(np.linalg.norm(p_s + radius * n_s - tip_obj))
-    if gap > TIP_DISTANCE_TOL:
-        p_t, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tip_obj))
-        gap = float(np.linalg.norm(p_t - c_obj))
-    return p_s, n_s, gap
-
-
-# ---------------------------------------------------------------- verifying
-@dataclass(frozen=True)
-class Violation:
-    """One broken rule: where (segment, waypoint; -1 for the whole plan) and what."""
-
-    segment: int
-    waypoint: int
-    rule: str
-    message: str
-
-    def __str__(self) -> str:
-        where = "plan" if self.segment < 0 else f"segment {self.segment}"
-        if self.waypoint >= 0:
-            where += f", waypoint {self.waypoint}"
-        return f"{where}: {self.rule}: {self.message}"
-
-
-@dataclass(frozen=True)
-class VerifyReport:
-    """Result of :func:`verify_plan`."""
-
-    violations: tuple[Violation, ...]
-    waypoints: int
-    segments: int
-
-    @property
-    def ok(self) -> bool:
-        """True when no rule is broken."""
-        return not self.violations
-
-
-class _Checker:
-    """Rebuilds the models from a plan document and checks every rule."""
-
-    def __init__(self, doc: Mapping[str, Any], base_dir: Path) -> None:
-        m = models_from_document(doc, base_dir)
-        self.hand, self.obj, self.world = m.hand, m.obj, m.world
-        self.mu, self.edges = m.mu, m.friction_edges
-        self.contact_model, self.torsion = m.contact_model, m.torsion
-        self.n = self.hand.n_fingers
-        self.violations: list[Violation] = []
-        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
-
-    def add(self, seg: int, wp: int, rule: str, message: str) -> None:
-        self.violations.append(Violation(seg, wp, rule, message))
-
-    # -- per waypoint ------------------------------------------------------
-    def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
-        from dexplan.pose import inverse_transform_points
-
-        hand, obj = self.hand, self.obj
-        pose, q = w.object_pose_xyzquat, w.q  # sizes and finiteness: validate_plan
-        if abs(float(np.linalg.norm(pose[3:])) - 1.0) > 1e-6:
-            self.add(si, wi, "object_pose", "quaternion is not unit length")
-            return
-        if not hand.within_limits(q, 1e-9):
-            bad = [
-                hand.joint_names[j]
-                for j in np.flatnonzero((q < hand.lower - 1e-9) | (q > hand.upper + 1e-9))
-            ]
-            self.add(si, wi, "joint_limits", f"joints outside limits: {bad}")
-        tips = inverse_transform_points(pose, hand.fingertip_positions(q))
-        mask = w.contact_mask()
-        r = hand.fingertip_radius
-        pts, nrm = [], []
-        for i, c in enumerate(w.contacts):
-            if c is None:
-                continue
-            d_tip = float(obj.signed_distance(tips[i])) - r
-            if abs(d_tip) > TIP_DISTANCE_TOL:
-                self.add(
-                    si,
-                    wi,
-                    "fingertip_distance",
-                    f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface",
-                )
-            d_c = float(obj.signed_distance(c))
-            if abs(d_c) > TIP_DISTANCE_TOL:
-                self.add(
-                    si,
-                    wi,
-                    "contact_on_surface",
-                    f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface",
-                )
-            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r)
-            if gap > TIP_DISTANCE_TOL:
-                self.add(
-                    si,
-                    wi,
-                    "contact_matches_fingertip",
-                    f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's",
-                )
-            pts.append(np.asarray(p_s).reshape(3))
-            nrm.append(-np.asarray(n_s).reshape(3))
-        rep = self.world.check(q, pose, mask, first_only=True)
-        if rep.pair is not None:
-            self.add(si, wi, "collision", f"{rep.pair[0]} touches {rep.pair[1]}")
-        if rep.max_penetration > PENETRATION_TOL:
-            self.add(
-                si,
-                wi,
-                "penetration",
-                f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object",
-            )
-        if len(pts) < 2:
-            self.add(si, wi, "force_closure", f"only {len(pts)} finger(s) hold the object")
-            return
-        P, N = np.array(pts), np.array(nrm)
-        ts = obj.characteristic_length
-        # The rules are signs, judged under the plan's contact model against the
-        # exact sets (round Coulomb cone, elliptic soft-finger set): the file's
-        # own linearization, then dense inner and outer polytopes. The same
-        # contacts give the same answer, and along a transfer or a regrasp the
-        # holding contacts repeat: remember answers by exact contact values.
-        key = (P.tobytes(), N.tobytes(), subgrasps)
-        if key not in self._fc_memo:
-            fc = self._fc_verdict(P, N, ts, subgrasps=False)
-            sub = self._fc_verdict(P, N, ts, subgrasps=True) if subgrasps else "fc_linear"
-            self._fc_memo[key] = (fc, sub)
-        fc, sub = self._fc_memo[key]
-        if fc not in FC_PASS:
-            self.add(si, wi, "force_closure", f"holding grasp is {self._fc_text(fc)}")
-        elif subgrasps and sub not in FC_PASS:
-            self.add(
-                si,
-                wi,
-                "subgrasp_force_closure",
-                f"some {len(pts) - 1}-finger subgrasp is {self._fc_text(sub)}",
-            )
-
-    def _fc_verdict(self, P: np.ndarray, N: np.ndarray, ts: float, *, subgrasps: bool) -> str:
-        from dexplan.grasp import exact_force_closure
-
-        return exact_force_closure(
-            P,
-            N,
-            self.mu,
-            edges=self.edges,
-            torque_scale=ts,
-            subgrasps=subgrasps,
-            contact_model=self.contact_model,  # type: ignore[arg-type]
-            torsion=self.torsion,
-        )
-
-    def _fc_text(self, verdict: str) -> str:
-        if self.contact_model == "soft":
-            where = f"soft contacts, mu {self.mu:g}, torsion {self.torsion:g} m"
-        else:
-            where = f"point contacts, mu {self.mu:g}"
-        if verdict == "undecided":
-            return (
-                f"not provably force closure ({where}): within the gap between the "
-                "dense inner and outer polytopes of the exact contact sets"
-            )
-        return f"not force closure ({where})"
-
-    # -- per segment -------------------------------------------------------
-    def steps(self, si: int, seg: Segment) -> None:
-        from dexplan.pose import quat_angle
-
-        for wi in range(1, len(seg.waypoints)):
-            a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
-            dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
-            da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
-            dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
-            if dp > MAX_STEP_M + 1e-12:
-                self.add(
-                    si, wi, "step", f"object moves {dp * 1e3:.2f} mm from the previous waypoint"
-                )
-            if da > MAX_STEP_RAD + 1e-12:
-                self.add(si, wi, "step", f"object turns {da:.4f} rad from the previous waypoint")
-            if dq > MAX_STEP_RAD + 1e-12:
-                self.add(si, wi, "step", f"a joint moves {dq:.4f} rad from the previous waypoint")
-
-    def transfer(self, si: int, seg: Segment) -> None:
-        first = seg.waypoints[0]
-        for wi, w in enumerate(seg.waypoints):
-            if w.contact_mask() != first.contact_mask():
-                self.add(si, wi, "transfer_contacts", "the set of contact fingers changes")
-                continue
-            for i, (c, c0) in enumerate(zip(w.contacts, first.contacts, strict=True)):
-                if c is None:
-                    continue
-                drift = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
-                if drift > CONTACT_DRIFT_TOL:
-                    self.add(
-                        si,
-                        wi,
-                        "transfer_contact_drift",
-                        f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame",
-                    )
-
-    def regrasp(self, si: int, seg: Segment) -> None:
-        f = int(seg.finger)  # in [0, n): validate_plan
-        wps = seg.waypoints
-        if len(wps) < 3:
-            self.add(si, -1, "regrasp_interior", "a regrasp needs at least one interior waypoint")
-        first = wps[0]
-        others = np.ones(self.hand.nq, dtype=bool)
-        others[self.hand.finger_q_index[f]] = False
-        for wi, w in enumerate(wps):
-            dpose = float(np.max(np.abs(w.object_pose_xyzquat - first.object_pose_xyzquat)))
-            if dpose > STILL_TOL:
-                self.add(si, wi, "regrasp_object_still", f"the object moves ({dpose:.3g})")
-            moved = np.flatnonzero(np.abs(w.q - first.q)[others] > STILL_TOL)
-            if len(moved):
-                names = [self.hand.joint_names[j] for j in np.flatnonzero(others)[moved]]
-                self.add(si, wi, "regrasp_one_finger", f"joints of other fingers move: {names}")
-            for i in range(self.n):
-                if i == f:
-                    continue
-                c, c0 = w.contacts[i], first.contacts[i]
-                if (c is None) != (c0 is None) or (
-                    c is not None and np.linalg.norm(np.asarray(c) - np.asarray(c0)) > STILL_TOL
-                ):
-                    self.add(si, wi, "regrasp_one_finger", f"finger {i}'s contact changes")
-            interior = 0 < wi < len(wps) - 1
-            if interior:
-                if w.contacts[f] is not None:
-                    self.add(
-                        si,
-                        wi,
-                        "regrasp_free_finger",
-                        f"finger {f} must be free (contact null) at interior waypoints",
-                    )
-                else:
-                    d = self.world.finger_object_distance(w.q, w.object_pose_xyzquat, f)
-                    if d <= 0.0:
-                        self.add(
-                            si,
-                            wi,
-                            "regrasp_clearance",
-                            f"free finger {f} touches the object ({d * 1e3:.3f} mm)",
-                        )
-        for wi in (0, len(wps) - 1):
-            if wps[wi].contacts[f] is None:
-                self.add(si, wi, "regrasp_endpoints", f"finger {f} must be in contact here")
-
-
-def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
-    """Check every rule of a ``dexplan-plan/1`` document.
-
-    Args:
-        doc: the parsed plan (see :func:`read_plan`).
-        base_dir: folder that relative mesh paths resolve against.
-
-    Returns:
-        A :class:`VerifyReport` listing every violation.
-
-    Raises:
-        PlanFileError: the document is malformed (:func:`validate_plan`: the
-            message names the field) or its models cannot be rebuilt (the URDF
-            text, a mesh file).
-    """
-    from dexplan.pose import quat_angle
-
-    validate_plan(doc, base_dir)
-    try:
-        chk = _Checker(doc, Path(base_dir))
-    except PlanFileError:
-        raise
-    except DexplanError as exc:  # a mesh file that changed since validation, coal
-        raise PlanFileError(f"cannot rebuild the plan's models: {_clip(str(exc))}") from exc
-    segments = segments_from_dicts(doc["segments"])
-
-    if not segments:
-        chk.add(-1, -1, "segments", "the plan has no segments")
-    total = 0
-    for si, seg in enumerate(segments):
-        for wi, w in enumerate(seg.waypoints):
-            chk.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
-        total += len(seg.waypoints)
-        chk.steps(si, seg)
-        if seg.kind == "transfer":
-            chk.transfer(si, seg)
-        else:
-            chk.regrasp(si, seg)
-        if si > 0:
-            a, b = segments[si - 1].waypoints[-1], seg.waypoints[0]
-            same = np.allclose(a.q, b.q, atol=STILL_TOL) and np.allclose(
-                a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL
-            )
-            if not same:
-                chk.add(si, 0, "continuity", "does not start where the previous segment ends")
-
-    # start and goal (finite, tolerances > 0: validate_plan)
-    if segments:
-        w0 = segments[0].waypoints[0]
-        start = doc["start"]
-        sp = np.asarray(start["object_pose_xyzquat"], dtype=float)
-        if not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
-            chk.add(0, 0, "start", "first waypoint is not the start object pose")
-        if start.get("q") is not None:
-            sq = np.asarray(start["q"], dtype=float)
-            if not np.allclose(sq, w0.q, atol=1e-9):
-                chk.add(0, 0, "start", "first waypoint is not the start configuration")
-        wl = segments[-1].waypoints[-1]
-        goal = doc["goal"]
-        gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
-        dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
-        da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
-        last = (len(segments) - 1, len(segments[-1].waypoints) - 1)
-        if not dp <= float(goal.get("position_tol", GOAL_POSITION_TOL)) + 1e-12:
-            chk.add(*last, "goal", f"object ends {dp * 1e3:.2f} mm from the goal position")
-        if not da <= float(goal.get("angle_tol", GOAL_ANGLE_TOL)) + 1e-12:
-            msg = f"object ends {math.degrees(da):.2f} deg from the goal orientation"
-            chk.add(*last, "goal", msg)
-    return VerifyReport(tuple(chk.violations), total, len(segments))
 
 
 def _portable_shape(shape: Mapping[str, Any], base_dir: Path, out_dir: Path) -> dict[str, Any]:
