@@ -524,20 +524,8 @@ def _contact_model(c: Mapping[str, Any]) -> tuple[str, float]:
     return model, _number(c, "torsion", "contact", lo=0.0, lo_open=True, hi=MAX_TORSION)
 
 
-def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario") -> Scenario:
-    """Validate a parsed TOML document and build a :class:`Scenario`.
-
-    Only the scenario's own files are opened (the URDF, meshes); no model is
-    built, so a bad field fails in milliseconds.
-
-    Raises:
-        ScenarioError: a missing, malformed, out-of-range or unknown field.
-    """
-    _only(doc, "", SCENARIO_FIELDS[""])
-    scen_name = _string(doc, "name", "", default=name[:MAX_NAME] or "scenario")
-
-    hand = _hand(_table(doc, "hand", required=False) or {"builtin": "paper"}, base_dir)
-
+def _object(doc: Mapping[str, Any], base_dir: Path) -> tuple[dict[str, Any], float | None]:
+    """``[object]``: its shape fields and ``mass`` (kg, or None)."""
     obj_table = _table(doc, "object")
     obj = _shape_fields(
         obj_table, "object", base_dir, own=OBJECT_OWN_FIELDS, max_size=MAX_OBJECT_SIZE
@@ -547,14 +535,21 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         if "mass" in obj_table
         else None
     )
+    return obj, mass
+
+
+def _world(doc: Mapping[str, Any]) -> tuple[float, float, float] | None:
+    """``[world] gravity`` (m/s^2), or None."""
     wt = _table(doc, "world", required=False)
     _only(wt, "world", SCENARIO_FIELDS["world"])
-    gravity = (
-        tuple(float(v) for v in _vector(wt, "gravity", "world", 3, max_abs=MAX_GRAVITY))
-        if "gravity" in wt
-        else None
-    )
+    if "gravity" not in wt:
+        return None
+    gx, gy, gz = (float(v) for v in _vector(wt, "gravity", "world", 3, max_abs=MAX_GRAVITY))
+    return gx, gy, gz
 
+
+def _contact(doc: Mapping[str, Any]) -> tuple[float, int, float, str, float]:
+    """``[contact]``: ``mu``, ``friction_edges``, ``fc_margin``, ``model``, ``torsion``."""
     c = _table(doc, "contact", required=False)
     _only(c, "contact", SCENARIO_FIELDS["contact"])
     mu = _number(c, "mu", "contact", 0.8, lo=0.0, hi=MAX_MU)
@@ -563,7 +558,11 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     )
     fc_margin = _number(c, "fc_margin", "contact", 0.005, lo=0.0, hi=MAX_FC_MARGIN)
     model, torsion = _contact_model(c)
+    return mu, edges, fc_margin, model, torsion
 
+
+def _obstacles(doc: Mapping[str, Any], base_dir: Path) -> tuple[dict[str, Any], ...]:
+    """``[[obstacles]]``: shape fields plus ``pose_xyzquat`` and ``name`` each."""
     obstacles_raw = doc.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
         _fail(f"obstacles must be an array of tables, got {shorten(obstacles_raw)}")
@@ -584,29 +583,40 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         shape["pose_xyzquat"] = _pose(ob, "pose_xyzquat", prefix).tolist()
         shape["name"] = _string(ob, "name", prefix, default=f"obstacle{k}")
         obstacles.append(shape)
+    return tuple(obstacles)
 
+
+def _start(doc: Mapping[str, Any]) -> StartSpec:
+    """``[start]``: the object pose and optionally the joints ``q``."""
     s = _table(doc, "start")
     _only(s, "start", SCENARIO_FIELDS["start"])
-    start = StartSpec(
+    return StartSpec(
         _pose(s, "object_pose_xyzquat", "start"),
         _vector(s, "q", "start", None, max_len=MAX_JOINTS, max_abs=MAX_JOINT_VALUE)
         if "q" in s
         else None,
     )
+
+
+def _goal(doc: Mapping[str, Any]) -> GoalSpec:
+    """``[goal]``: the object pose and the tolerances of the goal region."""
     g = _table(doc, "goal")
     _only(g, "goal", SCENARIO_FIELDS["goal"])
-    goal = GoalSpec(
+    return GoalSpec(
         _pose(g, "object_pose_xyzquat", "goal"),
         _number(g, "position_tol", "goal", 0.005, lo=0.0, lo_open=True, hi=MAX_POSITION_TOL),
         _number(g, "angle_tol", "goal", 0.05, lo=0.0, lo_open=True, hi=MAX_ANGLE_TOL),
     )
 
+
+def _planner(doc: Mapping[str, Any]) -> PlannerSpec:
+    """``[planner]``: name, time limit, seed, parameters and constrained space."""
     p = _table(doc, "planner", required=False)
     _only(p, "planner", SCENARIO_FIELDS["planner"])
     space = p.get("space", "projected")
     if space not in SPACES:
         _fail(f"planner.space must be one of {', '.join(SPACES)}, got {shorten(space)}")
-    planner = PlannerSpec(
+    return PlannerSpec(
         name=_string(p, "name", "planner", default="PRM"),
         time_limit=_number(
             p, "time_limit", "planner", 30.0, lo=0.0, lo_open=True, hi=MAX_TIME_LIMIT
@@ -616,6 +626,9 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         space=space,
     )
 
+
+def _workspace(doc: Mapping[str, Any]) -> FloatArray:
+    """``[workspace] half_extent`` (3,) (m), 0.02 per axis by default."""
     w = _table(doc, "workspace", required=False)
     _only(w, "workspace", SCENARIO_FIELDS["workspace"])
     half = np.full(3, 0.02)
@@ -626,14 +639,37 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
                 f"workspace.half_extent entries must be in [0, {MAX_HALF_EXTENT:g}] m, "
                 f"got {shorten(w['half_extent'])}"
             )
+    return half
 
+
+def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario") -> Scenario:
+    """Validate a parsed TOML document and build a :class:`Scenario`.
+
+    Only the scenario's own files are opened (the URDF, meshes); no model is
+    built, so a bad field fails in milliseconds. The tables are read in a fixed
+    order (hand, object, world, contact, obstacles, start, goal, planner,
+    workspace), one parser each: the first bad field is the one reported.
+
+    Raises:
+        ScenarioError: a missing, malformed, out-of-range or unknown field.
+    """
+    _only(doc, "", SCENARIO_FIELDS[""])
+    scen_name = _string(doc, "name", "", default=name[:MAX_NAME] or "scenario")
+    hand = _hand(_table(doc, "hand", required=False) or {"builtin": "paper"}, base_dir)
+    obj, mass = _object(doc, base_dir)
+    gravity = _world(doc)
+    mu, edges, fc_margin, model, torsion = _contact(doc)
+    obstacles = _obstacles(doc, base_dir)
+    start, goal = _start(doc), _goal(doc)
+    planner = _planner(doc)
+    half = _workspace(doc)
     return Scenario(
         name=scen_name,
         hand=hand,
         object=obj,
         mu=mu,
         friction_edges=edges,
-        obstacles=tuple(obstacles),
+        obstacles=obstacles,
         start=start,
         goal=goal,
         planner=planner,
@@ -643,7 +679,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         contact_model=model,
         torsion=torsion,
         object_mass=mass,
-        gravity=gravity,  # type: ignore[arg-type]
+        gravity=gravity,
     )
 
 
