@@ -33,20 +33,23 @@ from dexplan.exceptions import InvalidInputError
 from dexplan.scenario import Scenario
 
 _NOT_PLANNING = frozenset({"bench", "cli", "viz"})
-"""Top-level modules and packages of dexplan that no plan depends on (``viz_*`` too)."""
+"""Top-level modules and packages of dexplan that no plan depends on."""
 
 
 def _is_planning_source(relative: Path) -> bool:
-    """Whether a source file (relative to the package) can change a plan."""
-    name = Path(relative.parts[0]).stem
-    return name not in _NOT_PLANNING and not name.startswith("viz_")
+    """Whether a source file (relative to the package) can change a plan.
+
+    ``relative.parts[0]`` is the top-level module or package, so every file
+    of the ``viz`` package (``viz/scene.py``, ...) is excluded with it.
+    """
+    return Path(relative.parts[0]).stem not in _NOT_PLANNING
 
 
 def code_fingerprint() -> str:
     """SHA-256 (16 hex digits) of the dexplan sources a plan depends on.
 
-    Every module but the benchmark package, the CLI and the viewer (``viz``,
-    ``viz_*``): runs with equal fingerprints ran the same planning code.
+    Every module but the benchmark package, the CLI and the viewer package
+    ``viz``: runs with equal fingerprints ran the same planning code.
     """
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
