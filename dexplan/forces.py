@@ -521,14 +521,13 @@ def solver_from_plan(
     """A :class:`GripForceSolver` for a validated plan (hand, object, friction from the file)."""
     from pathlib import Path
 
-    from dexplan.objects import shape_from_dict
+    from dexplan.plan_file import shape_of
 
     if hand is None:
         from dexplan.plan_file import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
-    shape = {k: v for k, v in doc["object"].items() if k != "mass"}
-    obj = shape_from_dict(shape, Path(base_dir))
+    obj = shape_of(doc["object"], Path(base_dir), "object")
     return GripForceSolver(
         hand,
         obj,

@@ -254,13 +254,12 @@ def build_mjcf(
         base_dir: the plan's folder (mesh paths).
     """
     from dexplan.collision import CollisionWorld
-    from dexplan.objects import shape_from_dict
+    from dexplan.plan_file import shape_of
 
     base_dir = Path(base_dir)
     model = hand.model
     contact = _contact_attrs(doc)
-    shape = {k: v for k, v in doc["object"].items() if k != "mass"}
-    obj = shape_from_dict(shape, base_dir)
+    obj = shape_of(doc["object"], base_dir, "object")
     world = CollisionWorld(hand, obj)
     tips = list(world.tip_geoms)
 
@@ -268,7 +267,7 @@ def build_mjcf(
     children: dict[int, list[int]] = {}
     for j in range(1, model.njoints):
         children.setdefault(int(model.parents[j]), []).append(j)
-    a_obj, g_obj = _shape_xml(shape, base_dir, "object")
+    a_obj, g_obj = _shape_xml(doc["object"], base_dir, "object")
     obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
     assets = [a_obj, *obstacle_assets]
     start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)

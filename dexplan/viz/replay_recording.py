@@ -41,12 +41,11 @@ def record_replay(
         ``path``.
     """
     rr = rerun_module()
-    from dexplan.objects import shape_from_dict
-    from dexplan.plan_file import hand_from_plan
+    from dexplan.plan_file import hand_from_plan, shape_of
 
     base_dir = Path(base_dir)
     hand = hand_from_plan(doc["hand"])
-    obj = shape_from_dict({k: v for k, v in doc["object"].items() if k != "mass"}, base_dir)
+    obj = shape_of(doc["object"], base_dir, "object")
     obstacles = obstacles_from_dicts(doc.get("obstacles", []), base_dir)
     idx = [rr.TimeColumn("time", duration=np.asarray(result.t, dtype=float))]
     # the planned joints at the sample times: the replay's trajectory samples

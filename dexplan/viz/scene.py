@@ -88,19 +88,13 @@ def obstacles_from_dicts(
     Returns:
         One triple per entry, in order.
     """
-    from dexplan.objects import shape_from_dict
+    from dexplan.plan_file import shape_of
 
     out = []
     for k, ob in enumerate(items):
-        shape = {key: v for key, v in ob.items() if key not in ("pose_xyzquat", "name")}
         pose = np.asarray(ob.get("pose_xyzquat", [0, 0, 0, 0, 0, 0, 1]), dtype=float)
-        out.append(
-            (
-                str(ob.get("name", f"obstacle{k}")),
-                shape_from_dict(shape, base_dir, field=f"obstacles[{k}]"),
-                pose,
-            )
-        )
+        name = str(ob.get("name", f"obstacle{k}"))
+        out.append((name, shape_of(ob, base_dir, f"obstacles[{k}]"), pose))
     return out
 
 
