@@ -19,7 +19,7 @@ A query runs in three stages:
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -326,6 +326,7 @@ class _Query:
                 space=spec.space,
                 seed=self.seed,
                 deadline=self.deadline,
+                on_round=self.on_round,
             )
         else:
             gsn = query_roadmap(ctx, self.roadmap, query, deadline=self.deadline)
@@ -338,6 +339,18 @@ class _Query:
             msg = f"no valid grasp found at the goal pose ({draws[0]} sampler calls)"
             return None, self.result(PlanStatus.NO_GOAL_GRASP, msg)
         return None, self.result(PlanStatus.NO_GSN_PATH, gsn.message)
+
+    def on_round(self, module: str, counts: Mapping[str, int]) -> None:
+        """Progress of modules 1 and 2 while they run (see :func:`explore_gsn`)."""
+        if module == "module1":
+            msg = (
+                f"module 1: round {counts['rounds']}: {counts['nodes']} nodes, "
+                f"{counts['edges']} edges, {counts['components']} components"
+            )
+            self.say(Stage.MODULE1, msg, **counts)
+        else:
+            msg = f"module 2: {counts['attempts']} link attempts, {counts['links']} links"
+            self.say(Stage.MODULE2, msg, **counts)
 
     # -- stage 3: the reduction ----------------------------------------------
     def object_trajectory(self, path: FloatArray) -> FloatArray:

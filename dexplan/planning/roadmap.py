@@ -596,6 +596,7 @@ def explore_gsn(
     seed: int = 1,
     deadline: float,
     module2: bool = True,
+    on_round: Callable[[str, Mapping[str, int]], None] | None = None,
 ) -> GsnResult:
     """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
 
@@ -612,8 +613,13 @@ def explore_gsn(
     its roadmap single-threaded to :data:`ROUND_MILESTONES` milestones
     (doubling), after which start and goal are connected into it and the
     roadmap is searched.
+
+    ``on_round(module, counts)`` is called after each module-1 round
+    (``"module1"``: rounds, nodes, edges, components) and each module-2 pass
+    (``"module2"``: attempts, links), so a caller can show the search as it runs.
     """
     t0 = time.perf_counter()
+    report = on_round or (lambda _module, _counts: None)
     problem = PlanningProblem(
         constraint_spec(ctx, space),
         ctx.validity.is_valid,
@@ -663,6 +669,15 @@ def explore_gsn(
                 "components": roadmap.components()[0],
             }
         )
+        report(
+            "module1",
+            {
+                "rounds": rounds,
+                "nodes": roadmap.n_vertices,
+                "edges": len(roadmap.edges),
+                "components": int(stats["components"]),
+            },
+        )
         if path is not None:
             return GsnResult(path, roadmap, stats)
         iterations *= 2
@@ -677,6 +692,10 @@ def explore_gsn(
             ctx, roadmap, query, start, deadline, stats, max_attempts=4, geodesic=_geodesic(problem)
         )
         stats["gsn_time_s"] = time.perf_counter() - t0
+        report(
+            "module2",
+            {"attempts": int(stats["module2_attempts"]), "links": int(stats["module2_links"])},
+        )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
 
