@@ -89,3 +89,27 @@ def test_missing_and_malformed_files(tmp_path: Path) -> None:
     mesh = GOOD.replace('shape = "sphere"\nradius = 0.04', 'shape = "mesh"\npath = "missing.obj"')
     with pytest.raises(ScenarioError, match=r"missing\.obj"):
         load_scenario(_write(tmp_path, mesh))
+
+
+def test_one_identity_ignores_cosmetic_fields_and_models_only_the_query(tmp_path):
+    from dexplan.scenario import builtin_scenario_path, load_scenario, scenario_hash
+
+    text = builtin_scenario_path().read_text()
+    base = load_scenario(builtin_scenario_path())
+    renamed = tmp_path / "other.toml"
+    renamed.write_text(
+        text.replace('name = "paper_sphere"', 'name = "renamed"').replace(
+            "[[obstacles]]   # the table under the palm", '[[obstacles]]\nname = "table"'
+        )
+    )
+    assert scenario_hash(load_scenario(renamed)) == scenario_hash(base)  # names are cosmetic
+    moved_goal = tmp_path / "goal.toml"
+    moved_goal.write_text(text.replace("position_tol = 0.005", "position_tol = 0.004"))
+    other = load_scenario(moved_goal)
+    assert scenario_hash(other) != scenario_hash(base)  # another query ...
+    assert scenario_hash(other, models_only=True) == scenario_hash(base, models_only=True)
+    softer = tmp_path / "mu.toml"
+    softer.write_text(text.replace("mu = 0.8", "mu = 0.7"))
+    assert scenario_hash(load_scenario(softer), models_only=True) != scenario_hash(
+        base, models_only=True
+    )  # ... on the same models; friction is a model

@@ -53,11 +53,10 @@ from dexplan.bench.tasks import (
     make_tasks,
     resolve_scenario,
     run_key,
-    scenario_description,
-    scenario_hash,
     validate_sweep,
 )
 from dexplan.bench.worker import execute_run
+from dexplan.scenario import scenario_description, scenario_hash  # the one scenario identity
 
 __all__ = [
     "CSV_COLUMNS",

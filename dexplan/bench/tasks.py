@@ -7,19 +7,19 @@ skips what is already stored, and an edited scenario is run afresh.
 
 from __future__ import annotations
 
-import dataclasses
-import hashlib
-import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from dexplan.bench.schema import DEFAULT_BASELINE
 from dexplan.exceptions import InvalidInputError, PlannerError, ScenarioError
-from dexplan.files import file_sha256
-from dexplan.scenario import Scenario, builtin_scenario_path, load_scenario
+from dexplan.scenario import (
+    Scenario,
+    builtin_scenario_path,
+    load_scenario,
+    scenario_hash,
+)
 
 
 def resolve_scenario(arg: str | Path) -> Scenario:
@@ -42,58 +42,6 @@ def resolve_scenario(arg: str | Path) -> Scenario:
                 f"scenario file not found: {str(arg)!r}, and it is not a builtin scenario ({exc})"
             ) from exc
     raise ScenarioError(f"scenario file not found: {str(arg)!r}")
-
-
-def _canonical(value: Any) -> Any:
-    """JSON-ready view of scenario fields (arrays as lists, paths as strings)."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, Mapping):
-        return {str(k): _canonical(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_canonical(v) for v in value]
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
-def _file_digest(path: Path) -> str:
-    """SHA-256 of a file the scenario refers to (a marker when it cannot be read)."""
-    try:
-        return file_sha256(path)
-    except OSError:
-        return f"unreadable:{path}"
-
-
-def scenario_description(scenario: Scenario) -> dict[str, Any]:
-    """The fields of a scenario that decide its runs, as plain JSON values.
-
-    The folder of the file, and the planner name, seed and time limit (a sweep
-    sets them) are left out; files the scenario refers to (URDF, meshes) enter
-    by their SHA-256. The contact model and its torsion enter when the model is
-    not the default ``point`` (whose torsion is 0), so the hashes of point-contact
-    scenarios are those they had before contact models existed.
-    """
-    doc = _canonical(scenario)
-    doc.pop("base_dir", None)
-    if doc.get("contact_model", "point") == "point":
-        doc.pop("contact_model", None)
-        doc.pop("torsion", None)
-    doc["planner"] = {k: v for k, v in doc["planner"].items() if k in ("params", "space")}
-    if scenario.hand.urdf is not None:
-        doc["hand"]["urdf"] = _file_digest(Path(scenario.base_dir) / scenario.hand.urdf)
-    for shape in [doc["object"], *doc["obstacles"]]:
-        if isinstance(shape, dict) and "path" in shape:
-            shape["path_sha256"] = _file_digest(Path(scenario.base_dir) / str(shape["path"]))
-    return doc
-
-
-def scenario_hash(scenario: Scenario) -> str:
-    """Short content hash of a scenario (:func:`scenario_description`), 16 hex digits."""
-    text = json.dumps(scenario_description(scenario), sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)

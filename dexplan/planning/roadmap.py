@@ -45,6 +45,7 @@ from dexplan.planning.reduction import ReductionSettings, grasp_from_state, redu
 from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
+from dexplan.scenario import scenario_description
 from dexplan.typing import FloatArray
 
 ROADMAP_FORMAT = "dexplan-roadmap/1"
@@ -525,24 +526,17 @@ def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
 
 
 def scenario_key(ctx: PlanningContext) -> str:
-    """Hash of the models a roadmap depends on."""
-    s = ctx.scenario
+    """Hash of the models a roadmap depends on (the scenario identity, models only).
+
+    The hand enters by its URDF text too, so a builtin hand whose model
+    changes between versions does not reuse old roadmaps.
+    """
     payload = json.dumps(
         {
+            "models": scenario_description(ctx.scenario, models_only=True),
             "urdf": hashlib.sha256(ctx.hand.urdf_xml.encode()).hexdigest(),
-            "tips": list(ctx.hand.fingertip_frames),
-            "object": dict(s.object),
-            "obstacles": [dict(o) for o in s.obstacles],
-            "mu": s.mu,
-            "edges": s.friction_edges,
-            "fc_margin": s.fc_margin,
-            # GSn validity depends on the contact model: a soft-contact roadmap
-            # must not answer a point-contact query
-            "contact_model": s.contact_model,
-            "torsion": s.torsion,
         },
         sort_keys=True,
-        default=str,
     )
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
