@@ -23,6 +23,8 @@ finger's joints in chain order (root to tip), which is also the order of
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -494,3 +496,67 @@ class SplitFingerIK:
         tip, origins, _ = self.chain.forward(q)
         d = tip - origins[:, -1]
         return (d @ approach) / np.linalg.norm(d, axis=1)
+
+
+def planar_branches(solver, targets: FloatArray) -> tuple[FloatArray, np.ndarray, FloatArray]:
+    """Every branch of a closed-form abduction + planar 2R finger for many targets.
+
+    ``solver`` is the hand's closed-form 3-joint solver (``dexplan.hand``'s
+    ``_PlanarFingerIK``: geometry ``o0, a0, e, b, k, l1, l2, s``, limits
+    ``lo, hi``). Branch order and arithmetic are those of its ``solve`` (the
+    scalar parts with the same operations, the rest element-wise), so that
+    :func:`nearest_branch` picks bit for bit the solution ``solve`` returns.
+
+    Args:
+        solver: the closed-form solver.
+        targets: (N, 3) fingertip-centre targets, world frame.
+
+    Returns:
+        ``q: (N, 4, 3)`` unclipped branch solutions, ``ok: (N, 4)`` branches
+        within the limits (1e-12 tolerance), and ``q_clipped: (N, 4, 3)``.
+    """
+    n = len(targets)
+    u = np.empty(n)
+    pe = np.empty(n)
+    pb = np.empty(n)
+    r = np.empty(n)
+    base = np.empty(n)
+    for i in range(n):
+        p = targets[i] - solver.o0
+        u[i] = float(p @ solver.a0) * solver.s
+        pe[i], pb[i] = float(p @ solver.e), float(p @ solver.b)
+        r[i] = math.hypot(pe[i], pb[i])
+        base[i] = math.atan2(pb[i], pe[i])
+    l1, l2 = solver.l1, solver.l2
+    q = np.zeros((n, 4, 3))
+    ok = np.zeros((n, 4), dtype=bool)
+    lo, hi = solver.lo - 1e-12, solver.hi + 1e-12
+    flipped = base - np.copysign(math.pi, base)
+    for a, (th0, w) in enumerate(((base, r - solver.k), (flipped, -r - solver.k))):
+        c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+        valid = np.abs(c2) <= 1.0
+        acos = np.arccos(np.clip(c2, -1.0, 1.0))
+        for sgn, th2 in enumerate((acos, -acos)):
+            th1 = np.arctan2(u, w) - np.arctan2(l2 * np.sin(th2), l1 + l2 * np.cos(th2))
+            th1 = (th1 + math.pi) % (2 * math.pi) - math.pi
+            col = 2 * a + sgn
+            q[:, col, 0], q[:, col, 1], q[:, col, 2] = th0, th1, th2
+            ok[:, col] = valid & np.all((q[:, col] >= lo) & (q[:, col] <= hi), axis=1)
+    return q, ok, np.clip(q, solver.lo, solver.hi)
+
+
+def nearest_branch(
+    q: FloatArray, ok: np.ndarray, q_clipped: FloatArray, q_near: FloatArray
+) -> FloatArray | None:
+    """The branch of one target (rows of :func:`planar_branches`) nearest ``q_near``.
+
+    ``q: (4, 3)``, ``ok: (4,)``, ``q_clipped: (4, 3)``; the first of equally
+    near branches wins, as in the scalar solver. None when no branch is valid.
+    """
+    best, best_d = -1, math.inf
+    for j in range(4):
+        if ok[j]:
+            d = float(np.sum((q[j] - q_near) ** 2))
+            if d < best_d:
+                best, best_d = j, d
+    return None if best < 0 else q_clipped[best]

@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from dexplan.hand import Hand
-from dexplan.ik import TRACK_RESOLUTION, FingerChain, SplitFingerIK, batch_dls
+from dexplan.ik import (
+    TRACK_RESOLUTION,
+    FingerChain,
+    SplitFingerIK,
+    batch_dls,
+    nearest_branch,
+    planar_branches,
+)
 
 
 @pytest.fixture(scope="module", params=["paper", "allegro", "allegro_left", "three_finger"])
@@ -173,3 +180,24 @@ def test_split_detect_rejects_other_structures() -> None:
     # the thumb split the other way (first three joints, last free) is not planar
     solver = SplitFingerIK(chain, hand.lower[idx], hand.upper[idx], (0, 1, 2), 3)
     assert not solver._verified()
+
+
+def test_planar_branches_pick_what_the_scalar_solver_picks() -> None:
+    """Batched branches + nearest_branch give bit for bit the closed-form solver's answer."""
+    hand = Hand.builtin("paper")
+    rng = np.random.default_rng(4)
+    for f in range(hand.n_fingers):
+        solver = hand._analytic_ik[f]
+        assert solver is not None
+        idx = hand.finger_q_index[f]
+        qs = rng.uniform(hand.lower, hand.upper, size=(300, hand.nq))
+        tips = np.array([hand.fingertip_positions(q)[f] for q in qs])
+        tips += rng.normal(0.0, 0.01, tips.shape)  # some unreachable
+        q, ok, q_clip = planar_branches(solver, tips)
+        near = rng.uniform(hand.lower[idx], hand.upper[idx], size=(len(tips), 3))
+        for i in range(len(tips)):
+            a = solver.solve(tips[i], near[i])
+            b = nearest_branch(q[i], ok[i], q_clip[i], near[i])
+            assert (a is None) == (b is None)
+            if a is not None:
+                assert np.array_equal(a, b)

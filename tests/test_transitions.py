@@ -126,3 +126,35 @@ def test_tracked_follow_bounds_the_transfer() -> None:
         counts.append(count)
     res = tr.transfer(poses, 0, q, grasp)
     assert res.reached + 1 <= min(counts)
+
+
+def test_resumed_track_equals_a_fresh_one() -> None:
+    """A track resumed from a stored one (later start, longer horizon) counts as a fresh one."""
+    scenario = default_scenario()
+    ctx = build_context(scenario, seed=2)
+    fresh = build_context(scenario, seed=2).transitions
+    x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+    assert x is not None
+    pose, q = x[:7], x[7:]
+    tr = ctx.transitions
+    grasp = grasp_from_state(tr, pose, q)
+    goal = pose.copy()
+    goal[3:] = [0.0, 0.0, 1.0, 0.0]
+    poses = densify_poses(np.stack([pose, goal]), 0.008, 0.04)
+    r = ctx.hand.fingertip_radius
+    idx = ctx.hand.finger_q_index
+    for f in range(ctx.hand.n_fingers):
+        tip, n_out = grasp.points[f] + r * grasp.normals_out[f], grasp.normals_out[f]
+        short, _ = tr.track_score(f, q, tip, n_out, poses, 5)
+        full, _ = tr.track_score(f, q, tip, n_out, poses, len(poses))
+        assert full == fresh.track_score(f, q, tip, n_out, poses, len(poses))[0]
+        assert short == min(5, full)
+        # from a later pose, the finger where the track had it
+        k = min(3, full - 1)
+        track = next(t for key, t in tr._tracks.items() if key[0] == f)
+        q_k = q.copy()
+        q_k[idx[f]] = track.qs[k]
+        got = tr.track_score(f, q_k, tip, n_out, poses[k:], len(poses))
+        want = fresh.track_score(f, q_k, tip, n_out, poses[k:], len(poses))
+        assert got[0] == want[0]
+        np.testing.assert_array_equal(got[1], want[1])

@@ -29,7 +29,7 @@ hit.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -137,14 +137,12 @@ def reduce_object_path(
             )
         future = poses[idx:]
         # the blocking finger first, then the others, least remaining follow first
+        # (the others' follows only when the blocking finger cannot move:
+        # it usually can, and tracking them costs more than the rest)
         others = [i for i in range(n) if i != tr.blocking]
-        follow = {i: _current_follow(trans, i, q, grasp, future) for i in others}
-        order = [tr.blocking, *sorted(others, key=lambda i: follow[i])]
-        # then, when nothing works, any other finger out of the way, even
-        # onto a landing it follows less far from (it may clear the blocker's)
-        passes = [(f, True) for f in order] + [(f, False) for f in order[1:]]
+        follow: dict[int, int] = {}
         done = False
-        for f, must_gain in passes:
+        for f, must_gain in _passes(tr.blocking, others, follow, trans, q, grasp, future):
             hint = None
             if hints is not None:
                 h = hints[min(idx, len(hints) - 1), f]
@@ -182,6 +180,31 @@ def reduce_object_path(
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
                 _stats(trans, regrasps),
             )
+
+
+def _passes(
+    blocking: int,
+    others: list[int],
+    follow: dict[int, int],
+    trans: Transitions,
+    q: FloatArray,
+    grasp: GraspContacts,
+    future: FloatArray,
+) -> Iterator[tuple[int, bool]]:
+    """Fingers to regrasp, in order, with whether the landing must gain follow.
+
+    The blocking finger; then the others, least remaining follow first (the
+    follows are computed only here, into ``follow``); then, when nothing
+    works, the others again even onto a landing they follow less far from
+    (moving one out of the way may clear the blocker's).
+    """
+    yield blocking, True
+    follow.update({i: _current_follow(trans, i, q, grasp, future) for i in others})
+    order = sorted(others, key=lambda i: follow[i])
+    for f in order:
+        yield f, True
+    for f in order:
+        yield f, False
 
 
 def _current_follow(

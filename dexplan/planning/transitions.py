@@ -36,6 +36,7 @@ import pinocchio as pin
 from dexplan.collision import CollisionWorld, pose_to_se3
 from dexplan.grasp import min_subgrasp_quality
 from dexplan.hand import Hand
+from dexplan.ik import nearest_branch, planar_branches
 from dexplan.objects import Shape
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.ompl import plan_joint_path
@@ -163,6 +164,58 @@ def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> 
     return np.array(out)
 
 
+#: Poses whose closed-form IK branches a track solves at once.
+_TRACK_BATCH = 16
+
+
+@dataclass
+class _Track:
+    """A finger tracked along object poses (:meth:`Transitions.track_score`).
+
+    ``poses: (K, 7)`` the poses followed, ``qs: (K, m)`` the finger's joint
+    values there, ``stopped``: the pose after the last one could not be
+    followed (False: tracking stopped at a limit and can be resumed),
+    ``stopped_at`` that pose.
+    """
+
+    poses: FloatArray
+    qs: FloatArray
+    stopped_at: FloatArray | None = None
+
+    @property
+    def stopped(self) -> bool:
+        return self.stopped_at is not None
+
+    def resume_at(self, poses: FloatArray, q_finger: FloatArray) -> int | None:
+        """Index of ``poses[0]`` in the track when it continues as ``poses`` from ``q_finger``.
+
+        None unless the track holds ``poses[0]`` with exactly ``q_finger``
+        there, the poses it holds from there are ``poses``' first ones and
+        the pose it failed at (if any, and if ``poses`` goes that far) is
+        ``poses``' next: a fresh track from there would then repeat this one
+        step for step.
+        """
+        for k in np.flatnonzero(np.all(self.poses == poses[0], axis=1)):
+            rest = self.poses[k:]
+            m = min(len(rest), len(poses))
+            if not (np.array_equal(self.qs[k], q_finger) and np.array_equal(rest[:m], poses[:m])):
+                continue
+            fails_next = m == len(rest) and m < len(poses) and self.stopped_at is not None
+            if fails_next and not np.array_equal(self.stopped_at, poses[m]):
+                continue
+            return int(k)
+        return None
+
+    def extend(
+        self, poses: FloatArray, qs: list[FloatArray], stopped_at: FloatArray | None
+    ) -> None:
+        """Append postures followed over ``poses``; ``stopped_at``: the pose that failed next."""
+        if qs:
+            self.poses = np.vstack([self.poses, poses])
+            self.qs = np.vstack([self.qs, np.asarray(qs)])
+        self.stopped_at = None if stopped_at is None else stopped_at.copy()
+
+
 class Transitions:
     """Transfer and regrasp local planners for one hand, object and world.
 
@@ -204,6 +257,12 @@ class Transitions:
         self._own_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
         # landing postures found by track_score, keyed by (finger, fingertip centre)
         self._postures: dict[tuple[int, bytes], FloatArray] = {}
+        # finger tracks by (finger, contact, joints of no finger): poses followed,
+        # postures there, and whether the pose after the last one failed
+        self._tracks: dict[tuple[int, bytes, bytes, bytes], _Track] = {}
+        fingers = np.concatenate([np.asarray(i, dtype=np.int64) for i in hand.finger_q_index])
+        self._shared_q = np.setdiff1d(np.arange(hand.nq), fingers)
+        self._pose_frames: dict[bytes, tuple[FloatArray, pin.SE3]] = {}
 
     def _pairs_of_finger(self, finger: int) -> list[int]:
         """Collision pairs of a finger's links against the palm, object and obstacles.
@@ -457,29 +516,101 @@ class Transitions:
         """
         hand = self.hand
         idx = hand.finger_q_index[finger]
+        n = min(limit, len(future_poses))
+        if n <= 0:
+            return 0, None
+        key = (finger, tip_obj.tobytes(), normal_obj.tobytes(), q[self._shared_q].tobytes())
+        track = self._tracks.get(key)
+        start = None if track is None else track.resume_at(future_poses, q[idx])
+        if start is not None and not self._touches(finger, q, tip_obj, future_poses[0]):
+            start = None  # the fresh track would land in another posture
+        if start is None:
+            target = self._target(tip_obj, normal_obj, future_poses[0])
+            q_f = self._landing_posture(finger, q, *target)
+            if q_f is None:
+                return 0, None
+            if len(self._tracks) >= 512:
+                self._tracks.clear()
+            track = self._tracks[key] = _Track(future_poses[:1].copy(), q_f[None].copy())
+            start = 0
+        assert track is not None
+        # the stored track, extended while this call needs more than it holds
+        have = len(track.poses) - start
+        if have < n and not track.stopped:
+            extra, stopped = self._track_on(
+                finger, q, track.qs[-1], tip_obj, normal_obj, future_poses[have:n]
+            )
+            end = have + len(extra)
+            track.extend(future_poses[have:end], extra, future_poses[end] if stopped else None)
+            have = len(track.poses) - start
+        return min(have, n), track.qs[start].copy()
+
+    def _target(
+        self, tip_obj: FloatArray, normal_obj: FloatArray, pose: FloatArray
+    ) -> tuple[FloatArray, FloatArray, pin.SE3]:
+        """World fingertip centre, inward normal and object SE3 of a contact at ``pose``."""
+        R, M = self._frames(pose)
+        return R @ tip_obj + pose[:3], -(R @ normal_obj), M
+
+    def _frames(self, pose: FloatArray) -> tuple[FloatArray, pin.SE3]:
+        """Rotation matrix and SE3 of an object pose, cached (tracks revisit the poses)."""
+        key = pose.tobytes()
+        out = self._pose_frames.get(key)
+        if out is None:
+            if len(self._pose_frames) >= 4096:
+                self._pose_frames.clear()
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            out = self._pose_frames[key] = (R, pose_to_se3(pose))
+        return out
+
+    def _touches(self, finger: int, q: FloatArray, tip_obj: FloatArray, pose: FloatArray) -> bool:
+        """``q``'s fingertip centre is at ``tip_obj`` (object frame) at ``pose`` (1e-6 m)."""
+        tip = self._frames(pose)[0] @ tip_obj + pose[:3]
+        return bool(np.linalg.norm(self.hand.fingertip_positions(q)[finger] - tip) < 1e-6)
+
+    def _track_on(
+        self,
+        finger: int,
+        q: FloatArray,
+        q_prev: FloatArray,
+        tip_obj: FloatArray,
+        normal_obj: FloatArray,
+        poses: FloatArray,
+    ) -> tuple[list[FloatArray], bool]:
+        """Postures of ``finger`` following a contact over ``poses`` from ``q_prev``.
+
+        Returns the postures found, one per pose from the first, and True when
+        the finger could not follow the pose after the last one (False: all
+        were followed).
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
         lo, hi = self._lo[idx], self._hi[idx]
         qh = q.copy()
-        count, q_land = 0, None
-        for j in range(min(limit, len(future_poses))):
-            pose = future_poses[j]
-            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
-            tip = R @ tip_obj + pose[:3]
-            inward = -(R @ normal_obj)
-            M = pose_to_se3(pose)
-            if j == 0:
-                q_f = self._landing_posture(finger, q, tip, inward, M)
-                if q_f is None:
-                    return 0, None
-                q_land = q_f
-                qh[idx] = q_f
-                count = 1
-                continue
-            q_f = hand.finger_ik_fast(finger, tip, qh, inward)
-            ok = q_f is not None and bool(np.all(q_f >= lo) and np.all(q_f <= hi))
+        qh[idx] = q_prev
+        out: list[FloatArray] = []
+        analytic = hand._analytic_ik[finger]
+        branches = None
+        for j, pose in enumerate(poses):
+            tip, inward, M = self._target(tip_obj, normal_obj, pose)
+            if analytic is not None:
+                # the closed-form solver's nearest branch, its branches solved
+                # in batches of poses (same solutions, fewer Python steps)
+                if j % _TRACK_BATCH == 0:
+                    chunk = poses[j : j + _TRACK_BATCH]
+                    tips = np.array([self._target(tip_obj, normal_obj, p)[0] for p in chunk])
+                    branches = planar_branches(analytic, tips)
+                assert branches is not None
+                k = j % _TRACK_BATCH
+                q_f = nearest_branch(branches[0][k], branches[1][k], branches[2][k], qh[idx])
+            else:
+                q_f = hand.finger_ik_fast(finger, tip, qh, inward)
+            ok = q_f is not None and bool((q_f >= lo).all() and (q_f <= hi).all())
             if ok:
-                q_try = qh.copy()
-                q_try[idx] = q_f
-                ok = self._finger_free(finger, q_try, M)
+                q_prev = qh[idx]
+                qh[idx] = q_f
+                ok = self._finger_free(finger, qh, M)
+                qh[idx] = q_prev
             if not ok:
                 q_f = None
                 for alt in hand.finger_ik_alternatives(finger, tip, qh, inward)[
@@ -493,10 +624,10 @@ class Transitions:
                         q_f = alt
                         break
                 if q_f is None:
-                    break
+                    return out, True
             qh[idx] = q_f
-            count += 1
-        return count, q_land
+            out.append(q_f)
+        return out, False
 
     def _landing_posture(
         self, finger: int, q: FloatArray, tip: FloatArray, inward: FloatArray, M: pin.SE3
