@@ -633,29 +633,12 @@ def explore_gsn(
     iterations, milestones, rounds = ROUND_ITERATIONS, ROUND_MILESTONES, 0
     while True:
         rounds += 1
-        remaining = max(0.05, deadline - time.perf_counter())
-        if problem.is_multi_query:
-            problem.grow_roadmap(remaining, max_milestones=milestones)
-            res = problem.solve(1e-6)  # only connects start and goal milestones into it
-        else:
-            res = problem.solve(remaining, max_iterations=iterations)
-        data = problem.planner_data()
-        roadmap = Roadmap(
-            np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
-            np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),
-            np.zeros((0, 2), dtype=np.int64),
-            planner,
-            key,
+        roadmap, starts, path, status = _module1_round(
+            ctx, problem, query, planner, key, deadline, iterations, milestones
         )
-        starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
-        path = None
-        if res.solved and res.path is not None and len(res.path):
-            path = np.asarray(res.path)
-        elif problem.is_multi_query and starts:
-            path = _roadmap_path(problem, roadmap, starts[0], query)
         stats.update(
             {
-                "gsn_status": "exact" if path is not None else res.status,
+                "gsn_status": "exact" if path is not None else status,
                 "gsn_rounds": rounds,
                 "gsn_time_s": time.perf_counter() - t0,
                 "roadmap_nodes": roadmap.n_vertices,
@@ -663,15 +646,8 @@ def explore_gsn(
                 "components": roadmap.components()[0],
             }
         )
-        report(
-            "module1",
-            {
-                "rounds": rounds,
-                "nodes": roadmap.n_vertices,
-                "edges": len(roadmap.edges),
-                "components": int(stats["components"]),
-            },
-        )
+        names = ("rounds", "gsn_rounds"), ("nodes", "roadmap_nodes"), ("edges", "roadmap_edges")
+        report("module1", {k: int(stats[v]) for k, v in (*names, ("components", "components"))})
         if path is not None:
             return GsnResult(path, roadmap, stats)
         iterations *= 2
@@ -692,6 +668,44 @@ def explore_gsn(
         )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
+
+
+def _module1_round(
+    ctx: PlanningContext,
+    problem: PlanningProblem,
+    query: GsnQuery,
+    planner: str,
+    key: str,
+    deadline: float,
+    iterations: int,
+    milestones: int,
+) -> tuple[Roadmap, list[int], FloatArray | None, str]:
+    """One round of module 1: grow the OMPL planner's graph, look for a path.
+
+    Returns:
+        ``(roadmap, start vertex ids, path or None, OMPL status)``.
+    """
+    remaining = max(0.05, deadline - time.perf_counter())
+    if problem.is_multi_query:
+        problem.grow_roadmap(remaining, max_milestones=milestones)
+        res = problem.solve(1e-6)  # only connects start and goal milestones into it
+    else:
+        res = problem.solve(remaining, max_iterations=iterations)
+    data = problem.planner_data()
+    roadmap = Roadmap(
+        np.asarray(data.vertices, dtype=float).reshape(-1, ctx.gsn.ambient_dim),
+        np.asarray(data.edges, dtype=np.int64).reshape(-1, 2),
+        np.zeros((0, 2), dtype=np.int64),
+        planner,
+        key,
+    )
+    starts = [int(i) for i in np.asarray(data.start_ids, dtype=int)]
+    path = None
+    if res.solved and res.path is not None and len(res.path):
+        path = np.asarray(res.path)
+    elif problem.is_multi_query and starts:
+        path = _roadmap_path(problem, roadmap, starts[0], query)
+    return roadmap, starts, path, res.status
 
 
 def _roadmap_path(
