@@ -268,45 +268,55 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return EXIT_OK if report.ok else EXIT_FAILED
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    """Benchmark planners on scenarios: SQLite (Planner Arena), CSV, plots, summary."""
-    from dexplan.bench import BenchProgress, format_summary, run_benchmark
+class _BenchProgressView:
+    """Renders a sweep's progress on stderr: a tqdm bar, or a line per run."""
 
-    bar: Any = None
-    tqdm: Any = None
-    if not args.quiet:
-        try:
-            from tqdm import tqdm
-        except ImportError:  # plain progress lines instead of a bar
-            tqdm = None
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.bar: Any = None
+        self.tqdm: Any = None
+        if not quiet:
+            try:
+                from tqdm import tqdm
 
-    def progress(p: BenchProgress) -> None:
-        nonlocal bar
-        if args.quiet:
+                self.tqdm = tqdm
+            except ImportError:  # plain progress lines instead of a bar
+                self.tqdm = None
+
+    def __call__(self, p: Any) -> None:  # a dexplan.bench.BenchProgress
+        if self.quiet:
             return
         if p.record is None:
             if p.skipped:
                 _err(f"resuming: {p.skipped} runs already in the database, {p.total} to do")
-            if tqdm is not None:
-                bar = tqdm(total=p.total, file=sys.stderr, unit="run", dynamic_ncols=True)
+            if self.tqdm is not None:
+                self.bar = self.tqdm(total=p.total, file=sys.stderr, unit="run", dynamic_ncols=True)
             return
-        r = p.record
-        t = r.get("time")
-        what = f"{r['scenario']} {r['planner']} seed {r['seed']}: {r['status_name']}" + (
-            f" {t:.2f}s" if t is not None else ""
-        )
-        if bar is not None:
-            bar.set_postfix_str(what, refresh=False)
-            bar.update(1)
+        r, t = p.record, p.record.get("time")
+        what = f"{r['scenario']} {r['planner']} seed {r['seed']}: {r['status_name']}"
+        what += f" {t:.2f}s" if t is not None else ""
+        if self.bar is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+            self.bar.update(1)
         else:
             _err(f"[{p.done}/{p.total}] {what}")
 
-    planners = args.planners
+    def close(self) -> None:
+        """Close the bar, if one was opened."""
+        if self.bar is not None:
+            self.bar.close()
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Benchmark planners on scenarios: SQLite (Planner Arena), CSV, plots, summary."""
+    from dexplan.bench import format_summary, run_benchmark
+
+    view = _BenchProgressView(args.quiet)
     baseline = None if args.baseline.lower() == "none" else args.baseline
     try:
         result = run_benchmark(
             args.scenarios,
-            planners,
+            args.planners,
             args.seeds,
             args.time_limit,
             out_dir=args.output,
@@ -318,11 +328,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
             save_plans=args.save_plans,
             start_method=args.start_method,
             run_timeout=args.run_timeout,
-            progress=progress,
+            progress=view,
         )
     finally:
-        if bar is not None:
-            bar.close()
+        view.close()
     sys.stdout.write(format_summary(result.summary, baseline) + "\n")
     sys.stdout.write(
         f"runs: {result.new_runs} new, {result.skipped} resumed ({result.backend} backend)\n"
