@@ -1,0 +1,432 @@
+"""Landing choice for regrasps: where a finger lands, and how long it can follow from there.
+
+Whether finger gaits succeed is decided here (MEASURED.md): among sampled
+contacts that the finger reaches, that keep the fingertips apart and every
+(n-1) subgrasp force closure, the planner picks the one from which the finger
+can follow the rest of the object motion longest, its links checked against
+the palm, the object and obstacles (a :class:`Track` of the finger, resumed
+when a later query starts where it left off).
+
+:class:`Landings` is the part of :class:`~dexplan.planning.transitions.Transitions`
+that scores and yields landings; it uses the transfer machinery of that class
+(IK, collision checks, grasp quality), which it is mixed into.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.collision import pose_to_se3
+from dexplan.ik import nearest_branch, planar_branches
+from dexplan.pose import quat_to_matrix
+from dexplan.typing import FloatArray
+
+if TYPE_CHECKING:
+    from dexplan.planning.transitions import GraspContacts
+
+
+#: Poses whose closed-form IK branches a track solves at once.
+_TRACK_BATCH = 16
+
+
+@dataclass
+class Track:
+    """A finger tracked along object poses (:meth:`Landings.track_score`).
+
+    ``poses: (K, 7)`` the poses followed, ``qs: (K, m)`` the finger's joint
+    values there, ``stopped``: the pose after the last one could not be
+    followed (False: tracking stopped at a limit and can be resumed),
+    ``stopped_at`` that pose.
+    """
+
+    poses: FloatArray
+    qs: FloatArray
+    stopped_at: FloatArray | None = None
+
+    @property
+    def stopped(self) -> bool:
+        """True when the pose after the last one could not be followed."""
+        return self.stopped_at is not None
+
+    def resume_at(self, poses: FloatArray, q_finger: FloatArray) -> int | None:
+        """Index of ``poses[0]`` in the track when it continues as ``poses`` from ``q_finger``.
+
+        None unless the track holds ``poses[0]`` with exactly ``q_finger``
+        there, the poses it holds from there are ``poses``' first ones and
+        the pose it failed at (if any, and if ``poses`` goes that far) is
+        ``poses``' next: a fresh track from there would then repeat this one
+        step for step.
+        """
+        for k in np.flatnonzero(np.all(self.poses == poses[0], axis=1)):
+            rest = self.poses[k:]
+            m = min(len(rest), len(poses))
+            if not (np.array_equal(self.qs[k], q_finger) and np.array_equal(rest[:m], poses[:m])):
+                continue
+            fails_next = m == len(rest) and m < len(poses) and self.stopped_at is not None
+            if fails_next and not np.array_equal(self.stopped_at, poses[m]):
+                continue
+            return int(k)
+        return None
+
+    def extend(
+        self, poses: FloatArray, qs: list[FloatArray], stopped_at: FloatArray | None
+    ) -> None:
+        """Append postures followed over ``poses``; ``stopped_at``: the pose that failed next."""
+        if qs:
+            self.poses = np.vstack([self.poses, poses])
+            self.qs = np.vstack([self.qs, np.asarray(qs)])
+        self.stopped_at = None if stopped_at is None else stopped_at.copy()
+
+
+class Landings:
+    """Scoring and choice of landing contacts (mixed into ``Transitions``)."""
+
+    def follow_scores(
+        self,
+        finger: int,
+        candidates_tip_obj: FloatArray,
+        future_poses: FloatArray,
+        normals_obj: FloatArray | None = None,
+    ) -> FloatArray:
+        """How many consecutive future poses the finger can follow from each candidate.
+
+        Args:
+            finger: the finger to regrasp.
+            candidates_tip_obj: (C, 3) fingertip centres (contact + r * normal), object frame.
+            future_poses: (P, 7) the rest of the object trajectory (first = now).
+            normals_obj: (C, 3) outward normals at the candidates (object
+                frame). With them, and ``landing_alignment`` set, a redundant
+                finger must also be able to point its last link within
+                ``acos(landing_alignment)`` of the inward normal at each pose
+                (bounded by how far the normal leaves the finger's flexion plane).
+
+        Returns:
+            (C,) counts of consecutive poses, from the first, where the finger's
+            IK succeeds with the joint margin.
+        """
+        stride = max(1, self.settings.follow_stride)
+        poses = future_poses[::stride]
+        C, P = len(candidates_tip_obj), len(poses)
+        targets = np.empty((P, C, 3))
+        for k, pose in enumerate(poses):
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            targets[k] = candidates_tip_obj @ R.T + pose[:3]
+        q, ok = self.hand.finger_ik_batch(finger, targets.reshape(-1, 3))
+        idx = self.hand.finger_q_index[finger]
+        ok &= np.all(q >= self._lo[idx], axis=1) & np.all(q <= self._hi[idx], axis=1)
+        split = self.hand._split_ik[finger]
+        limit = self.settings.landing_alignment
+        if normals_obj is not None and split is not None and limit is not None and ok.any():
+            inward = np.empty((P, C, 3))
+            for k, pose in enumerate(poses):
+                R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+                inward[k] = -normals_obj @ R.T
+            inward = inward.reshape(-1, 3)
+            rows = np.flatnonzero(ok)
+            axes = split.chain.forward(q[rows])[2][:, split.sub[1]]  # flexion-plane normals
+            off = np.einsum("ij,ij->i", axes, inward[rows])
+            ok[rows] = np.sqrt(np.maximum(0.0, 1.0 - off * off)) >= limit
+        ok = ok.reshape(P, C)
+        # consecutive successes from the first pose
+        follow = np.cumprod(ok, axis=0).sum(axis=0)
+        return follow * stride
+
+    def track_score(
+        self,
+        finger: int,
+        q: FloatArray,
+        tip_obj: FloatArray,
+        normal_obj: FloatArray,
+        future_poses: FloatArray,
+        limit: int,
+    ) -> tuple[int, FloatArray | None]:
+        """How many consecutive future poses the finger follows from a contact, links checked.
+
+        The finger lands at ``future_poses[0]`` in its collision-free posture
+        whose last link points most into the surface (or, when ``q`` already
+        touches there, in ``q``'s own posture), then follows the contact as a
+        transfer does (tracking IK with the inward normal, other postures one
+        step away when one collides), its links checked against the palm, the
+        object and the obstacles (not the other fingers, which move too).
+
+        Args:
+            finger: the finger.
+            q: (nq,) current hand configuration.
+            tip_obj: (3,) fingertip centre (contact + r * normal), object frame.
+            normal_obj: (3,) outward normal there, object frame.
+            future_poses: (P, 7) the rest of the object trajectory (first = now).
+            limit: stop counting after this many poses.
+
+        Returns:
+            ``(count, q_finger)``: poses followed from the first (0: the
+            finger cannot touch there collision-free) and the landing posture.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        n = min(limit, len(future_poses))
+        if n <= 0:
+            return 0, None
+        key = (finger, tip_obj.tobytes(), normal_obj.tobytes(), q[self._shared_q].tobytes())
+        track = self._tracks.get(key)
+        start = None if track is None else track.resume_at(future_poses, q[idx])
+        if start is not None and not self._touches(finger, q, tip_obj, future_poses[0]):
+            start = None  # the fresh track would land in another posture
+        if start is None:
+            target = self._target(tip_obj, normal_obj, future_poses[0])
+            q_f = self._landing_posture(finger, q, *target)
+            if q_f is None:
+                return 0, None
+            if len(self._tracks) >= 512:
+                self._tracks.clear()
+            track = self._tracks[key] = Track(future_poses[:1].copy(), q_f[None].copy())
+            start = 0
+        assert track is not None
+        # the stored track, extended while this call needs more than it holds
+        have = len(track.poses) - start
+        if have < n and not track.stopped:
+            extra, stopped = self._track_on(
+                finger, q, track.qs[-1], tip_obj, normal_obj, future_poses[have:n]
+            )
+            end = have + len(extra)
+            track.extend(future_poses[have:end], extra, future_poses[end] if stopped else None)
+            have = len(track.poses) - start
+        return min(have, n), track.qs[start].copy()
+
+    def _target(
+        self, tip_obj: FloatArray, normal_obj: FloatArray, pose: FloatArray
+    ) -> tuple[FloatArray, FloatArray, pin.SE3]:
+        """World fingertip centre, inward normal and object SE3 of a contact at ``pose``."""
+        R, M = self._frames(pose)
+        return R @ tip_obj + pose[:3], -(R @ normal_obj), M
+
+    def _frames(self, pose: FloatArray) -> tuple[FloatArray, pin.SE3]:
+        """Rotation matrix and SE3 of an object pose, cached (tracks revisit the poses)."""
+        key = pose.tobytes()
+        out = self._pose_frames.get(key)
+        if out is None:
+            if len(self._pose_frames) >= 4096:
+                self._pose_frames.clear()
+            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+            out = self._pose_frames[key] = (R, pose_to_se3(pose))
+        return out
+
+    def _touches(self, finger: int, q: FloatArray, tip_obj: FloatArray, pose: FloatArray) -> bool:
+        """``q``'s fingertip centre is at ``tip_obj`` (object frame) at ``pose`` (1e-6 m)."""
+        tip = self._frames(pose)[0] @ tip_obj + pose[:3]
+        return bool(np.linalg.norm(self.hand.fingertip_positions(q)[finger] - tip) < 1e-6)
+
+    def _track_on(
+        self,
+        finger: int,
+        q: FloatArray,
+        q_prev: FloatArray,
+        tip_obj: FloatArray,
+        normal_obj: FloatArray,
+        poses: FloatArray,
+    ) -> tuple[list[FloatArray], bool]:
+        """Postures of ``finger`` following a contact over ``poses`` from ``q_prev``.
+
+        Returns the postures found, one per pose from the first, and True when
+        the finger could not follow the pose after the last one (False: all
+        were followed).
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        lo, hi = self._lo[idx], self._hi[idx]
+        qh = q.copy()
+        qh[idx] = q_prev
+        out: list[FloatArray] = []
+        analytic = hand._analytic_ik[finger]
+        branches = None
+        for j, pose in enumerate(poses):
+            tip, inward, M = self._target(tip_obj, normal_obj, pose)
+            if analytic is not None:
+                # the closed-form solver's nearest branch, its branches solved
+                # in batches of poses (same solutions, fewer Python steps)
+                if j % _TRACK_BATCH == 0:
+                    chunk = poses[j : j + _TRACK_BATCH]
+                    tips = np.array([self._target(tip_obj, normal_obj, p)[0] for p in chunk])
+                    branches = planar_branches(analytic, tips)
+                assert branches is not None
+                k = j % _TRACK_BATCH
+                q_f = nearest_branch(branches[0][k], branches[1][k], branches[2][k], qh[idx])
+            else:
+                q_f = hand.finger_ik_fast(finger, tip, qh, inward)
+            ok = q_f is not None and bool((q_f >= lo).all() and (q_f <= hi).all())
+            if ok:
+                q_prev = qh[idx]
+                qh[idx] = q_f
+                ok = self._finger_free(finger, qh, M)
+                qh[idx] = q_prev
+            if not ok:
+                q_f = None
+                for alt in hand.finger_ik_alternatives(finger, tip, qh, inward)[
+                    : self.settings.posture_options
+                ]:
+                    if np.any(alt < lo) or np.any(alt > hi):
+                        continue
+                    q_try = qh.copy()
+                    q_try[idx] = alt
+                    if self._finger_free(finger, q_try, M):
+                        q_f = alt
+                        break
+                if q_f is None:
+                    return out, True
+            qh[idx] = q_f
+            out.append(q_f)
+        return out, False
+
+    def _landing_posture(
+        self, finger: int, q: FloatArray, tip: FloatArray, inward: FloatArray, M: pin.SE3
+    ) -> FloatArray | None:
+        """A collision-free posture of ``finger`` with its tip centre at ``tip`` (world).
+
+        ``q``'s own when it is there already, else the IK solution (within
+        the joint margin) whose last link points most along ``inward``.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        if np.linalg.norm(hand.fingertip_positions(q)[finger] - tip) < 1e-6:
+            return q[idx].copy() if self._finger_free(finger, q, M) else None
+        cands, ok = hand.finger_ik_candidates(finger, tip[None])
+        cands, ok = cands[0], ok[0]
+        ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=1)
+        rows = np.flatnonzero(ok)
+        if not len(rows):
+            return None
+        split = hand._split_ik[finger]
+        if split is not None:
+            rows = rows[np.argsort(-split.alignment(cands[rows], inward), kind="stable")]
+        else:
+            rows = rows[np.argsort(np.linalg.norm(cands[rows] - q[idx], axis=1), kind="stable")]
+        qh = q.copy()
+        for k in rows[: self.settings.landing_solutions]:
+            qh[idx] = cands[k]
+            if self._finger_free(finger, qh, M):
+                return cands[k].copy()
+        return None
+
+    def landing_candidates(
+        self,
+        finger: int,
+        pose: FloatArray,
+        q: FloatArray,
+        grasp: GraspContacts,
+        future_poses: FloatArray,
+        hint: tuple[FloatArray, FloatArray] | None = None,
+        limit: int = 8,
+    ) -> Iterator[tuple[FloatArray, FloatArray, int]]:
+        """Landing contacts for ``finger``, best first: ``(point, normal_out, score)``.
+
+        Filters: reachable now (with joint margin), fingertips apart, every
+        (n-1) subgrasp of the new grasp force closure. Sorted by
+        :meth:`follow_scores` (random among ties). A generator: the force-closure
+        test, the costly filter, runs only on the candidates the caller asks
+        for (the first usually works), at most ``limit`` are yielded.
+        """
+        s = self.settings
+        pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
+        if hint is not None:
+            pts = np.vstack([hint[0][None], pts])
+            nrm = np.vstack([hint[1][None], nrm])
+        r = self.hand.fingertip_radius
+        tip_obj = pts + r * nrm
+        others = [i for i in range(self.hand.n_fingers) if i != finger]
+        other_tips = grasp.points[others] + r * grasp.normals_out[others]
+        apart = np.all(
+            np.linalg.norm(tip_obj[:, None, :] - other_tips[None], axis=2)
+            >= 2 * r + s.tip_clearance,
+            axis=1,
+        )
+        # a landing next to the current contact gains nothing
+        moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
+        keep = np.flatnonzero(apart & moved)
+        if len(keep) == 0:
+            return
+        # reachable now (one IK batch), then at most landing_reachable of them
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        idx = self.hand.finger_q_index[finger]
+        q_now, ok_now = self.hand.finger_ik_batch(finger, tip_obj[keep] @ R.T + pose[:3])
+        ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
+        keep = keep[ok_now][: s.landing_reachable + (hint is not None)]
+        if len(keep) == 0:
+            return
+        scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
+        reach = scores > 0
+        keep, scores = keep[reach], scores[reach]
+        if s.landing_alignment is not None and len(keep):
+            # the distal link must be able to point into the surface there,
+            # or the finger's side touches the object (redundant fingers)
+            aligned = self._alignment(finger, tip_obj[keep] @ R.T + pose[:3], -nrm[keep] @ R.T)
+            good = aligned >= s.landing_alignment
+            keep, scores = keep[good], scores[good]
+        order = np.lexsort((self.rng.random(len(keep)), -scores))
+        keep, scores = keep[order], scores[order]
+        # Best IK-only score first, each candidate that keeps force closure is
+        # tracked (links collision-checked) until the next IK-only score, an
+        # upper bound, cannot beat the best tracked one; tracked landings come
+        # first by tracked score, then the untracked ones by their bound.
+        self._postures.clear()
+        tracked: list[tuple[int, int]] = []
+        best, pos = 0, 0
+        while pos < len(keep) and len(tracked) < s.tracked_landings and scores[pos] > best:
+            c = keep[pos]
+            pos += 1
+            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+                continue
+            horizon = int(scores[pos - 1]) + max(1, s.follow_stride)
+            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
+            if q_land is None:
+                continue
+            self._postures[(finger, pts[c].tobytes())] = q_land
+            tracked.append((count, int(c)))
+            best = max(best, count)
+        tracked.sort(key=lambda t: -t[0])
+        found = 0
+        for count, c in tracked:
+            yield pts[c], nrm[c], count
+            found += 1
+            if found >= limit:
+                return
+        for c, score in zip(keep[pos:], scores[pos:], strict=True):
+            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+                continue
+            yield pts[c], nrm[c], int(score)
+            found += 1
+            if found >= limit:
+                return
+
+    def _landing_fc(
+        self, finger: int, grasp: GraspContacts, point: FloatArray, normal: FloatArray
+    ) -> bool:
+        """Every (n-1) subgrasp stays force closure with ``finger`` moved there (certified)."""
+        if self.deadline.expired():
+            return False
+        self.stats["landing_checks"] += 1
+        new = grasp.replace(finger, point, normal)
+        return self.grasp_quality(new) > self.validity.fc_margin
+
+    def _alignment(self, finger: int, tips: FloatArray, inward: FloatArray) -> FloatArray:
+        """Best cosine ``(C,)`` between the last link and ``inward: (C, 3)`` over IK solutions.
+
+        ``tips: (C, 3)`` fingertip centres, world frame. Fingers without
+        several solutions per target (no redundancy) score 1.
+        """
+        hand = self.hand
+        split = hand._split_ik[finger]
+        if split is None:
+            return np.ones(len(tips))
+        cands, ok = hand.finger_ik_candidates(finger, tips)
+        idx = hand.finger_q_index[finger]
+        ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=2)
+        C, A, m = cands.shape
+        tip, origins, _ = split.chain.forward(cands.reshape(-1, m))
+        d = (tip - origins[:, -1]).reshape(C, A, 3)
+        cos = np.einsum("caj,cj->ca", d, inward) / np.linalg.norm(d, axis=2)
+        cos[~ok] = -np.inf
+        return cos.max(axis=1)
