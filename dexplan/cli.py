@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import signal
 import threading
+from typing import Any
 
 # SIGINT: some libraries catch BaseException around their own imports
 # (trimesh does), which swallows the KeyboardInterrupt raised there. The flag
@@ -22,11 +23,23 @@ _interrupted = False
 _running = False
 
 
-def _on_sigint(signum: int, frame: object) -> None:
+def _on_sigint(signum: int, frame: Any) -> None:
     global _interrupted
     _interrupted = True
-    if _running:
+    # never raise inside an import: libraries swallow it there (trimesh) or
+    # abort when it surfaces in a native module's initialisation; the flag
+    # is acted on at the next progress event or output instead
+    if _running and not _importing(frame):
         raise KeyboardInterrupt
+
+
+def _importing(frame: Any) -> bool:
+    """True when the interrupted code runs inside an ``import``."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 if threading.current_thread() is threading.main_thread():
@@ -37,7 +50,6 @@ import os  # noqa: E402
 import sys  # noqa: E402
 import warnings  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
-from typing import Any  # noqa: E402
 
 from dexplan.exceptions import DexplanError, InvalidInputError  # noqa: E402
 
@@ -45,6 +57,7 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
 
 EPILOG = """exit codes:
   0  success
@@ -677,17 +690,19 @@ def _run(argv: Sequence[str] | None) -> int:
         return code
     except BrokenPipeError:  # `dexplan info | head`: the reader left, nothing to say
         return EXIT_OK
-    except DexplanError as exc:
-        _err(f"error: {exc}")
-        return EXIT_BAD_INPUT
-    except OSError as exc:  # unreadable or unwritable files
-        _err(f"error: {exc}")
-        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         _err("interrupted")
-        return 130
-    except Exception as exc:  # a bug: say so plainly, traceback only on request
-        if args is not None and args.debug:
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        if _interrupted:
+            # a library that swallowed Ctrl-C (trimesh leaves an ExceptionWrapper
+            # where a module should be) then fails: the interrupt is the cause
+            _err("interrupted")
+            return EXIT_INTERRUPTED
+        if isinstance(exc, DexplanError | OSError):  # bad input; unreadable or unwritable files
+            _err(f"error: {exc}")
+            return EXIT_BAD_INPUT
+        if args is not None and args.debug:  # a bug: say so plainly, traceback only on request
             raise
         detail = str(exc)[:300]
         _err(f"internal error: {type(exc).__name__}: {detail} (rerun with --debug)")
