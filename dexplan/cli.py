@@ -51,7 +51,7 @@ import sys  # noqa: E402
 import warnings  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 
-from dexplan.exceptions import DexplanError, InvalidInputError  # noqa: E402
+from dexplan.exceptions import DexplanError, InvalidInputError, one_line  # noqa: E402
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -100,11 +100,6 @@ def cmd_info(args: argparse.Namespace) -> int:
     for dist in ("ompl", "pin", "coal", "osqp", "numpy", "scipy", "trimesh", "rerun-sdk"):
         out.write(f"{dist}: {_version(dist)}\n")
     return EXIT_OK
-
-
-def shorten_text(text: str, limit: int = 500) -> str:
-    """``text`` cut to ``limit`` characters (messages echo library detail)."""
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _err(msg: str) -> None:
@@ -185,7 +180,7 @@ def _report_no_plan(planned: Any, out: Any) -> int:
     from dexplan.plan_file import write_plan
 
     result = planned.result
-    _err(f"no plan: {result.status}: {shorten_text(result.message)}")
+    _err(f"no plan: {result.status}: {one_line(result.message, 500)}")
     if result.rejections is not None:
         _err(result.rejections.describe())
     if result.status == "invalid_plan" and result.segments:
@@ -436,7 +431,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         f"trajectory: {out}\npoints: {traj.t.size}  segments: {len(traj.segments)}  "
         f"duration_s: {traj.duration:.3f}\nmax_grip_force_N: {fmax:.3f}  "
         f"max_joint_torque_Nm: {float(np.abs(traj.joint_torques).max(initial=0.0)):.4f}\n"
-        f"limits check: {shorten_text(verdict, 300)}\n"
+        f"limits check: {one_line(verdict, 300)}\n"
     )
     return EXIT_OK if not problems else EXIT_FAILED
 

@@ -63,6 +63,16 @@ def shorten(value: object, limit: int = MAX_ECHO) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def one_line(text: object, limit: int = 300) -> str:
+    """``text`` on one line (whitespace runs collapsed), at most ``limit`` characters.
+
+    For texts dexplan does not write itself (a library's error, a planner
+    message) that end up in a one-line message.
+    """
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
+
 def unknown_field(prefix: str, key: str, value: object, allowed: Iterable[str]) -> str:
     """Message for an unknown field, with a "did you mean" hint when one is close.
 

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from dexplan import plan_schema
-from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, shorten
+from dexplan.exceptions import DexplanError, InvalidInputError, PlanFileError, one_line, shorten
 from dexplan.files import atomic_output, file_sha256
 from dexplan.plan_schema import FORMAT, validate_plan
 from dexplan.plan_verify import RULES, VerifyReport, Violation, fingertip_contact, verify_plan
@@ -141,18 +141,12 @@ def read_plan(path: str | Path, base_dir: str | Path | None = None) -> dict[str,
     except RecursionError as exc:
         raise PlanFileError(f"{path}: not valid JSON: nested too deeply") from exc
     except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError, a 5000-digit int
-        raise PlanFileError(f"{path}: not valid JSON: {_clip(str(exc))}") from exc
+        raise PlanFileError(f"{path}: not valid JSON: {one_line(str(exc), 200)}") from exc
     try:
         validate_plan(doc, path.resolve().parent if base_dir is None else base_dir)
     except PlanFileError as exc:
         raise PlanFileError(f"{path}: {exc}") from exc
     return doc
-
-
-def _clip(text: str, limit: int = 200) -> str:
-    """``text`` cut to ``limit`` characters (a foreign message in a one-line error)."""
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
@@ -178,7 +172,7 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
             package_dirs=package_dirs,
         )
     except DexplanError as exc:
-        raise PlanFileError(f"hand: {_clip(str(exc))}") from exc
+        raise PlanFileError(f"hand: {one_line(str(exc), 200)}") from exc
     if list(hand.joint_names) != list(h["joint_names"]):
         raise PlanFileError(
             f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError, PlanFileError
+from dexplan.exceptions import DexplanError, PlanFileError, one_line
 from dexplan.plan_schema import validate_plan
 from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
@@ -448,7 +448,7 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
             message names the field) or its models cannot be rebuilt (the URDF
             text, a mesh file).
     """
-    from dexplan.plan_file import _clip, models_from_document, segments_from_dicts
+    from dexplan.plan_file import models_from_document, segments_from_dicts
 
     validate_plan(doc, base_dir)
     try:
@@ -456,7 +456,7 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
     except PlanFileError:
         raise
     except DexplanError as exc:  # a mesh file that changed since validation, coal
-        raise PlanFileError(f"cannot rebuild the plan's models: {_clip(str(exc))}") from exc
+        raise PlanFileError(f"cannot rebuild the plan's models: {one_line(str(exc), 200)}") from exc
     segments = segments_from_dicts(doc["segments"])
     if not segments:
         chk.add(-1, -1, "segments", "the plan has no segments")

@@ -25,7 +25,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError, shorten
+from dexplan.exceptions import DexplanError, InvalidInputError, ScenarioError, one_line, shorten
 from dexplan.files import file_sha256
 from dexplan.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
 from dexplan.objects.factory import (
@@ -194,12 +194,6 @@ def _fail(msg: str) -> NoReturn:
     raise ScenarioError(msg)
 
 
-def _one_line(text: str, limit: int = 300) -> str:
-    """``text`` on one line, at most ``limit`` characters (foreign error texts)."""
-    text = " ".join(str(text).split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
 def _only(table: Mapping[str, Any], prefix: str, allowed: set[str] | frozenset[str]) -> None:
     try:
         check_fields(table, prefix, allowed)
@@ -348,7 +342,7 @@ def _file(table: Mapping[str, Any], key: str, prefix: str, base_dir: Path) -> Pa
         path = (base_dir / raw).resolve()
         ok = path.is_file()
     except (OSError, ValueError, RuntimeError) as exc:  # name too long, symlink loop
-        _fail(f"{name}: cannot use {shorten(raw)}: {_one_line(str(exc), 120)}")
+        _fail(f"{name}: cannot use {shorten(raw)}: {one_line(str(exc), 120)}")
     if not ok:
         _fail(f"{name} file not found: {shorten(str(path))}")
     return path
@@ -362,7 +356,7 @@ def _text_file(path: Path, name: str, max_bytes: int) -> None:
             _fail(f"{name} file is {size} bytes, more than {max_bytes}: {shorten(str(path))}")
         data = path.read_bytes()
     except OSError as exc:
-        _fail(f"{name}: cannot read {shorten(str(path))}: {_one_line(exc.strerror or str(exc))}")
+        _fail(f"{name}: cannot read {shorten(str(path))}: {one_line(exc.strerror or str(exc))}")
     try:
         data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -397,7 +391,7 @@ def _shape_fields(
     try:
         built = shape_from_dict(shape, base_dir, field=prefix)
     except DexplanError as exc:
-        raise ScenarioError(_one_line(str(exc))) from exc
+        raise ScenarioError(one_line(str(exc))) from exc
     for key in ("radius", "length"):
         if key in shape and shape[key] > max_size:
             _fail(f"{prefix}.{key} must be <= {max_size:g} m, got {shorten(shape[key])}")
@@ -706,7 +700,7 @@ def load_scenario(path: str | Path) -> Scenario:
         data = path.read_bytes()
     except (OSError, ValueError) as exc:  # unreadable, name too long, NUL in the name
         raise ScenarioError(
-            f"cannot read scenario file {where}: {_one_line(str(exc), 120)}"
+            f"cannot read scenario file {where}: {one_line(str(exc), 120)}"
         ) from exc
     try:
         text = data.decode("utf-8")
@@ -721,7 +715,7 @@ def load_scenario(path: str | Path) -> Scenario:
             f"{where}: not valid TOML: arrays or tables nested too deeply{_line_of(text, _DEEP)}"
         ) from exc
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: not valid TOML: {_one_line(str(exc), 200)}") from exc
+        raise ScenarioError(f"{where}: not valid TOML: {one_line(str(exc), 200)}") from exc
     except ValueError as exc:  # int(): more digits than Python converts
         raise ScenarioError(
             f"{where}: not valid TOML: an integer has too many digits{_line_of(text, _LONG_INT)}"
@@ -729,7 +723,7 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         return parse_scenario(doc, path.resolve().parent, path.stem)
     except InvalidInputError as exc:
-        raise ScenarioError(f"{where}: {_one_line(str(exc))}") from exc
+        raise ScenarioError(f"{where}: {one_line(str(exc))}") from exc
 
 
 _DEEP = re.compile(r"(?:[\[{]\s*){32}")  # 32 arrays or tables opened in a row
