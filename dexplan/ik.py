@@ -432,13 +432,7 @@ class SplitFingerIK:
         (nearest to ``q_prev``).
         """
         t = np.asarray(target, dtype=float)[None]
-        if self.free is None:
-            g, v = self._table_geometry, self.table
-        else:
-            k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
-            ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
-            g = {key: val[ks] for key, val in self._table_geometry.items()}
-            v = self.table[ks]
+        g, v = self._table_near(q_prev)
         q, ok = self._candidates(t, v, g)
         if approach is not None and self.free is not None:
             best = self._best_posture(q[0], ok[0], q_prev, approach)
@@ -449,6 +443,14 @@ class SplitFingerIK:
             # a far target (a landing, not a small step): the whole grid
             q, ok = self._nearest(*self._candidates(t, self.grid, self._grid_geometry), q_prev)
         return q[0] if ok[0] else None
+
+    def _table_near(self, q_prev: FloatArray) -> tuple[dict[str, FloatArray], FloatArray]:
+        """Free-joint values (and their geometry) within a tracking step of ``q_prev``."""
+        if self.free is None:
+            return self._table_geometry, self.table
+        k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
+        ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
+        return {key: val[ks] for key, val in self._table_geometry.items()}, self.table[ks]
 
     def options_near(
         self, target: FloatArray, q_prev: FloatArray, approach: FloatArray
@@ -464,13 +466,7 @@ class SplitFingerIK:
             (C, m) solutions within limits, sorted by the alignment of the last
             link with ``approach`` minus the squared joint step (C may be 0).
         """
-        if self.free is None:
-            g, v = self._table_geometry, self.table
-        else:
-            k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
-            ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
-            g = {key: val[ks] for key, val in self._table_geometry.items()}
-            v = self.table[ks]
+        g, v = self._table_near(q_prev)
         q, ok = self._candidates(np.asarray(target, dtype=float)[None], v, g)
         q, ok = q[0], ok[0]
         rows = np.flatnonzero(ok & np.all(np.abs(q - q_prev) <= TRACK_MAX_STEP, axis=1))
