@@ -296,11 +296,138 @@ class _PairQP:
 _THETAS = np.linspace(0.0, 1.0, 5)[:, None, None, None]
 
 
+class _PairBounds:
+    """Certified bounds on ``|z*|`` for every (subset, direction) pair of a screen.
+
+    A pair is ``min |z| s.t. bh_s z <= b_sj`` with ``b(d_j) = -A G^+ d_j``; its
+    quality is ``1 / sqrt(|G^+ d_j|^2 + |z*|^2)``. Shapes (S subsets, 12 directions,
+    R facet rows, n force coordinates): ``b`` (S, 12, R); ``a2`` (S, 12) the
+    ``|G^+ d_j|^2``; ``lo`` (S, 12) the exact lower bound of the relaxation to the
+    most violated halfspace, ``q_hi`` the quality bound it gives. :meth:`refine`
+    adds the feasible points ``theta z1 + c z0``: ``hi2`` (S, 12) the upper bound
+    of ``|z*|^2``, ``q_lo`` the quality bound it gives, ``exact`` where ``z1``
+    itself is feasible.
+    """
+
+    __slots__ = (
+        "a2", "b", "best_t", "beta", "c", "exact", "hi2", "inv_slack", "lo", "lo2",
+        "q_hi", "q_lo", "sub", "z0", "z0z0", "z1",
+    )  # fmt: skip
+
+    def __init__(self, sub: _Subsets, z0: FloatArray):
+        self.sub = sub
+        self.z0 = z0
+        # b(d_j) = -A G^+ d_j with unit rows: (S, 12, R)
+        self.b = b = np.concatenate([-sub.ch, sub.ch], axis=2).transpose(0, 2, 1)
+        a2h = sub.a * sub.a
+        self.a2 = np.concatenate([a2h, a2h], axis=1)  # |G^+ d_j|^2, (S, 12)
+        # Relaxation to the most violated halfspace: exact lower bound lo <= |z*|.
+        self.lo = np.maximum(-b.min(axis=2), 0.0)  # (S, 12)
+        self.lo2 = self.lo * self.lo
+        self.q_hi = 1.0 / np.sqrt(self.a2 + self.lo2)  # each pair's quality is in [q_lo, q_hi]
+        self.inv_slack = 1.0 / -(sub.bh @ z0[:, :, None])[:, None, :, 0]  # (S, 1, R)
+        self.beta = b * self.inv_slack
+        self.z0z0 = np.einsum("sn,sn->s", z0, z0)[:, None]
+
+    def first_decision(self, margin: float) -> float | None:
+        """The validity fast path: ``theta = 0`` alone (``c z0``) often decides.
+
+        Returns:
+            A certified bound on the other side of ``margin`` from the quality's
+            (lower bound above it, or upper bound at most it), or None.
+        """
+        c0 = np.maximum(-self.beta.min(axis=2), 0.0)
+        worst_lo = float((1.0 / np.sqrt(self.a2 + c0 * c0 * self.z0z0)).min())
+        if worst_lo > margin:
+            return worst_lo
+        worst_hi = float(self.q_hi.min())
+        if worst_hi <= margin:
+            return worst_hi
+        return None
+
+    def refine(self) -> None:
+        """Upper bounds from the feasible points ``theta z1 + c z0``.
+
+        ``bh z0 <= -1`` and ``z1`` is the relaxed optimum: the smallest feasible ``c``
+        for each ``theta`` of a small grid, then the best ``theta``. Sets ``z1``,
+        ``c``, ``best_t``, ``exact``, ``hi2`` and ``q_lo``.
+        """
+        bh, b, lo = self.sub.bh, self.b, self.lo
+        s_count = b.shape[0]
+        i1 = np.argmin(b, axis=2)
+        self.z1 = bh[np.arange(s_count)[:, None], i1] * -lo[:, :, None]  # (S, 12, n)
+        alpha = (self.z1 @ bh.transpose(0, 2, 1)) * self.inv_slack  # (S, 12, R)
+        self.c = c = np.maximum((_THETAS * alpha - self.beta).max(axis=3), 0.0)  # (T, S, 12)
+        z1z0 = np.einsum("sjn,sn->sj", self.z1, self.z0)
+        t = _THETAS[..., 0]
+        norm2 = t * t * self.lo2 + c * (2.0 * t * z1z0 + c * self.z0z0)
+        self.best_t = np.argmin(norm2, axis=0)
+        self.exact = c[-1] <= 0.0  # z1 itself is feasible
+        self.hi2 = np.where(self.exact, self.lo2, np.maximum(norm2.min(axis=0), self.lo2))
+        self.q_lo = 1.0 / np.sqrt(self.a2 + self.hi2)
+
+    def feasible_point(self, s: int, j: int) -> FloatArray:
+        """(n,) the best feasible point ``theta z1 + c z0`` of pair ``(s, j)``."""
+        t = self.best_t[s, j]
+        return float(_THETAS[t, 0, 0, 0]) * self.z1[s, j] + float(self.c[t, s, j]) * self.z0[s]
+
+
+class _Grasp:
+    """A checked grasp: the arrays and settings every public method starts from.
+
+    ``pts``/``nrm`` (k, 3) object frame, ``mu``, ``edges``, ``scale`` (the torque
+    length L, metres) and ``tau`` (``torsion / L``, None for point contacts).
+    """
+
+    __slots__ = ("edges", "k", "model", "mu", "nrm", "pts", "scale", "tau")
+
+    def __init__(
+        self,
+        points: object,
+        normals: object,
+        mu: float,
+        edges: int,
+        torque_scale: float | None,
+        contact_model: ContactModel,
+        torsion: float,
+    ):
+        self.pts, self.nrm, self.mu, self.edges, self.scale = _check_grasp(
+            points, normals, mu, edges, torque_scale
+        )
+        self.tau = _scaled_torsion(contact_model, torsion, self.scale)
+        self.model = contact_model
+        self.k = self.pts.shape[0]
+
+    def too_few(self, subgrasps: bool) -> bool:
+        """Whether the grasp (or its subgrasps) has fewer contacts than FC needs."""
+        m = self.k - 1 if subgrasps else self.k
+        return m < min_contacts(self.mu, self.model)
+
+    def subsets(self, subgrasps: bool) -> np.ndarray:
+        """(S, m) contact indices: the grasp itself, or its k (k-1)-subgrasps."""
+        return _drop_one(self.k) if subgrasps else np.arange(self.k)[None, :]
+
+    def contacts(
+        self, mu: float | None = None, edges: int | None = None, rows: FloatArray | None = None
+    ) -> _Contacts:
+        """The per-contact blocks, with the grasp's own ``mu`` and ``edges`` by default."""
+        return _Contacts(
+            self.pts,
+            self.nrm,
+            self.mu if mu is None else mu,
+            self.edges if edges is None else edges,
+            self.scale,
+            self.tau,
+            rows,
+        )
+
+
 class ForceClosure:
     """Force-closure quality with cached OSQP problems (see the module docstring).
 
     Not thread-safe: the OSQP problems are mutated by every call. Use one instance per
-    thread; the module-level functions share a default instance.
+    thread; the module-level functions are the bound methods of a shared default
+    instance, :data:`DEFAULT`.
 
     Args:
         solver: ``"osqp"`` (default) solves the undecided (grasp, direction) pairs with
@@ -324,7 +451,7 @@ class ForceClosure:
         #: solver, OSQP runs that fell back to NNLS.
         self.stats = {"evaluations": 0, "pairs_solved": 0, "osqp_fallbacks": 0}
 
-    # -- public API ---------------------------------------------------------
+    # -- public API (the module-level functions are DEFAULT's bound methods) --
 
     def quality(
         self,
@@ -339,15 +466,45 @@ class ForceClosure:
         contact_model: ContactModel = "point",
         torsion: float = 0.0,
     ) -> float:
-        """Quality ``Q`` of the grasp (see :func:`force_closure_quality`)."""
-        pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
-        tau = _scaled_torsion(contact_model, torsion, scale)
-        thr = None if margin is None else as_positive(margin, "margin", allow_zero=True)
-        k = pts.shape[0]
-        if k < min_contacts(mu_f, contact_model):
-            return 0.0
-        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
-        return self._min_quality(con, np.arange(k)[None, :], thr, solve)
+        """Force-closure quality ``Q`` of a grasp; ``> 0`` iff force closure.
+
+        ``Q = min_j 1 / phi(d_j)`` over the 12 signed unit axes of the scaled wrench
+        space, ``phi(d)`` the least Euclidean norm of contact forces in the linearized
+        cones producing the wrench ``d``; ``0.0`` if not force closure (never negative).
+        Bounds (module docstring): ``eps <= Q <= sqrt(6 k (1 + mu^2)) eps`` for the
+        Ferrari-Canny epsilon ``eps`` of the unit edge wrenches (L1 hull), and
+        ``q <= Q <= sqrt(k (1 + mu^2)) q`` for the 12-direction LP quality ``q``. Soft
+        contacts: ``|x_c|^2 = |f_c|^2 + (tau_c / L)^2`` and the lower bounds divide by
+        ``sqrt(1 + (torsion / L)^2)``: ``q / sqrt(1 + t^2) <= Q``.
+
+        Args:
+            points: (k, 3) contact points, object frame, metres.
+            normals: (k, 3) inward contact normals (into the object), object frame.
+            mu: friction coefficient, >= 0 (0: frictionless, the cone is the normal).
+            edges: pyramid edges per contact, >= 3.
+            torque_scale: length dividing torques (metres), e.g. the object's
+                characteristic length; default: the largest ``|points|`` (1 if 0).
+            margin: decision threshold (validity checks). When given, the result ``r``
+                satisfies ``r > margin`` iff ``Q > margin``; ``r`` is exact only when
+                that needs it: otherwise a certified lower bound ``margin < r <= Q``
+                or a certified upper bound ``Q <= r <= margin``.
+            solve: with ``margin``, False never runs the pair solver: undecided grasps
+                return their certified lower bound (a "no" may then be a false
+                negative; for cheap conservative filtering of many candidates).
+            contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
+                torsional friction about the normal; :mod:`dexplan.grasp.cones`).
+            torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
+                in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
+
+        Returns:
+            The quality, in (scaled wrench) per (unit contact force).
+
+        Raises:
+            InvalidInputError: bad shapes, non-finite values, zero-length normal,
+                ``mu < 0``, ``edges < 3``, ``torque_scale <= 0``, ``margin < 0``.
+        """
+        grasp = _Grasp(points, normals, mu, edges, torque_scale, contact_model, torsion)
+        return self._quality(grasp, False, margin, solve)
 
     def min_subgrasp_quality(
         self,
@@ -362,18 +519,39 @@ class ForceClosure:
         contact_model: ContactModel = "point",
         torsion: float = 0.0,
     ) -> float:
-        """Minimum quality over the grasp and its (k-1)-contact subgrasps.
+        """Minimum quality over the full grasp and each of its (k-1)-contact subgrasps.
 
-        See :func:`min_subgrasp_quality`.
+        Monotonicity makes the full grasp redundant: a subgrasp's feasible contact
+        forces extended by a zero force at the missing contact are feasible for the
+        full grasp (same ``torque_scale``), so every ``phi(d_j)`` of the full grasp is
+        at most the subgrasp's, i.e. ``Q(full) >= Q(subgrasp)``; the minimum is over
+        the k subgrasps only. A subgrasp that fails the exact screens returns 0.0 at
+        once.
+
+        The torque scale of every subgrasp is the full grasp's (default: the largest
+        ``|points|`` over all k contacts), so this equals
+        ``min(force_closure_quality(subgrasp, torque_scale=L) for each subgrasp)``.
+
+        Args:
+            points: (k, 3) contact points, object frame, metres.
+            normals: (k, 3) inward contact normals, object frame.
+            mu: friction coefficient, >= 0.
+            edges: pyramid edges per contact, >= 3.
+            torque_scale: torque length (metres); see :func:`force_closure_quality`.
+            margin: decision threshold; see :func:`force_closure_quality`.
+            solve: with ``margin``, False never runs the pair solver (as above).
+            contact_model: ``"point"`` or ``"soft"``.
+            torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+
+        Returns:
+            The minimum quality (0.0 if some subgrasp is not force closure, or k < 4
+            with friction, k < 8 without).
+
+        Raises:
+            InvalidInputError: as :func:`force_closure_quality`.
         """
-        pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
-        tau = _scaled_torsion(contact_model, torsion, scale)
-        thr = None if margin is None else as_positive(margin, "margin", allow_zero=True)
-        k = pts.shape[0]
-        if k - 1 < min_contacts(mu_f, contact_model):
-            return 0.0
-        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
-        return self._min_quality(con, _drop_one(k), thr, solve)
+        grasp = _Grasp(points, normals, mu, edges, torque_scale, contact_model, torsion)
+        return self._quality(grasp, True, margin, solve)
 
     def is_force_closure(
         self,
@@ -388,19 +566,28 @@ class ForceClosure:
         contact_model: ContactModel = "point",
         torsion: float = 0.0,
     ) -> bool:
-        """Whether ``Q > margin`` (of the grasp, or of every (k-1) subgrasp).
+        """Whether the grasp's quality exceeds ``margin`` (exact screens only if 0).
 
-        See :func:`is_force_closure`.
+        Args:
+            points: (k, 3) contact points, object frame, metres.
+            normals: (k, 3) inward contact normals, object frame.
+            mu: friction coefficient, >= 0.
+            edges: pyramid edges per contact, >= 3.
+            torque_scale: torque length (metres); see :func:`force_closure_quality`.
+            margin: threshold, >= 0.
+            subgrasps: test every (k-1)-contact subgrasp instead of the full grasp (the
+                DESIGN validity rule; with ``margin = 0`` the full grasp is then FC too).
+            contact_model: ``"point"`` or ``"soft"``.
+            torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+
+        Returns:
+            ``Q > margin`` (``min_subgrasp_quality > margin`` with ``subgrasps``).
         """
-        pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
-        tau = _scaled_torsion(contact_model, torsion, scale)
+        grasp = _Grasp(points, normals, mu, edges, torque_scale, contact_model, torsion)
         thr = as_positive(margin, "margin", allow_zero=True)
-        k = pts.shape[0]
-        m = k - 1 if subgrasps else k
-        if m < min_contacts(mu_f, contact_model):
+        if grasp.too_few(subgrasps):
             return False
-        con = _Contacts(pts, nrm, mu_f, e, scale, tau)
-        subsets = _drop_one(k) if subgrasps else np.arange(k)[None, :]
+        con, subsets = grasp.contacts(), grasp.subsets(subgrasps)
         if thr == 0.0:
             return self._screen(_Subsets(con, subsets)) is not None
         return self._min_quality(con, subsets, thr, True) > thr
@@ -417,39 +604,72 @@ class ForceClosure:
         contact_model: ContactModel = "point",
         torsion: float = 0.0,
     ) -> str:
-        """Force closure judged against the round Coulomb cone or the elliptic set.
+        """Force closure under the exact sets: the round cone, the elliptic soft set.
 
-        See :func:`exact_force_closure`.
+        The exact sets are the round Coulomb cone (point contacts) and the elliptic
+        soft-finger set (soft contacts); they are judged by inner and outer polytopes.
+
+        Every linearization used here is either inscribed in the exact set (a "yes"
+        for it is a "yes" for the exact set) or circumscribed about it (a "no" for it
+        is a "no"): first the model's own ``edges`` linearization (the planner's),
+        then a dense inscribed one (64-edge pyramid; the hull of a 48 x 12
+        latitude-longitude grid on the ellipsoid), then the dense circumscribed one
+        (64-edge pyramid of ``mu / cos(pi / 64)``; the grid hull scaled by
+        ``1 / inradius``).
+
+        Args:
+            points: (k, 3) contact points, object frame, metres.
+            normals: (k, 3) inward contact normals, object frame.
+            mu: friction coefficient, >= 0.
+            edges: the model's own pyramid edges, >= 3.
+            torque_scale: torque length (metres); see :func:`force_closure_quality`.
+            subgrasps: judge every (k-1)-contact subgrasp instead of the grasp.
+            contact_model: ``"point"`` or ``"soft"``.
+            torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+
+        Returns:
+            ``"fc_linear"`` (force closure already for the ``edges`` linearization),
+            ``"fc_dense"`` (force closure for the dense inscribed polytope),
+            ``"undecided"`` (within the gap between the dense inner and outer
+            polytopes: 0.12 % of ``mu`` for point contacts, 1.1 % of the set for soft
+            ones) or ``"not_fc"`` (not force closure even for the outer polytope, or
+            fewer contacts than :func:`~dexplan.grasp.cones.min_contacts`).
+
+        Raises:
+            InvalidInputError: as :func:`force_closure_quality`.
         """
-        pts, nrm, mu_f, e, scale = _check_grasp(points, normals, mu, edges, torque_scale)
-        tau = _scaled_torsion(contact_model, torsion, scale)
-        k = pts.shape[0]
-        m = k - 1 if subgrasps else k
-        if m < min_contacts(mu_f, contact_model):
+        grasp = _Grasp(points, normals, mu, edges, torque_scale, contact_model, torsion)
+        if grasp.too_few(subgrasps):
             return "not_fc"
-        subsets = _drop_one(k) if subgrasps else np.arange(k)[None, :]
+        subsets = grasp.subsets(subgrasps)
 
         def sign(con: _Contacts) -> bool:
             return self._screen(_Subsets(con, subsets)) is not None
 
-        if sign(_Contacts(pts, nrm, mu_f, e, scale, tau)):
+        if sign(grasp.contacts()):
             return "fc_linear"
-        if mu_f == 0.0:  # both sets are exactly their linearizations
+        if grasp.mu == 0.0:  # both sets are exactly their linearizations
             return "not_fc"
-        if tau is None:
-            dense = MAX_FRICTION_EDGES_DENSE
-            if sign(_Contacts(pts, nrm, mu_f, dense, scale)):
+        dense = MAX_FRICTION_EDGES_DENSE
+        if grasp.tau is None:
+            if sign(grasp.contacts(edges=dense)):
                 return "fc_dense"
-            outer = mu_f / math.cos(math.pi / dense)
-            return "undecided" if sign(_Contacts(pts, nrm, outer, dense, scale)) else "not_fc"
-        inner = _ellipsoid_facets(nrm, mu_f, tau, outer=False)
-        if sign(_Contacts(pts, nrm, mu_f, e, scale, tau, inner)):
+            outer = grasp.mu / math.cos(math.pi / dense)
+            return "undecided" if sign(grasp.contacts(mu=outer, edges=dense)) else "not_fc"
+        inner = _ellipsoid_facets(grasp.nrm, grasp.mu, grasp.tau, outer=False)
+        if sign(grasp.contacts(rows=inner)):
             return "fc_dense"
-        outer_rows = _ellipsoid_facets(nrm, mu_f, tau, outer=True)
-        outer_con = _Contacts(pts, nrm, mu_f, e, scale, tau, outer_rows)
-        return "undecided" if sign(outer_con) else "not_fc"
+        outer_rows = _ellipsoid_facets(grasp.nrm, grasp.mu, grasp.tau, outer=True)
+        return "undecided" if sign(grasp.contacts(rows=outer_rows)) else "not_fc"
 
     # -- internals ----------------------------------------------------------
+
+    def _quality(self, grasp: _Grasp, subgrasps: bool, margin: float | None, solve: bool) -> float:
+        """The quality of the grasp (or the minimum over its subgrasps)."""
+        thr = None if margin is None else as_positive(margin, "margin", allow_zero=True)
+        if grasp.too_few(subgrasps):
+            return 0.0
+        return self._min_quality(grasp.contacts(), grasp.subsets(subgrasps), thr, solve)
 
     @staticmethod
     def _screen(sub: _Subsets) -> FloatArray | None:
@@ -484,61 +704,49 @@ class ForceClosure:
     def _min_quality(
         self, con: _Contacts, subsets: np.ndarray, margin: float | None, solve: bool
     ) -> float:
+        """Minimum quality over ``subsets``: screen, certified bounds, branch and bound.
+
+        Args:
+            con: the per-contact blocks.
+            subsets: (S, m) contact indices of the subsets.
+            margin: decision threshold (see :func:`force_closure_quality`), or None.
+            solve: False stops at the certified lower bound (with ``margin``).
+
+        Returns:
+            The minimum quality, or a certified bound on the far side of ``margin``.
+        """
         self._calls += 1
         self.stats["evaluations"] += 1
-        # Soft contacts: OSQP left every pair of 2-contact soft subgrasps unsolved
-        # at max_iter (measured: 2.2 of 2.2 pairs, ~3 ms each, then the exact
-        # fallback), so their pairs go to Lawson-Hanson directly.
-        use_osqp = self.solver == "osqp" and con.r in (1, 3)
         sub = _Subsets(con, subsets)
         z0 = self._screen(sub)
         if z0 is None:
             return 0.0
-        bh = sub.bh
-        # b(d_j) = -A G^+ d_j with unit rows: (S, 12, R)
-        b = np.concatenate([-sub.ch, sub.ch], axis=2).transpose(0, 2, 1)
-        a2h = sub.a * sub.a
-        a2 = np.concatenate([a2h, a2h], axis=1)  # |G^+ d_j|^2, (S, 12)
-        # Relaxation to the most violated halfspace: exact lower bound lo <= |z*|.
-        lo = np.maximum(-b.min(axis=2), 0.0)  # (S, 12)
-        lo2 = lo * lo
-        q_hi = 1.0 / np.sqrt(a2 + lo2)  # each pair's quality is in [q_lo, q_hi]
-        # Feasible points theta z1 + c z0 (bh z0 <= -1, z1 the relaxed optimum): the
-        # smallest c for each theta of a small grid, then the best theta: hi >= |z*|.
-        inv_slack = 1.0 / -(bh @ z0[:, :, None])[:, None, :, 0]  # (S, 1, R)
-        beta = b * inv_slack
-        z0z0 = np.einsum("sn,sn->s", z0, z0)[:, None]
+        pairs = _PairBounds(sub, z0)
         if margin is not None:
-            # validity fast path: theta = 0 alone (c z0) often settles the decision
-            c0 = np.maximum(-beta.min(axis=2), 0.0)
-            worst_lo = float((1.0 / np.sqrt(a2 + c0 * c0 * z0z0)).min())
-            if worst_lo > margin:
-                return worst_lo
-            worst_hi = float(q_hi.min())
-            if worst_hi <= margin:
-                return worst_hi
-        s_count = b.shape[0]
-        i1 = np.argmin(b, axis=2)
-        z1 = bh[np.arange(s_count)[:, None], i1] * -lo[:, :, None]  # (S, 12, n)
-        alpha = (z1 @ bh.transpose(0, 2, 1)) * inv_slack  # (S, 12, R)
-        c = np.maximum((_THETAS * alpha - beta).max(axis=3), 0.0)  # (T, S, 12)
-        z1z0 = np.einsum("sjn,sn->sj", z1, z0)
-        t = _THETAS[..., 0]
-        norm2 = t * t * lo2 + c * (2.0 * t * z1z0 + c * z0z0)
-        best_t = np.argmin(norm2, axis=0)
-        exact = c[-1] <= 0.0  # z1 itself is feasible
-        hi2 = np.where(exact, lo2, np.maximum(norm2.min(axis=0), lo2))
-        q_lo = 1.0 / np.sqrt(a2 + hi2)
+            decided = pairs.first_decision(margin)
+            if decided is not None:
+                return decided
+        pairs.refine()
         if margin is not None:
-            worst_lo = float(q_lo.min())
+            worst_lo = float(pairs.q_lo.min())
             if worst_lo > margin or not solve:
                 return worst_lo
-        # Best-first branch and bound: solve pairs in increasing lower bound until
-        # the lower bound reaches the best exact value.
-        flat_lo = q_lo.ravel()
+        # Soft contacts: OSQP left every pair of 2-contact soft subgrasps unsolved
+        # at max_iter (measured: 2.2 of 2.2 pairs, ~3 ms each, then the exact
+        # fallback), so their pairs go to Lawson-Hanson directly.
+        use_osqp = self.solver == "osqp" and con.r in (1, 3)
+        return self._branch_and_bound(pairs, margin, use_osqp)
+
+    def _branch_and_bound(self, pairs: _PairBounds, margin: float | None, use_osqp: bool) -> float:
+        """Best-first branch and bound over the pairs.
+
+        Pairs are solved in increasing lower bound until the lower bound reaches the
+        best exact value (or, with ``margin``, until the decision is certain).
+        """
+        flat_lo = pairs.q_lo.ravel()
         order = np.argsort(flat_lo).tolist()
         bounds = flat_lo.tolist()
-        exact_l = exact.ravel().tolist()
+        exact_l = pairs.exact.ravel().tolist()
         best = math.inf
         for idx in order:
             bound = bounds[idx]
@@ -550,23 +758,31 @@ class ForceClosure:
                 val = bound
             else:
                 s, j = divmod(idx, 12)
-                lo_sj = float(lo[s, j])
-                hi_sj = math.sqrt(hi2[s, j])
-                if use_osqp:
-                    tj = float(_THETAS[best_t[s, j], 0, 0, 0])
-                    zf = tj * z1[s, j] + float(c[best_t[s, j], s, j]) * z0[s]
-                    z = self._solve_osqp(sub, s, b[s, j], zf, lo_sj)
-                else:
-                    z = None
-                if z is None:
-                    z = _ldp_norm(sub, s, b[s, j])
-                z = hi_sj if z is None else min(max(z, lo_sj), hi_sj)
-                self.stats["pairs_solved"] += 1
-                val = 1.0 / math.sqrt(float(a2[s, j]) + z * z)
+                val = self._solve_pair(pairs, s, j, use_osqp)
             best = min(best, val)
             if margin is not None and best <= margin:
                 return best
         return best
+
+    def _solve_pair(self, pairs: _PairBounds, s: int, j: int, use_osqp: bool) -> float:
+        """The quality of pair ``(s, j)``, clamped to its certified bounds.
+
+        Solved by OSQP when ``use_osqp`` (falling back to Lawson-Hanson), else exactly
+        by Lawson-Hanson.
+        """
+        lo_sj = float(pairs.lo[s, j])
+        hi_sj = math.sqrt(pairs.hi2[s, j])
+        b = pairs.b[s, j]
+        z = (
+            self._solve_osqp(pairs.sub, s, b, pairs.feasible_point(s, j), lo_sj)
+            if use_osqp
+            else None
+        )
+        if z is None:
+            z = _ldp_norm(pairs.sub, s, b)
+        z = hi_sj if z is None else min(max(z, lo_sj), hi_sj)
+        self.stats["pairs_solved"] += 1
+        return 1.0 / math.sqrt(float(pairs.a2[s, j]) + z * z)
 
     def _solve_osqp(
         self, sub: _Subsets, s: int, b: FloatArray, zf: FloatArray, lo: float
@@ -649,229 +865,13 @@ MAX_FRICTION_EDGES_DENSE = 64
 DEFAULT = ForceClosure()
 
 
-def force_closure_quality(
-    points: object,
-    normals: object,
-    mu: float,
-    *,
-    edges: int = 8,
-    torque_scale: float | None = None,
-    margin: float | None = None,
-    solve: bool = True,
-    contact_model: ContactModel = "point",
-    torsion: float = 0.0,
-) -> float:
-    """Force-closure quality ``Q`` of a grasp; ``> 0`` iff force closure.
-
-    ``Q = min_j 1 / phi(d_j)`` over the 12 signed unit axes of the scaled wrench
-    space, ``phi(d)`` the least Euclidean norm of contact forces in the linearized
-    cones producing the wrench ``d``; ``0.0`` if not force closure (never negative).
-    Bounds (module docstring): ``eps <= Q <= sqrt(6 k (1 + mu^2)) eps`` for the
-    Ferrari-Canny epsilon ``eps`` of the unit edge wrenches (L1 hull), and
-    ``q <= Q <= sqrt(k (1 + mu^2)) q`` for the 12-direction LP quality ``q``. Soft
-    contacts: ``|x_c|^2 = |f_c|^2 + (tau_c / L)^2`` and the lower bounds divide by
-    ``sqrt(1 + (torsion / L)^2)``: ``q / sqrt(1 + t^2) <= Q``.
-
-    Args:
-        points: (k, 3) contact points, object frame, metres.
-        normals: (k, 3) inward contact normals (into the object), object frame.
-        mu: friction coefficient, >= 0 (0: frictionless, the cone is the normal).
-        edges: pyramid edges per contact, >= 3.
-        torque_scale: length dividing torques (metres), e.g. the object's
-            characteristic length; default: the largest ``|points|`` (1 if 0).
-        margin: decision threshold (validity checks). When given, the result ``r``
-            satisfies ``r > margin`` iff ``Q > margin``; ``r`` is exact only when that
-            needs it: otherwise a certified lower bound ``margin < r <= Q`` or a
-            certified upper bound ``Q <= r <= margin``.
-        solve: with ``margin``, False never runs the pair solver: undecided grasps
-            return their certified lower bound (a "no" may then be a false negative;
-            for cheap conservative filtering of many candidates).
-        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
-            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
-        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
-            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
-
-    Returns:
-        The quality, in (scaled wrench) per (unit contact force).
-
-    Raises:
-        InvalidInputError: bad shapes, non-finite values, zero-length normal,
-            ``mu < 0``, ``edges < 3``, ``torque_scale <= 0``, ``margin < 0``.
-    """
-    return DEFAULT.quality(
-        points,
-        normals,
-        mu,
-        edges=edges,
-        torque_scale=torque_scale,
-        margin=margin,
-        solve=solve,
-        contact_model=contact_model,
-        torsion=torsion,
-    )
-
-
-def min_subgrasp_quality(
-    points: object,
-    normals: object,
-    mu: float,
-    *,
-    edges: int = 8,
-    torque_scale: float | None = None,
-    margin: float | None = None,
-    solve: bool = True,
-    contact_model: ContactModel = "point",
-    torsion: float = 0.0,
-) -> float:
-    """Minimum quality over the full grasp and each of its (k-1)-contact subgrasps.
-
-    Monotonicity makes the full grasp redundant: a subgrasp's feasible contact forces
-    extended by a zero force at the missing contact are feasible for the full grasp
-    (same ``torque_scale``), so every ``phi(d_j)`` of the full grasp is at most the
-    subgrasp's, i.e. ``Q(full) >= Q(subgrasp)``; the minimum is over the k subgrasps
-    only. A subgrasp that fails the exact screens returns 0.0 at once.
-
-    The torque scale of every subgrasp is the full grasp's (default: the largest
-    ``|points|`` over all k contacts), so this equals
-    ``min(force_closure_quality(subgrasp, torque_scale=L) for each subgrasp)``.
-
-    Args:
-        points: (k, 3) contact points, object frame, metres.
-        normals: (k, 3) inward contact normals, object frame.
-        mu: friction coefficient, >= 0.
-        edges: pyramid edges per contact, >= 3.
-        torque_scale: torque length (metres); see :func:`force_closure_quality`.
-        margin: decision threshold (validity checks). When given, the result ``r``
-            satisfies ``r > margin`` iff ``Q > margin``; ``r`` is exact only when that
-            needs it: otherwise a certified lower bound ``margin < r <= Q`` or a
-            certified upper bound ``Q <= r <= margin``.
-        solve: with ``margin``, False never runs the pair solver: undecided grasps
-            return their certified lower bound (a "no" may then be a false negative;
-            for cheap conservative filtering of many candidates).
-        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
-            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
-        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
-            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
-
-    Returns:
-        The minimum quality (0.0 if some subgrasp is not force closure, or k < 4 with
-        friction, k < 8 without).
-
-    Raises:
-        InvalidInputError: as :func:`force_closure_quality`, or ``margin < 0``.
-    """
-    return DEFAULT.min_subgrasp_quality(
-        points,
-        normals,
-        mu,
-        edges=edges,
-        torque_scale=torque_scale,
-        margin=margin,
-        solve=solve,
-        contact_model=contact_model,
-        torsion=torsion,
-    )
-
-
-def is_force_closure(
-    points: object,
-    normals: object,
-    mu: float,
-    *,
-    edges: int = 8,
-    torque_scale: float | None = None,
-    margin: float = 0.0,
-    subgrasps: bool = False,
-    contact_model: ContactModel = "point",
-    torsion: float = 0.0,
-) -> bool:
-    """Whether the grasp's quality exceeds ``margin`` (exact screens only if 0).
-
-    Args:
-        points: (k, 3) contact points, object frame, metres.
-        normals: (k, 3) inward contact normals, object frame.
-        mu: friction coefficient, >= 0.
-        edges: pyramid edges per contact, >= 3.
-        torque_scale: torque length (metres); see :func:`force_closure_quality`.
-        margin: threshold, >= 0.
-        subgrasps: test every (k-1)-contact subgrasp instead of the full grasp (the
-            DESIGN validity rule; with ``margin = 0`` the full grasp is then FC too).
-        contact_model: ``"point"`` (Coulomb cone, the paper) or ``"soft"`` (plus
-            torsional friction about the normal; :mod:`dexplan.grasp.cones`).
-        torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
-            in (0, ``MAX_TORSION``] for soft contacts, 0 for point contacts.
-
-    Returns:
-        ``Q > margin`` (``min_subgrasp_quality > margin`` with ``subgrasps``).
-    """
-    return DEFAULT.is_force_closure(
-        points,
-        normals,
-        mu,
-        edges=edges,
-        torque_scale=torque_scale,
-        margin=margin,
-        subgrasps=subgrasps,
-        contact_model=contact_model,
-        torsion=torsion,
-    )
+#: The module-level functions: :data:`DEFAULT`'s bound methods (one signature and
+#: docstring each, on :class:`ForceClosure`).
+force_closure_quality = DEFAULT.quality
+min_subgrasp_quality = DEFAULT.min_subgrasp_quality
+is_force_closure = DEFAULT.is_force_closure
+exact_force_closure = DEFAULT.exact_set_verdict
 
 
 #: Outcomes of :func:`exact_force_closure`.
 VERDICTS: tuple[str, ...] = ("fc_linear", "fc_dense", "undecided", "not_fc")
-
-
-def exact_force_closure(
-    points: object,
-    normals: object,
-    mu: float,
-    *,
-    edges: int = 8,
-    torque_scale: float | None = None,
-    subgrasps: bool = False,
-    contact_model: ContactModel = "point",
-    torsion: float = 0.0,
-) -> str:
-    """Force closure under the exact sets: the round cone, the elliptic soft set.
-
-    The exact sets are the round Coulomb cone (point contacts) and the elliptic
-    soft-finger set (soft contacts); they are judged by inner and outer polytopes.
-
-    Every linearization used here is either inscribed in the exact set (a "yes"
-    for it is a "yes" for the exact set) or circumscribed about it (a "no" for it
-    is a "no"): first the model's own ``edges`` linearization (the planner's), then
-    a dense inscribed one (64-edge pyramid; the hull of a 48 x 12 latitude-longitude
-    grid on the ellipsoid), then the dense circumscribed one (64-edge pyramid of
-    ``mu / cos(pi / 64)``; the grid hull scaled by ``1 / inradius``).
-
-    Args:
-        points: (k, 3) contact points, object frame, metres.
-        normals: (k, 3) inward contact normals, object frame.
-        mu: friction coefficient, >= 0.
-        edges: the model's own pyramid edges, >= 3.
-        torque_scale: torque length (metres); see :func:`force_closure_quality`.
-        subgrasps: judge every (k-1)-contact subgrasp instead of the grasp.
-        contact_model: ``"point"`` or ``"soft"``.
-        torsion: soft-finger torsion coefficient (m); 0 for point contacts.
-
-    Returns:
-        ``"fc_linear"`` (force closure already for the ``edges`` linearization),
-        ``"fc_dense"`` (force closure for the dense inscribed polytope),
-        ``"undecided"`` (within the gap between the dense inner and outer
-        polytopes: 0.12 % of ``mu`` for point contacts, 1.1 % of the set for soft ones) or
-        ``"not_fc"`` (not force closure even for the outer polytope, or fewer
-        contacts than :func:`~dexplan.grasp.cones.min_contacts`).
-
-    Raises:
-        InvalidInputError: as :func:`force_closure_quality`.
-    """
-    return DEFAULT.exact_set_verdict(
-        points,
-        normals,
-        mu,
-        edges=edges,
-        torque_scale=torque_scale,
-        subgrasps=subgrasps,
-        contact_model=contact_model,
-        torsion=torsion,
-    )
