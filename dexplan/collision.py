@@ -85,13 +85,34 @@ class CollisionWorld:
         self.hand = hand
         self.obj = obj
         self.obstacles = tuple(obstacles)
+        gm = self._geometry_model()
+        self.geom_model = gm
+        self._link_of = [hand.model.frames[go.parentFrame].name for go in gm.geometryObjects]
+        self._find_finger_geoms()
+        self._add_collision_pairs()
+        self._finger_of_geom: dict[int, int] = {
+            g: i for i, geoms in enumerate(self.finger_geoms) for g in geoms
+        }
+        self._finger_of_name = {self.geometry_name(g): i for g, i in self._finger_of_geom.items()}
+        self.geom_data = pin.GeometryData(gm)
+        self._tip_mask: tuple[bool, ...] | None = None  # unknown: set on first check
+        for req in self.geom_data.collisionRequests:
+            req.enable_contact = False
+        # places the obstacles once (they never move)
+        pin.updateGeometryPlacements(hand.model, hand.data, gm, self.geom_data, hand.neutral)
+
+    def _geometry_model(self) -> pin.GeometryModel:
+        """The hand's geometries (copied), then the object, then the obstacles.
+
+        Sets ``_n_hand_geoms``, ``object_geom`` and ``obstacle_geoms``.
+        """
         gm = pin.GeometryModel()
-        for go in hand.geom_model.geometryObjects:
+        for go in self.hand.geom_model.geometryObjects:
             gm.addGeometryObject(go.copy())
         self._n_hand_geoms = gm.ngeoms
         ident = pin.SE3.Identity()
         self.object_geom = gm.addGeometryObject(
-            pin.GeometryObject("object", 0, 0, ident, obj.to_coal())
+            pin.GeometryObject("object", 0, 0, ident, self.obj.to_coal())
         )
         self.obstacle_geoms = [
             gm.addGeometryObject(
@@ -105,12 +126,18 @@ class CollisionWorld:
             )
             for k, ob in enumerate(self.obstacles)
         ]
-        self.geom_model = gm
-        self._link_of = [hand.model.frames[go.parentFrame].name for go in gm.geometryObjects]
+        return gm
 
-        # Fingertip geometries: those hanging from the tip frame or, when the
-        # tip frame carries none, the last geometry on the tip's parent joint.
-        model = hand.model
+    def _find_finger_geoms(self) -> None:
+        """Each finger's geometries (``finger_geoms``) and its fingertip's (``tip_geoms``).
+
+        The fingertip geometry hangs from the tip frame or, when the tip frame
+        carries none, is the last geometry on the tip's parent joint.
+
+        Raises:
+            ModelError: a fingertip frame with no geometry.
+        """
+        hand, gm, model = self.hand, self.geom_model, self.hand.model
         self.tip_geoms: list[int] = []
         self.finger_geoms: list[list[int]] = []
         finger_joints = [
@@ -132,7 +159,10 @@ class CollisionWorld:
             self.tip_geoms.append(tip[0])
             self.finger_geoms.append(on_finger)
 
-        excluded = {frozenset(p) for p in hand.collision_exclude}
+    def _add_collision_pairs(self) -> None:
+        """Every pair that :meth:`_skip_pair` keeps, in (a, b) order; ``_pair_of`` indexes them."""
+        gm = self.geom_model
+        excluded = {frozenset(p) for p in self.hand.collision_exclude}
         self._pair_of: dict[tuple[int, int], int] = {}
         n = gm.ngeoms
         for a in range(n):
@@ -142,16 +172,6 @@ class CollisionWorld:
                 gm.addCollisionPair(pin.CollisionPair(a, b))
                 self._pair_of[(a, b)] = len(gm.collisionPairs) - 1
         self._tip_object_pairs = [self._pair_of[(g, self.object_geom)] for g in self.tip_geoms]
-        self._finger_of_geom: dict[int, int] = {
-            g: i for i, geoms in enumerate(self.finger_geoms) for g in geoms
-        }
-        self._finger_of_name = {self.geometry_name(g): i for g, i in self._finger_of_geom.items()}
-        self.geom_data = pin.GeometryData(gm)
-        self._tip_mask: tuple[bool, ...] | None = None  # unknown: set on first check
-        for req in self.geom_data.collisionRequests:
-            req.enable_contact = False
-        # places the obstacles once (they never move)
-        pin.updateGeometryPlacements(hand.model, hand.data, gm, self.geom_data, hand.neutral)
 
     # -------------------------------------------------------------- internals
     def _skip_pair(self, a: int, b: int, excluded: set[frozenset[str]]) -> bool:

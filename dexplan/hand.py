@@ -71,6 +71,77 @@ def _halton(n: int, dims: int) -> FloatArray:
 _HALTON = _halton(16, 12)
 
 
+def _joint_limits(
+    model: pin.Model, joint_names: Sequence[str], name: str
+) -> tuple[FloatArray, FloatArray]:
+    """(nq,) lower and upper joint limits, checked finite and ordered.
+
+    Raises:
+        ModelError: a joint without finite limits or with lower > upper.
+    """
+    lower = np.array(model.lowerPositionLimit, dtype=float)
+    upper = np.array(model.upperPositionLimit, dtype=float)
+    for j, joint in enumerate(joint_names):
+        lo, hi = lower[j], upper[j]
+        if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
+            raise ModelError(
+                f"hand {name!r}: joint {joint!r} needs finite limits with lower <= upper, "
+                f"got lower={lo!r}, upper={hi!r}"
+            )
+    return lower, upper
+
+
+def _fingertip_list(fingertip_frames: object, name: str) -> tuple[str, ...]:
+    """The fingertip frame names as given: a list of at least 2, none repeated.
+
+    Raises:
+        ModelError: not a list, fewer than 2 frames, or a repeated frame.
+    """
+    if isinstance(fingertip_frames, str | bytes) or not isinstance(fingertip_frames, Sequence):
+        raise ModelError(
+            f"hand {name!r}: fingertip_frames must be a list of frame names, "
+            f"got {shorten(fingertip_frames)}"
+        )
+    tips = list(fingertip_frames)
+    if len(tips) < 2:
+        raise ModelError(f"hand {name!r} needs at least 2 fingertip frames, got {shorten(tips)}")
+    if len(set(map(repr, tips))) != len(tips):
+        raise ModelError(f"hand {name!r}: fingertip_frames repeat a frame: {shorten(tips)}")
+    return tuple(tips)
+
+
+def _fingertip_frame_id(model: pin.Model, tip: object, name: str) -> int:
+    """Pinocchio frame id of the fingertip frame ``tip``.
+
+    Raises:
+        ModelError: ``tip`` is not the name of a frame of the model.
+    """
+    frames = [f.name for f in model.frames]
+    if not isinstance(tip, str) or tip not in frames:
+        raise ModelError(
+            f"unknown fingertip frame {shorten(tip)} in hand {name!r}; "
+            f"frames are {shorten(frames, 200)}"
+        )
+    return int(model.getFrameId(tip))
+
+
+def _finger_chain(model: pin.Model, fid: int, tip: str) -> list[int]:
+    """Sorted ``q`` indices of the joints between the root and frame ``fid``.
+
+    Raises:
+        ModelError: no joint moves the frame.
+    """
+    chain = []
+    jid = model.frames[fid].parentJoint
+    while jid > 0:
+        chain.append(model.joints[jid].idx_q)
+        jid = model.parents[jid]
+    chain.sort()
+    if not chain:
+        raise ModelError(f"fingertip frame {tip!r} is not moved by any joint")
+    return chain
+
+
 @dataclass(frozen=True)
 class IKResult:
     """Outcome of a per-finger inverse kinematics solve.
@@ -135,51 +206,17 @@ class Hand:
         self.data: pin.Data = self.model.createData()
 
         self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])
-        self.lower: FloatArray = np.array(self.model.lowerPositionLimit, dtype=float)
-        self.upper: FloatArray = np.array(self.model.upperPositionLimit, dtype=float)
-        for j, joint in enumerate(self.joint_names):
-            lo, hi = self.lower[j], self.upper[j]
-            if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
-                raise ModelError(
-                    f"hand {name!r}: joint {joint!r} needs finite limits with lower <= upper, "
-                    f"got lower={lo!r}, upper={hi!r}"
-                )
+        self.lower, self.upper = _joint_limits(self.model, self.joint_names, name)
         links = {f.name for f in self.model.frames if f.type == pin.FrameType.BODY}
         self.collision_exclude = check_collision_exclude(collision_exclude, links, name)
-
-        frames = [f.name for f in self.model.frames]
-        if isinstance(fingertip_frames, str | bytes) or not isinstance(fingertip_frames, Sequence):
-            raise ModelError(
-                f"hand {name!r}: fingertip_frames must be a list of frame names, "
-                f"got {shorten(fingertip_frames)}"
-            )
-        tips = list(fingertip_frames)
-        if len(tips) < 2:
-            raise ModelError(
-                f"hand {name!r} needs at least 2 fingertip frames, got {shorten(tips)}"
-            )
-        if len(set(map(repr, tips))) != len(tips):
-            raise ModelError(f"hand {name!r}: fingertip_frames repeat a frame: {shorten(tips)}")
-        self.fingertip_frames: tuple[str, ...] = tuple(tips)
+        self.fingertip_frames: tuple[str, ...] = _fingertip_list(fingertip_frames, name)
         self.tip_frame_ids: tuple[int, ...] = ()
         finger_q_index: list[IntArray] = []
         used: set[int] = set()
         for tip in self.fingertip_frames:
-            if not isinstance(tip, str) or tip not in frames:
-                raise ModelError(
-                    f"unknown fingertip frame {shorten(tip)} in hand {name!r}; "
-                    f"frames are {shorten(frames, 200)}"
-                )
-            fid = self.model.getFrameId(tip)
+            fid = _fingertip_frame_id(self.model, tip, name)
             self.tip_frame_ids += (fid,)
-            chain = []
-            jid = self.model.frames[fid].parentJoint
-            while jid > 0:
-                chain.append(self.model.joints[jid].idx_q)
-                jid = self.model.parents[jid]
-            chain.sort()
-            if not chain:
-                raise ModelError(f"fingertip frame {tip!r} is not moved by any joint")
+            chain = _finger_chain(self.model, fid, tip)
             if used.intersection(chain):
                 raise ModelError(f"fingertip frame {tip!r} shares joints with another finger")
             used.update(chain)
@@ -187,11 +224,18 @@ class Hand:
             check_finger_geometry(self.model, self.geom_model, fid, self.fingertip_radius, name)
         self.finger_q_index: tuple[IntArray, ...] = tuple(finger_q_index)
         self.neutral: FloatArray = np.clip(pin.neutral(self.model), self.lower, self.upper)
+        self._init_ik()
+
+    def _init_ik(self) -> None:
+        """Per-finger IK solvers: closed form where the structure allows it.
+
+        ``_PlanarFingerIK`` for planar 3-joint fingers; otherwise the vectorised
+        kinematics of :mod:`dexplan.ik` (closed form also for 4-joint fingers,
+        redundancy on a grid, else batched DLS).
+        """
         self._analytic_ik: list[_PlanarFingerIK | None] = [
             _PlanarFingerIK.detect(self, i) for i in range(self.n_fingers)
         ]
-        # vectorised kinematics (dexplan.ik): closed form where the structure
-        # allows it (also 4-joint fingers, redundancy on a grid), else batched DLS
         self._chains: list[FingerChain | None] = [
             FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
         ]

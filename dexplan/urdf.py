@@ -230,6 +230,42 @@ def build_models(
         ModelError: Pinocchio rejects the URDF, joints that are not 1-DOF, no
             joints, or a collision element that was not loaded.
     """
+    model, notes = _kinematic_model(desc, name)
+    geom, geom_notes = _pinocchio_geometry(model, desc, name, package_dirs)
+    loaded: dict[str, list[pin.GeometryObject]] = {}
+    for go in geom.geometryObjects:
+        loaded.setdefault(model.frames[go.parentFrame].name, []).append(go)
+    out = pin.GeometryModel()
+    for fid, frame in enumerate(model.frames):
+        if frame.type != pin.FrameType.BODY:
+            continue
+        entries = desc.collisions.get(frame.name, [])
+        native = [e for e in entries if not isinstance(e, _Capsule)]
+        from_pin = loaded.get(frame.name, [])
+        if len(from_pin) != len(native):
+            hint = (
+                notes
+                or geom_notes
+                or (
+                    "mesh files are searched in package_dirs "
+                    f"{shorten([str(p) for p in package_dirs], 120)}"
+                )
+            )
+            raise ModelError(
+                f"hand {name!r}: link {frame.name!r}: {len(from_pin)} of its {len(native)} "
+                f"collision elements {shorten(native, 120)} loaded ({hint})"
+            )
+        for go in _link_geometry(frame, fid, entries, from_pin):
+            out.addGeometryObject(go)
+    return model, out
+
+
+def _kinematic_model(desc: UrdfDescription, name: str) -> tuple[pin.Model, str]:
+    """The Pinocchio model and the first line urdfdom printed while loading it.
+
+    Raises:
+        ModelError: Pinocchio rejects the URDF, joints that are not 1-DOF, or no joints.
+    """
     failure: Exception | None = None
     with captured_stderr() as err:
         try:
@@ -240,7 +276,6 @@ def build_models(
         raise ModelError(
             f"cannot parse URDF for hand {name!r}: {err.first_line() or failure}"
         ) from failure
-    notes = err.first_line()
     if model.nq != model.nv:
         raise ModelError(
             f"hand {name!r}: only 1-DOF revolute/prismatic joints are supported "
@@ -248,6 +283,22 @@ def build_models(
         )
     if model.nq == 0:
         raise ModelError(f"hand {name!r} has no actuated joints")
+    return model, err.first_line()
+
+
+def _pinocchio_geometry(
+    model: pin.Model, desc: UrdfDescription, name: str, package_dirs: Sequence[str | Path]
+) -> tuple[pin.GeometryModel, str]:
+    """The collision elements Pinocchio loads itself (all but the capsules).
+
+    Returns:
+        The geometry model and the first line printed while loading it.
+
+    Raises:
+        ModelError: Pinocchio cannot build the collision model (the message names
+            ``package_dirs`` when the URDF has meshes).
+    """
+    failure: Exception | None = None
     with captured_stderr() as err:
         try:
             geom = pin.buildGeomFromUrdfString(
@@ -268,42 +319,36 @@ def build_models(
         ):
             detail += f" (package_dirs: {shorten([str(p) for p in package_dirs], 120)})"
         raise ModelError(f"cannot build collision model of hand {name!r}: {detail}") from failure
-    notes = notes or err.first_line()
+    return geom, err.first_line()
 
-    loaded: dict[str, list[pin.GeometryObject]] = {}
-    for go in geom.geometryObjects:
-        loaded.setdefault(model.frames[go.parentFrame].name, []).append(go)
-    out = pin.GeometryModel()
-    for fid, frame in enumerate(model.frames):
-        if frame.type != pin.FrameType.BODY:
-            continue
-        entries = desc.collisions.get(frame.name, [])
-        native = [e for e in entries if not isinstance(e, _Capsule)]
-        from_pin = loaded.get(frame.name, [])
-        if len(from_pin) != len(native):
-            hint = notes or (
-                "mesh files are searched in package_dirs "
-                f"{shorten([str(p) for p in package_dirs], 120)}"
+
+def _link_geometry(
+    frame: pin.Frame,
+    fid: int,
+    entries: Sequence[_Capsule | str],
+    from_pin: Sequence[pin.GeometryObject],
+) -> list[pin.GeometryObject]:
+    """One link's collision objects in URDF order, named ``<link>_<k>``.
+
+    Capsules are built here (coal capsules at the link's placement); the other
+    entries are Pinocchio's objects ``from_pin``, in the same order.
+    """
+    out = []
+    it = iter(from_pin)
+    for k, entry in enumerate(entries):
+        if isinstance(entry, _Capsule):
+            go = pin.GeometryObject(
+                f"{frame.name}_{k}",
+                frame.parentJoint,
+                fid,
+                frame.placement * entry.placement,
+                coal.Capsule(entry.radius, entry.length),
             )
-            raise ModelError(
-                f"hand {name!r}: link {frame.name!r}: {len(from_pin)} of its {len(native)} "
-                f"collision elements {shorten(native, 120)} loaded ({hint})"
-            )
-        it = iter(from_pin)
-        for k, entry in enumerate(entries):
-            if isinstance(entry, _Capsule):
-                go = pin.GeometryObject(
-                    f"{frame.name}_{k}",
-                    frame.parentJoint,
-                    fid,
-                    frame.placement * entry.placement,
-                    coal.Capsule(entry.radius, entry.length),
-                )
-            else:
-                go = next(it)
-                go.name = f"{frame.name}_{k}"
-            out.addGeometryObject(go)
-    return model, out
+        else:
+            go = next(it)
+            go.name = f"{frame.name}_{k}"
+        out.append(go)
+    return out
 
 
 def _zero_length_body(model: pin.Model, jid: int) -> bool:

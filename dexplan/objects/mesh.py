@@ -193,42 +193,10 @@ class Mesh(Shape):
 
     def __init__(self, vertices: object, faces: object) -> None:
         v = np.ascontiguousarray(as_points(vertices, "vertices"))
-        try:
-            f_raw = np.asarray(faces)
-        except (TypeError, ValueError) as exc:
-            raise InvalidInputError(f"faces must be an (F, 3) integer array: {exc}") from exc
-        if f_raw.ndim != 2 or f_raw.shape[1] != 3:
-            raise InvalidInputError(f"faces must have shape (F, 3), got shape {f_raw.shape}")
-        if f_raw.size and not np.issubdtype(f_raw.dtype, np.integer):
-            raise InvalidInputError(f"faces must be integers, got dtype {f_raw.dtype}")
-        f = np.ascontiguousarray(f_raw, dtype=np.int64)
-        if len(f) < 4:
-            raise MeshError(f"a closed mesh needs at least 4 faces, got {len(f)}")
-        if f.min() < 0 or f.max() >= len(v):
-            raise InvalidInputError(
-                f"faces index vertices 0..{len(v) - 1}, got indices in [{f.min()}, {f.max()}]"
-            )
+        f = _face_indices(faces, len(v))
         used = v[np.unique(f)]
         diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
-
-        tris = v[f]
-        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-        area2 = np.sqrt(np.einsum("ij,ij->i", cross, cross))
-        bad = np.flatnonzero(area2 / 2.0 <= _DEGENERATE_AREA_REL * diag * diag)
-        if len(bad):
-            raise MeshError(
-                f"mesh has {len(bad)} degenerate (zero-area) faces, e.g. face {bad[0]} "
-                f"with vertices {f[bad[0]].tolist()}"
-            )
-        _check_closed(f, len(v))
-        vol = float(np.einsum("ij,ij->i", tris[:, 0], cross).sum()) / 6.0
-        if abs(vol) <= _FLAT_VOLUME_REL * diag**3:
-            raise MeshError(f"mesh encloses zero volume ({vol!r} m^3)")
-        if vol < 0.0:  # inward-facing: flip every face
-            f = np.ascontiguousarray(f[:, [0, 2, 1]])
-            tris = v[f]
-            cross = -cross
-            vol = -vol
+        f, tris, cross, area2, vol = _closed_surface(v, f, diag)
 
         self._v = v
         self._f = f
@@ -622,6 +590,72 @@ class Mesh(Shape):
         t = self._tris[tri]
         p = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
         return p, self._fn[tri]
+
+
+def _face_indices(faces: object, n_vertices: int) -> IntArray:
+    """(F, 3) int64 face indices, checked for shape, type, count and range.
+
+    Raises:
+        InvalidInputError: not an (F, 3) integer array, or indices out of range.
+        MeshError: fewer than 4 faces.
+    """
+    try:
+        f_raw = np.asarray(faces)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"faces must be an (F, 3) integer array: {exc}") from exc
+    if f_raw.ndim != 2 or f_raw.shape[1] != 3:
+        raise InvalidInputError(f"faces must have shape (F, 3), got shape {f_raw.shape}")
+    if f_raw.size and not np.issubdtype(f_raw.dtype, np.integer):
+        raise InvalidInputError(f"faces must be integers, got dtype {f_raw.dtype}")
+    f = np.ascontiguousarray(f_raw, dtype=np.int64)
+    if len(f) < 4:
+        raise MeshError(f"a closed mesh needs at least 4 faces, got {len(f)}")
+    if f.min() < 0 or f.max() >= n_vertices:
+        raise InvalidInputError(
+            f"faces index vertices 0..{n_vertices - 1}, got indices in [{f.min()}, {f.max()}]"
+        )
+    return f
+
+
+def _closed_surface(
+    v: FloatArray, f: IntArray, diag: float
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, float]:
+    """Check that the faces bound a solid and wind them outwards.
+
+    Args:
+        v: (V, 3) vertices, object frame (m).
+        f: (F, 3) face indices.
+        diag: bounding-box diagonal of the used vertices (m), the size the
+            degeneracy tolerances are relative to.
+
+    Returns:
+        ``(f, tris, cross, area2, volume)``: the faces wound counter-clockwise
+        seen from outside, (F, 3, 3) triangles, (F, 3) edge cross products
+        (outward, twice the area), (F,) their norms, the enclosed volume (> 0).
+
+    Raises:
+        MeshError: a zero-area face, an open or non-manifold edge, inconsistent
+            winding, or zero volume.
+    """
+    tris = v[f]
+    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    area2 = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+    bad = np.flatnonzero(area2 / 2.0 <= _DEGENERATE_AREA_REL * diag * diag)
+    if len(bad):
+        raise MeshError(
+            f"mesh has {len(bad)} degenerate (zero-area) faces, e.g. face {bad[0]} "
+            f"with vertices {f[bad[0]].tolist()}"
+        )
+    _check_closed(f, len(v))
+    vol = float(np.einsum("ij,ij->i", tris[:, 0], cross).sum()) / 6.0
+    if abs(vol) <= _FLAT_VOLUME_REL * diag**3:
+        raise MeshError(f"mesh encloses zero volume ({vol!r} m^3)")
+    if vol < 0.0:  # inward-facing: flip every face
+        f = np.ascontiguousarray(f[:, [0, 2, 1]])
+        tris = v[f]
+        cross = -cross
+        vol = -vol
+    return f, tris, cross, area2, vol
 
 
 def _check_closed(f: IntArray, nv: int) -> None:
