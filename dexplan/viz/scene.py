@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import DependencyError, PlanFileError
+from dexplan.exceptions import PlanFileError
 from dexplan.typing import FloatArray
 from dexplan.viz.session import (
     GOAL,
@@ -30,6 +30,7 @@ from dexplan.viz.session import (
     transform,
 )
 from dexplan.viz.shapes import coal_archetype, shape_archetype
+from dexplan.viz.visuals import hand_package_dirs, visual_geometry
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from dexplan.hand import Hand
@@ -50,6 +51,7 @@ class Scene:
     goal_pose: FloatArray | None = None
     start_pose: FloatArray | None = None
     start_q: FloatArray | None = None
+    package_dirs: list[str | Path] = field(default_factory=list)  # where hand meshes are found
 
 
 @dataclass
@@ -63,16 +65,9 @@ class HandLayout:
 # ------------------------------------------------------------------ models
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
     """The hand of a plan document (meshes found beside it or in example-robot-data)."""
-    from dexplan.hand import example_robot_data_file
     from dexplan.plan_file import hand_from_plan
 
-    package_dirs: list[str | Path] = [base_dir]
-    try:  # the allegro hand's meshes live in example-robot-data's share folder
-        urdf = example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
-        package_dirs.append(urdf.parents[4])  # .../share, holding example-robot-data/
-    except DependencyError:
-        pass
-    return hand_from_plan(h, package_dirs)
+    return hand_from_plan(h, hand_package_dirs(base_dir))
 
 
 def obstacles_from_dicts(
@@ -124,6 +119,7 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
         goal_pose=_pose_or_none(goal.get("object_pose_xyzquat")),
         start_pose=_pose_or_none(start.get("object_pose_xyzquat")),
         start_q=None if start.get("q") is None else np.asarray(start["q"], dtype=float),
+        package_dirs=hand_package_dirs(base_dir),
     )
 
 
@@ -144,6 +140,11 @@ def scene_from_scenario(scenario: Any) -> Scene:
         goal_pose=_pose_or_none(scenario.goal.object_pose_xyzquat),
         start_pose=_pose_or_none(scenario.start.object_pose_xyzquat),
         start_q=None if scenario.start.q is None else np.asarray(scenario.start.q, dtype=float),
+        package_dirs=(
+            hand_package_dirs(base)
+            if scenario.hand.urdf is None
+            else [Path(scenario.hand.urdf).parent, *hand_package_dirs(base)]
+        ),
     )
 
 
@@ -196,19 +197,24 @@ def _finger_of_frame(hand: Hand) -> dict[int, int | None]:
     return {fid: finger_of(fid) for fid in range(model.nframes)}
 
 
-def _log_hand_static(rec: Any, hand: Hand) -> HandLayout:
-    """Hand link geometry (static, in each link's frame) and the palm frame axes."""
+def _log_hand_static(rec: Any, hand: Hand, package_dirs: Sequence[str | Path]) -> HandLayout:
+    """Hand link geometry (static, in each link's frame) and the palm frame axes.
+
+    The URDF's visual geometry when it loads (:func:`visual_geometry`), else
+    the collision geometry the planner checks.
+    """
     rr = rerun_module()
     import pinocchio as pin
 
     model, data = hand.model, hand.data
+    geometry = visual_geometry(hand, package_dirs) or hand.geom_model
     pin.framesForwardKinematics(model, data, hand.neutral)
     finger_of_frame = _finger_of_frame(hand)
     tip_ids = set(hand.tip_frame_ids)
     rec.log("world/hand", rr.TransformAxes3D(0.03), static=True)
     links: dict[int, tuple[str, int, bool]] = {}
     geoms: list[tuple[str, type, int | None]] = []
-    for k, g in enumerate(hand.geom_model.geometryObjects):
+    for k, g in enumerate(geometry.geometryObjects):
         fid = int(g.parentFrame)
         if not 0 <= fid < model.nframes:
             fid = next(
@@ -262,7 +268,9 @@ def log_scene_static(rec: Any, scene: Scene) -> HandLayout | None:
     """
     rr = rerun_module()
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    layout = _log_hand_static(rec, scene.hand) if scene.hand is not None else None
+    layout = (
+        _log_hand_static(rec, scene.hand, scene.package_dirs) if scene.hand is not None else None
+    )
     if scene.obj is not None:
         size = scene.obj.bounding_radius
         rec.log("world/object/shape", shape_archetype(scene.obj, OBJECT), static=True)

@@ -53,10 +53,28 @@ def shape_archetype(shape: Shape, color: Sequence[int], *, wireframe: bool = Fal
         )
     if isinstance(shape, Mesh):
         if wireframe:
-            edges = shape.vertices[shape.faces[:, [0, 1, 2, 0]]]
-            return rr.LineStrips3D(edges, colors=c, radii=[0.0003])
+            return _light_mesh_outline(shape, color)
         return mesh_archetype(shape.vertices, shape.faces, color)
     raise InvalidInputError(f"cannot draw shape {shape!r}")
+
+
+# A mesh drawn "lightly" (a goal pose): every edge up to this many faces,
+# else this many surface points, so that the object seen through it stays visible.
+_OUTLINE_MAX_FACES = 400
+_OUTLINE_POINTS = 500
+
+
+def _light_mesh_outline(shape: Any, color: Sequence[int]) -> Any:
+    """A light drawing of a mesh: its edges when few, else a sparse point cloud."""
+    rr = rerun_module()
+    faces = np.asarray(shape.faces)
+    if len(faces) <= _OUTLINE_MAX_FACES:
+        edges = shape.vertices[faces[:, [0, 1, 2, 0]]]
+        return rr.LineStrips3D(edges, colors=[rgba(color)], radii=[0.0003])
+    verts = np.asarray(shape.vertices, dtype=float)
+    step = max(1, len(verts) // _OUTLINE_POINTS)
+    faint = [*rgba(color)[:3], 150]
+    return rr.Points3D(verts[::step], colors=[faint], radii=[0.0008])
 
 
 def _capsule(length: float, radius: float, colors: list, fill: Any) -> Any:
