@@ -49,6 +49,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.exceptions import DependencyError, PlanFileError
+from dexplan.pose import quat_angle
 from dexplan.typing import FloatArray
 
 __all__ = [
@@ -417,11 +418,6 @@ def _obstacles_xml(
 
 
 # ------------------------------------------------------------------ replay
-def _angle(a_xyzw: FloatArray, b_xyzw: FloatArray) -> float:
-    d = abs(float(np.dot(a_xyzw, b_xyzw)) / (np.linalg.norm(a_xyzw) * np.linalg.norm(b_xyzw)))
-    return 2.0 * math.acos(min(1.0, d))
-
-
 def replay_plan(
     doc: Mapping[str, Any],
     *,
@@ -454,7 +450,6 @@ def replay_plan(
     """
     mujoco = require_mujoco()
     from dexplan.export import build_trajectory
-    from dexplan.pose import quat_angle
 
     if hand is None:
         from dexplan.plan_file import hand_from_plan
@@ -471,10 +466,22 @@ def replay_plan(
         raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
     run = _Replay(mujoco, m, hand, tips, traj)
     run.simulate()
+    return _replay_result(doc, gravity, traj, run)
+
+
+def _replay_result(doc: Mapping[str, Any], gravity: bool, traj: Any, run: _Replay) -> ReplayResult:
+    """The errors of a finished simulation against the plan's trajectory and goal.
+
+    Args:
+        doc: the plan.
+        gravity: whether gravity was on.
+        traj: the sampled trajectory (:class:`dexplan.export.Trajectory`).
+        run: the finished simulation.
+    """
     sim_pose = run.sim_pose
     pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
     ang_err = np.array(
-        [_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
+        [quat_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
     )
     wp_pos, wp_ang = _waypoint_errors(doc, traj, sim_pose)
     goal = doc["goal"]
@@ -702,7 +709,7 @@ def _waypoint_errors(
     )
     idx = np.clip(np.searchsorted(t, wp_t - 1e-9), 0, t.size - 1)
     wp_pos = float(np.max(np.linalg.norm(sim_pose[idx, :3] - wp_pose[:, :3], axis=1)))
-    wp_ang = float(max(_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
+    wp_ang = float(max(quat_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
     return wp_pos, wp_ang
 
 

@@ -60,7 +60,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.exceptions import DexplanError, InvalidInputError
-from dexplan.typing import FloatArray
+from dexplan.typing import FloatArray, IntArray
 
 __all__ = [
     "DEFAULT_JOINT_VELOCITY",
@@ -410,14 +410,7 @@ def time_segment(
             kind, finger, 0.0, ws, np.zeros(K), np.zeros(1), np.zeros(1), np.zeros(1),
             poses, c, nq, q[0].copy(), None, None, None,
         )  # fmt: skip
-    xs = np.concatenate([q, poses[:, :3], c], axis=1)[keep]
-    ss = ws[keep]
-    # only the coordinates that move are toppra's path (constant rows would be
-    # all-zero constraint rows, on which its seidel solver reports a feasible
-    # instance uncontrollable)
-    moving = np.flatnonzero(np.ptp(xs, axis=0) > 0.0)
-    kinds = np.concatenate([np.zeros(nq), np.ones(3), np.full(3, 2.0)])[moving]
-    path = toppra.SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
+    xs, ss, moving, kinds, path = _toppra_path(toppra, q, poses, c, ws, keep)
     n_grid = max(2, round(ss[-1] * limits.grid_per_step) + 1)
     grid = np.linspace(0.0, ss[-1], n_grid)
     slow = _approach_slowdown(kind, limits, float(ss[-1]))
@@ -452,6 +445,37 @@ def time_segment(
         f"{name}: toppra's profile exceeds the limits between its grid points "
         f"(velocity x{rv:.3f}, acceleration x{ra:.3f}) after {MAX_TIGHTENING} tightenings"
     )
+
+
+def _toppra_path(
+    toppra: Any, q: FloatArray, poses: FloatArray, c: FloatArray, ws: FloatArray, keep: np.ndarray
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, Any]:
+    """The spline toppra parameterises, through the waypoints that move.
+
+    Args:
+        toppra: the toppra module (imported by the caller).
+        q: (K, nq) joint values (rad).
+        poses: (K, 7) object poses, world frame, XYZW.
+        c: (K, 3) rotation coordinate of each waypoint.
+        ws: (K,) path coordinate of each waypoint.
+        keep: (K,) the waypoints kept (a step of zero length is dropped).
+
+    Returns:
+        ``(xs, ss, moving, kinds, path)``: (K', nq + 6) kept waypoint coordinates
+        ``[q, position, rotation]``, (K',) their path coordinates, the indices of
+        the coordinates that move, their kinds (0 joint, 1 position, 2 rotation)
+        and the ``toppra.SplineInterpolator`` through them.
+    """
+    nq = q.shape[1]
+    xs = np.concatenate([q, poses[:, :3], c], axis=1)[keep]
+    ss = ws[keep]
+    # only the coordinates that move are toppra's path (constant rows would be
+    # all-zero constraint rows, on which its seidel solver reports a feasible
+    # instance uncontrollable)
+    moving = np.flatnonzero(np.ptp(xs, axis=0) > 0.0)
+    kinds = np.concatenate([np.zeros(nq), np.ones(3), np.full(3, 2.0)])[moving]
+    path = toppra.SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
+    return xs, ss, moving, kinds, path
 
 
 def _rotation_and_steps(q: FloatArray, poses: FloatArray) -> tuple[FloatArray, FloatArray]:
