@@ -61,7 +61,9 @@ def visual_geometry(hand: Hand, package_dirs: Sequence[str | Path]) -> Any | Non
     dirs = [str(d) for d in package_dirs]
     try:
         with captured_stderr():
-            model = pin.buildGeomFromUrdfString(hand.model, hand.urdf_xml, pin.VISUAL, dirs)
+            model = pin.buildGeomFromUrdfString(
+                hand.model, hand.urdf_xml, pin.VISUAL, package_dirs=dirs
+            )
     except (ValueError, RuntimeError, OSError):
         return None
     if model.ngeoms == 0:
