@@ -17,9 +17,17 @@ from dexplan.exceptions import DexplanError
 
 __version__ = "0.1.0"
 
-__all__ = ["DexplanError", "Plan", "__version__", "load_scenario", "plan", "verify"]
+__all__ = [
+    "DexplanError",
+    "Plan",
+    "RoadmapPlanner",
+    "__version__",
+    "load_scenario",
+    "plan",
+    "verify",
+]
 
-_API = ("Plan", "load_scenario", "plan", "verify")
+_API = ("Plan", "RoadmapPlanner", "load_scenario", "plan", "verify")
 
 
 def __getattr__(name: str) -> Any:

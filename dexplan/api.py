@@ -20,22 +20,25 @@ solved.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dexplan.hand import Hand
 from dexplan.plan_file import VerifyReport, build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
+from dexplan.planning.learning import BuildSettings, BuildStats, build_roadmap, learning_context
 from dexplan.planning.planner import PlanResult
 from dexplan.planning.planner import plan as _plan
 from dexplan.planning.progress import PlanStatus, Progress
-from dexplan.planning.roadmap import Roadmap
-from dexplan.scenario import Scenario, default_scenario, load_scenario
+from dexplan.planning.roadmap import Roadmap, scenario_key
+from dexplan.scenario import GoalSpec, Scenario, default_scenario, load_scenario
 from dexplan.segments import Segment
 
-__all__ = ["Plan", "load_scenario", "plan", "verify"]
+__all__ = ["Plan", "RoadmapPlanner", "load_scenario", "plan", "verify"]
 
 
 @dataclass(frozen=True)
@@ -148,6 +151,115 @@ def plan(
         hand=hand,
     )
     return Plan(result, scen, hand)
+
+
+class RoadmapPlanner:
+    """Multi-query planning: one roadmap, many queries, each with its own statistics.
+
+    Build a roadmap once (the learning phase), or load a saved one, then ask
+    queries; each answer is a :class:`Plan` (verified like :func:`plan`) whose
+    ``result.stats.time_s`` is that query's own time. A query the roadmap
+    cannot answer grows it (module-2 links); :meth:`save` keeps that::
+
+        rp = dexplan.RoadmapPlanner.build("scenarios/paper_sphere.toml", time_limit=20)
+        rp.save("roadmap.npz")
+        for p in rp.query_many(goals):
+            print(p.status, p.result.stats.time_s)
+
+    Attributes:
+        scenario: the scenario (its start is every query's start).
+        roadmap: the roadmap queries are answered on.
+        hand: the hand model.
+        build_stats: the learning phase's figures when built here, else None.
+    """
+
+    def __init__(
+        self, scenario: Scenario | str | Path | None, roadmap: Roadmap, *, hand: Hand | None = None
+    ) -> None:
+        self.scenario = _scenario(scenario)
+        self.hand = hand or build_hand(self.scenario)
+        self.roadmap = roadmap
+        self.build_stats: BuildStats | None = None
+
+    @classmethod
+    def build(
+        cls,
+        scenario: Scenario | str | Path | None = None,
+        *,
+        time_limit: float | None = None,
+        nodes: int | None = None,
+        planner: str = "PRM",
+        seed: int = 1,
+        progress: Progress | None = None,
+    ) -> RoadmapPlanner:
+        """Run the learning phase (:func:`~dexplan.planning.learning.build_roadmap`).
+
+        Give exactly one of ``time_limit`` (s) and ``nodes`` (deterministic for a seed).
+
+        Raises:
+            DexplanError: bad settings or scenario.
+        """
+        scen = _scenario(scenario)
+        settings = BuildSettings(planner=planner, seed=seed, time_limit=time_limit, nodes=nodes)
+        hand = build_hand(scen)
+        roadmap, stats = build_roadmap(scen, settings, hand=hand, progress=progress)
+        out = cls(scen, roadmap, hand=hand)
+        out.build_stats = stats
+        return out
+
+    @classmethod
+    def load(cls, scenario: Scenario | str | Path | None, path: str | Path) -> RoadmapPlanner:
+        """Load a saved roadmap, refused unless built for the scenario's models.
+
+        Raises:
+            RoadmapFileError: unreadable or malformed file, or other models.
+        """
+        scen = _scenario(scenario)
+        hand = build_hand(scen)
+        ctx = learning_context(scen, scen.planner.seed, hand)
+        roadmap = Roadmap.load(path, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim)
+        return cls(scen, roadmap, hand=hand)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the roadmap (with what queries added) atomically; return its path."""
+        self.roadmap.save(path)
+        return Path(path)
+
+    def query(
+        self,
+        goal: GoalSpec | np.ndarray | Iterable[float],
+        *,
+        seed: int | None = None,
+        time_limit: float | None = None,
+        progress: Progress | None = None,
+    ) -> Plan:
+        """Answer one query: the scenario's start to ``goal`` (a GoalSpec or an object pose).
+
+        A bare pose ``(7,)`` (XYZW) takes the scenario goal's tolerances.
+        """
+        if not isinstance(goal, GoalSpec):
+            pose = np.asarray(list(goal), dtype=float)
+            goal = dataclasses.replace(self.scenario.goal, object_pose_xyzquat=pose)
+        scen = dataclasses.replace(self.scenario, goal=goal)
+        return plan(
+            scen,
+            seed=seed,
+            time_limit=time_limit,
+            roadmap=self.roadmap,
+            progress=progress,
+            hand=self.hand,
+        )
+
+    def query_many(
+        self,
+        goals: Iterable[GoalSpec | np.ndarray],
+        *,
+        seed: int | None = None,
+        time_limit: float | None = None,
+    ) -> Iterator[Plan]:
+        """Answer queries one after the other (a generator: one plan at a time)."""
+        for goal in goals:
+            yield self.query(goal, seed=seed, time_limit=time_limit)
 
 
 def verify(plan_file: str | Path | Mapping[str, Any]) -> VerifyReport:

@@ -153,7 +153,12 @@ def _check_plan_options(args: argparse.Namespace, scenario: Any) -> Any:
         from dexplan.viz import require_rerun
 
         require_rerun()
-    outputs = (("-o", args.output), ("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap))
+    from dexplan.cli_roadmap import many_goals
+
+    single = None if many_goals(args) else args.output or "plan.json"
+    if not single and args.rrd is not None:
+        raise InvalidInputError("--rrd records one plan: not with --goals or --random-goals")
+    outputs = (("-o", single), ("--rrd", args.rrd), ("--save-roadmap", args.save_roadmap))
     for option, value in (*outputs, ("--debug-rrd", args.debug_rrd)):
         if value is not None:
             check_output_path(value, option)
@@ -210,15 +215,21 @@ def cmd_plan(args: argparse.Namespace) -> int:
     """Plan a scenario; write the plan (and optionally roadmap and recordings)."""
     from pathlib import Path
 
+    from dexplan import cli_roadmap
     from dexplan.api import plan
     from dexplan.plan_file import write_plan
 
     scenario = _load_scenario(args.scenario)
     hand = _check_plan_options(args, scenario)
-    out = Path(args.output)
+    if cli_roadmap.many_goals(args):
+        cli_roadmap.query_goals(args, scenario)  # a bad goals file fails before any work
+        cli_roadmap.output_dir(args)
     roadmap = (
         None if args.load_roadmap is None else _load_roadmap(args.load_roadmap, scenario, hand)
     )
+    if cli_roadmap.many_goals(args):
+        return cli_roadmap.run_queries(args, scenario, hand, roadmap, _check_interrupted)
+    out = Path(args.output or "plan.json")
     if not args.quiet:
         _err(f"planning {scenario.name!r} with {args.planner or scenario.planner.name}")
     planned = plan(
@@ -490,7 +501,12 @@ def _add_plan(sub: Any) -> None:
     p_plan.add_argument("--planner", help="OMPL planner name (default: the scenario's)")
     p_plan.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
     p_plan.add_argument("--time-limit", type=float, help="seconds (default: the scenario's)")
-    p_plan.add_argument("-o", "--output", default="plan.json", help="plan file (plan.json)")
+    p_plan.add_argument(
+        "-o",
+        "--output",
+        help="plan file (plan.json); with --goals or --random-goals a folder (queries) "
+        "for query_NNN.json and summary.csv",
+    )
     p_plan.add_argument("--save-roadmap", help="write the GSn roadmap to this .npz file")
     p_plan.add_argument("--load-roadmap", help="answer the query on a saved roadmap")
     p_plan.add_argument(
@@ -508,7 +524,28 @@ def _add_plan(sub: Any) -> None:
         "(the first 32 of each), in a Rerun recording (needs the viz extra)",
     )
     p_plan.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    from dexplan.cli_roadmap import add_query_options
+
+    add_query_options(p_plan)
     p_plan.set_defaults(func=cmd_plan)
+
+
+def cmd_roadmap(args: argparse.Namespace) -> int:
+    """``roadmap build`` or ``roadmap info``."""
+    from dexplan import cli_roadmap
+
+    if args.roadmap_func == "build":
+        quiet = args.quiet
+        return cli_roadmap.cmd_roadmap_build(args, _progress(quiet))
+    return cli_roadmap.cmd_roadmap_info(args)
+
+
+def _add_roadmap(sub: Any) -> None:
+    """The ``roadmap`` subcommand (``build``, ``info``)."""
+    from dexplan.cli_roadmap import add_roadmap
+
+    add_roadmap(sub, _command)
+    sub.choices["roadmap"].set_defaults(func=cmd_roadmap)
 
 
 def _add_verify(sub: Any) -> None:
@@ -643,6 +680,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_info(sub)
     _add_plan(sub)
+    _add_roadmap(sub)
     _add_verify(sub)
     _add_bench(sub)
     _add_show(sub)

@@ -1,10 +1,11 @@
-"""Multi-query planning: build a GSn roadmap once, answer a second query on it.
+"""Multi-query planning: build a roadmap once, answer several queries on it.
 
-The first query explores the grasp subspace GSn and keeps its roadmap
-(``plan.result.roadmap``). The roadmap is saved to a ``.npz`` file, loaded
-back (refused if it was built for other models: hand, object, obstacles,
-friction) and passed as ``roadmap=`` to a second query with another goal,
-which links its start and goal into it instead of exploring from scratch.
+The learning phase (``RoadmapPlanner.build``) grows a goal-independent GSn
+roadmap over the scenario's workspace and links its components with
+transfer-regrasp sequences. It is saved to a ``.npz`` file and loaded back
+(refused if it was built for other models: hand, object, obstacles,
+friction); every query then starts from the scenario's start and is
+answered on the roadmap, each with its own statistics.
 
 Run from the repository root::
 
@@ -13,42 +14,41 @@ Run from the repository root::
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 import dexplan
-from dexplan.planning.context import build_context
-from dexplan.planning.roadmap import Roadmap, scenario_key
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "paper_sphere.toml"
 
 
+def yaw(degrees: float) -> list[float]:
+    """The start position turned ``degrees`` about the vertical (x, y, z, qx, qy, qz, qw)."""
+    half = math.radians(degrees) / 2.0
+    return [0.0, 0.0, 0.1, 0.0, 0.0, math.sin(half), math.cos(half)]
+
+
 def main() -> int:
-    """Plan twice on one roadmap; return an exit code."""
-    scenario = dexplan.load_scenario(SCENARIO)  # goal: 180 degrees about z
-    first = dexplan.plan(scenario, seed=1)
-    roadmap = first.result.roadmap
-    print(f"first query: {first.status}, roadmap of {roadmap.n_vertices} vertices")
-
-    ctx = build_context(scenario, hand=first.hand)  # the models the roadmap must match
+    """Build, save, load, query; return an exit code."""
+    scenario = dexplan.load_scenario(SCENARIO)
+    built = dexplan.RoadmapPlanner.build(scenario, nodes=16, seed=1)  # deterministic size
+    st = built.build_stats
+    print(f"built: {st.nodes} nodes, {st.edges} edges, {st.links} links in {st.time_s:.1f} s")
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "roadmap.npz"
-        roadmap.save(path)
-        loaded = Roadmap.load(path, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim)
-    print(f"loaded {loaded.n_vertices} vertices, {len(loaded.edges)} edges")
-
-    half = math.radians(90.0) / 2.0  # second goal: 90 degrees about z
-    pose = np.array([0.0, 0.0, 0.1, 0.0, 0.0, math.sin(half), math.cos(half)])
-    goal = dataclasses.replace(scenario.goal, object_pose_xyzquat=pose)
-    second = dexplan.plan(dataclasses.replace(scenario, goal=goal), roadmap=loaded, hand=first.hand)
-    regrasps = sum(seg.kind == "regrasp" for seg in second.segments)
-    print(f"second query: {second.status}, {len(second.segments)} segments, {regrasps} regrasps")
-    return 0 if first.solved and second.solved else 1
+        path = built.save(Path(tmp) / "roadmap.npz")
+        planner = dexplan.RoadmapPlanner.load(scenario, path)
+    rm = planner.roadmap
+    print(f"loaded {rm.n_vertices} vertices, {len(rm.edges)} edges")
+    solved = 0
+    for k, plan in enumerate(planner.query_many([yaw(90.0), yaw(-60.0), yaw(180.0)]), start=1):
+        s = plan.result.stats
+        solved += plan.solved
+        print(
+            f"query {k}: {plan.status} in {s.time_s:.2f} s, {s.regrasps} regrasps ({s.gsn_status})"
+        )
+    return 0 if solved == 3 else 1
 
 
 if __name__ == "__main__":

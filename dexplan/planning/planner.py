@@ -33,13 +33,14 @@ from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import check_planner
 from dexplan.planning.plan_stats import PlanStats
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
+from dexplan.planning.queries import answer_query
 from dexplan.planning.reduction import (
     ReductionResult,
     grasp_from_state,
     reduce_gsn_path,
     reduce_object_path,
 )
-from dexplan.planning.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn, query_roadmap
+from dexplan.planning.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn
 from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
@@ -329,7 +330,7 @@ class _Query:
                 on_round=self.on_round,
             )
         else:
-            gsn = query_roadmap(ctx, self.roadmap, query, deadline=self.deadline)
+            gsn = answer_query(ctx, self.roadmap, query, deadline=self.deadline, space=spec.space)
         self.stats.update(gsn.stats)
         self.stats["goal_samples"] = draws[1]
         self.roadmap = gsn.roadmap

@@ -121,6 +121,8 @@ class Roadmap:
         links: (L, 2) vertex index pairs joined by a transfer-regrasp sequence.
         planner: name of the OMPL planner that built it.
         scenario_key: hash of the models it belongs to (hand, object, obstacles, friction).
+        build: how it was built (the learning phase's statistics,
+            :class:`~dexplan.planning.learning.BuildStats` as a mapping), or empty.
     """
 
     vertices: FloatArray
@@ -128,6 +130,7 @@ class Roadmap:
     links: np.ndarray
     planner: str
     scenario_key: str
+    build: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_vertices(self) -> int:
@@ -157,7 +160,8 @@ class Roadmap:
         e = np.vstack([self.edges, self.links]) if len(self.links) else self.edges
         if len(e) == 0 or not targets:
             return None
-        w = np.array([pose_distance(self.vertices[a], self.vertices[b]) for a, b in e]) + 1e-9
+        e = np.asarray(e, dtype=np.int64).reshape(-1, 2)
+        w = pose_distances(self.vertices[e[:, 0]], self.vertices[e[:, 1]]) + 1e-9
         n = self.n_vertices
         g = coo_matrix(
             (
@@ -207,9 +211,14 @@ class Roadmap:
         ``path`` and renamed over it once complete.
         """
         path = Path(path)
-        meta = json.dumps(
-            {"format": ROADMAP_FORMAT, "planner": self.planner, "scenario_key": self.scenario_key}
-        )
+        fields: dict[str, Any] = {
+            "format": ROADMAP_FORMAT,
+            "planner": self.planner,
+            "scenario_key": self.scenario_key,
+        }
+        if self.build:
+            fields["build"] = dict(self.build)
+        meta = json.dumps(fields, sort_keys=True)
         with atomic_output(path, "roadmap") as tmp, open(tmp, "wb") as fh:
             np.savez_compressed(
                 fh,
@@ -243,7 +252,9 @@ class Roadmap:
                 f"{where}: roadmap was built for other models (hand, object, obstacles or "
                 "friction differ)"
             )
-        return cls(vertices, edges, links, meta["planner"], meta["scenario_key"])
+        return cls(
+            vertices, edges, links, meta["planner"], meta["scenario_key"], meta.get("build", {})
+        )
 
 
 # ------------------------------------------------------------------ roadmap files
@@ -266,7 +277,8 @@ ROADMAP_QUAT_TOL = 1e-3
 """Largest ``| |quaternion| - 1 |`` of a vertex (GSn states have unit quaternions)."""
 
 _ROADMAP_ARRAYS = ("vertices", "edges", "links", "meta")
-_ROADMAP_META_FIELDS = frozenset({"format", "planner", "scenario_key"})
+_ROADMAP_META_FIELDS = frozenset({"format", "planner", "scenario_key", "build"})
+_MAX_BUILD_FIELDS = 64
 
 
 def _roadmap_error(where: str, msg: str) -> RoadmapFileError:
@@ -396,6 +408,7 @@ def _check_meta(text: str, where: str) -> dict[str, str]:
             raise _roadmap_error(
                 where, unknown_field("meta", field_key(key), value, _ROADMAP_META_FIELDS)
             )
+    _check_build(meta.get("build", {}), where)
     for key, limit in (("planner", 256), ("scenario_key", 64)):
         value = meta.get(key)
         if not isinstance(value, str) or not value or len(value) > limit or not value.isprintable():
@@ -405,6 +418,25 @@ def _check_meta(text: str, where: str) -> dict[str, str]:
                 f"characters, got {shorten(value)}",
             )
     return meta
+
+
+def _check_build(build: object, where: str) -> None:
+    """``meta.build`` (optional): a flat object of numbers, strings, booleans and nulls."""
+    if not isinstance(build, dict) or len(build) > _MAX_BUILD_FIELDS:
+        raise _roadmap_error(
+            where,
+            f"meta.build must be a JSON object of at most {_MAX_BUILD_FIELDS} fields, "
+            f"got {shorten(build)}",
+        )
+    for key, value in build.items():
+        if not isinstance(value, int | float | str | bool | type(None)) or (
+            isinstance(value, str) and len(value) > 256
+        ):
+            raise _roadmap_error(
+                where,
+                f"meta.build.{field_key(key)} must be a number, string or null, got "
+                f"{shorten(value)}",
+            )
 
 
 def _check_indices(arr: np.ndarray, name: str, n: int, where: str) -> np.ndarray:
@@ -523,6 +555,21 @@ ROUND_MILESTONES = 4
 def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
     """Object-pose distance of two states: translation / length + rotation angle."""
     return float(np.linalg.norm(a[:3] - b[:3])) / length + quat_angle(a[3:7], b[3:7])
+
+
+def pose_distances(a: FloatArray, b: FloatArray, length: float = 0.05) -> FloatArray:
+    """:func:`pose_distance` of broadcast arrays of states ``(..., 7 + nq)``: ``(...)``.
+
+    The angle is ``2 acos |<qa, qb>|`` of the normalised quaternions (q and -q
+    are the same orientation).
+    """
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    dp = np.linalg.norm(a[..., :3] - b[..., :3], axis=-1)
+    qa = a[..., 3:POSE_DIM] / np.linalg.norm(a[..., 3:POSE_DIM], axis=-1, keepdims=True)
+    qb = b[..., 3:POSE_DIM] / np.linalg.norm(b[..., 3:POSE_DIM], axis=-1, keepdims=True)
+    dot = np.clip(np.abs(np.sum(qa * qb, axis=-1)), 0.0, 1.0)
+    return dp / length + 2.0 * np.arccos(dot)
 
 
 def scenario_key(ctx: PlanningContext) -> str:
@@ -732,35 +779,6 @@ def _geodesic(problem: PlanningProblem) -> Geodesic:
         return np.asarray(checked.path) if checked.path_valid else None
 
     return states
-
-
-def query_roadmap(
-    ctx: PlanningContext, roadmap: Roadmap, query: GsnQuery, *, deadline: float
-) -> GsnResult:
-    """Multi-query: answer a query on a loaded roadmap (linking start and goal into it).
-
-    Raises:
-        RoadmapFileError: the roadmap's vertices are not states of this hand
-            (a width other than ``7 + nq``).
-    """
-    width = roadmap.vertices.shape[1] if roadmap.vertices.ndim == 2 else -1
-    if width != ctx.gsn.ambient_dim:
-        raise RoadmapFileError(
-            f"roadmap vertices have {width} columns, this hand's states have "
-            f"{ctx.gsn.ambient_dim} (7 + nq)"
-        )
-    stats: dict[str, Any] = {
-        "gsn_status": "roadmap",
-        "gsn_time_s": 0.0,
-        "roadmap_nodes": roadmap.n_vertices,
-        "roadmap_edges": len(roadmap.edges),
-        "components": roadmap.components()[0],
-        "module2_attempts": 0,
-        "module2_links": 0,
-        "module2_time_s": 0.0,
-    }
-    start = roadmap.add_vertex(query.start)
-    return link_query(ctx, roadmap, query, start, deadline, stats)
 
 
 def object_move_free(ctx: PlanningContext, a: FloatArray, b: FloatArray) -> bool:

@@ -588,6 +588,37 @@ class PlanningProblem:
         self._raise_callback_error()
         return result
 
+    def interpolate_path(self, waypoints: object) -> FloatArray:
+        """Densify a path of ambient states along the space's discrete geodesics, unchecked.
+
+        For paths whose motions were checked already (a roadmap's edges): each
+        segment ``i -> i+1`` is OMPL's ``PathGeometric.interpolate`` of it, no
+        validity check is made (use :meth:`check_path` for that).
+
+        Args:
+            waypoints: ``(M, n)`` ambient states, M >= 1.
+
+        Returns:
+            ``(K, n)`` ambient states, the waypoints included.
+
+        Raises:
+            InvalidInputError: wrong shape or non-finite values.
+        """
+        arr = np.asarray(waypoints, dtype=np.float64)
+        n = self._spec.ambient_dim
+        if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
+            raise InvalidInputError(f"waypoints must have shape (M, {n}), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError("waypoints must be finite")
+        path = og.PathGeometric(self._si)
+        for x in arr:
+            path.append(self._alloc(self._frame.to_y(x)))
+        path.interpolate()
+        read = self._frame.read
+        ys = np.array([read(path.getState(i)) for i in range(path.getStateCount())])
+        self._raise_callback_error()
+        return self._frame.to_x(ys.reshape(-1, n))
+
     def _states_ok(self, ys: FloatArray) -> bool:
         """Whether every planning-coordinate state is on the manifold, in bounds, valid."""
         spec = self._spec
