@@ -158,3 +158,26 @@ def test_resumed_track_equals_a_fresh_one() -> None:
         want = fresh.track_score(f, q_k, tip, n_out, poses[k:], len(poses))
         assert got[0] == want[0]
         np.testing.assert_array_equal(got[1], want[1])
+
+
+def test_non_redundant_fingers_track_fewer_landings() -> None:
+    """Closed-form fingers track at most ``tracked_landings_simple`` landings; all keep FC."""
+    scenario = default_scenario()
+    for simple in (0, 2):
+        settings = TransitionSettings(tracked_landings_simple=simple)
+        ctx = build_context(scenario, seed=2, transition_settings=settings)
+        x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+        assert x is not None
+        pose, q = x[:7], x[7:]
+        tr = ctx.transitions
+        grasp = grasp_from_state(tr, pose, q)
+        goal = pose.copy()
+        goal[3:] = [0.0, 0.0, 1.0, 0.0]
+        poses = densify_poses(np.stack([pose, goal]), 0.008, 0.04)
+        assert tr.tracked_count(0) == min(simple, tr.settings.tracked_landings)
+        got = list(tr.landing_candidates(0, pose, q, grasp, poses, limit=6))
+        assert got
+        assert len(tr._postures) <= simple  # one landing posture per tracked landing
+        for point, normal, _ in got:
+            new = grasp.replace(0, point, normal)
+            assert tr.grasp_quality(new, exact=True) > ctx.validity.settings.fc_margin

@@ -311,6 +311,17 @@ class Landings:
                 return cands[k].copy()
         return None
 
+    def tracked_count(self, finger: int) -> int:
+        """How many landings of ``finger`` are tracked with its links checked (0: none).
+
+        ``tracked_landings`` for redundant fingers (more postures per contact
+        than IK branches), ``tracked_landings_simple`` for the others.
+        """
+        s = self.settings
+        if self.hand._split_ik[finger] is not None:
+            return s.tracked_landings
+        return min(s.tracked_landings, s.tracked_landings_simple)
+
     def landing_candidates(
         self,
         finger: int,
@@ -325,9 +336,50 @@ class Landings:
 
         Filters: reachable now (with joint margin), fingertips apart, every
         (n-1) subgrasp of the new grasp force closure. Sorted by
-        :meth:`follow_scores` (random among ties). A generator: the force-closure
-        test, the costly filter, runs only on the candidates the caller asks
-        for (the first usually works), at most ``limit`` are yielded.
+        :meth:`follow_scores` (random among ties); for tracked fingers
+        (:meth:`tracked_count`) the best are re-scored by :meth:`track_score` and
+        come first. A generator: the force-closure test, the costly filter,
+        runs only on the candidates the caller asks for (the first usually
+        works), at most ``limit`` are yielded.
+        """
+        ranked = self._ranked_landings(finger, pose, grasp, future_poses, hint)
+        if ranked is None:
+            return
+        pts, nrm, keep, scores = ranked
+        self._postures.clear()
+        tracked: list[tuple[int, int]] = []
+        pos = 0
+        if self.tracked_count(finger) > 0:
+            tracked, pos = self._track_best(finger, q, grasp, future_poses, ranked)
+        found = 0
+        for count, c in tracked:
+            yield pts[c], nrm[c], count
+            found += 1
+            if found >= limit:
+                return
+        for c, score in zip(keep[pos:], scores[pos:], strict=True):
+            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+                continue
+            yield pts[c], nrm[c], int(score)
+            found += 1
+            if found >= limit:
+                return
+
+    def _ranked_landings(
+        self,
+        finger: int,
+        pose: FloatArray,
+        grasp: GraspContacts,
+        future_poses: FloatArray,
+        hint: tuple[FloatArray, FloatArray] | None,
+    ) -> tuple[FloatArray, FloatArray, np.ndarray, np.ndarray] | None:
+        """Sampled landings that pass the cheap filters, by IK-only follow score.
+
+        Returns:
+            ``(points, normals_out, keep, scores)``: ``(S, 3)`` sampled
+            surface points and outward normals (object frame), the indices
+            kept, best first (random among ties), and their follow scores;
+            None when none is kept.
         """
         s = self.settings
         pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
@@ -347,7 +399,7 @@ class Landings:
         moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
         keep = np.flatnonzero(apart & moved)
         if len(keep) == 0:
-            return
+            return None
         # reachable now (one IK batch), then at most landing_reachable of them
         R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
         idx = self.hand.finger_q_index[finger]
@@ -355,7 +407,7 @@ class Landings:
         ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
         keep = keep[ok_now][: s.landing_reachable + (hint is not None)]
         if len(keep) == 0:
-            return
+            return None
         scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
         reach = scores > 0
         keep, scores = keep[reach], scores[reach]
@@ -366,40 +418,47 @@ class Landings:
             good = aligned >= s.landing_alignment
             keep, scores = keep[good], scores[good]
         order = np.lexsort((self.rng.random(len(keep)), -scores))
-        keep, scores = keep[order], scores[order]
-        # Best IK-only score first, each candidate that keeps force closure is
-        # tracked (links collision-checked) until the next IK-only score, an
-        # upper bound, cannot beat the best tracked one; tracked landings come
-        # first by tracked score, then the untracked ones by their bound.
-        self._postures.clear()
+        return pts, nrm, keep[order], scores[order]
+
+    def _track_best(
+        self,
+        finger: int,
+        q: FloatArray,
+        grasp: GraspContacts,
+        future_poses: FloatArray,
+        ranked: tuple[FloatArray, FloatArray, np.ndarray, np.ndarray],
+    ) -> tuple[list[tuple[int, int]], int]:
+        """Track the best-ranked landings that keep force closure, links checked.
+
+        Best IK-only score first, each candidate that keeps force closure is
+        tracked until the next IK-only score, an upper bound, cannot beat the
+        best tracked one. Landing postures go to ``self._postures``.
+
+        Returns:
+            ``(tracked, pos)``: ``(tracked count, candidate index)`` pairs,
+            best tracked count first, and how many of the ranked candidates
+            were used up.
+        """
+        s = self.settings
+        pts, nrm, keep, scores = ranked
+        r = self.hand.fingertip_radius
         tracked: list[tuple[int, int]] = []
-        best, pos = 0, 0
-        while pos < len(keep) and len(tracked) < s.tracked_landings and scores[pos] > best:
+        best, pos, most = 0, 0, self.tracked_count(finger)
+        while pos < len(keep) and len(tracked) < most and scores[pos] > best:
             c = keep[pos]
             pos += 1
             if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
                 continue
             horizon = int(scores[pos - 1]) + max(1, s.follow_stride)
-            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
+            tip = pts[c] + r * nrm[c]
+            count, q_land = self.track_score(finger, q, tip, nrm[c], future_poses, horizon)
             if q_land is None:
                 continue
             self._postures[(finger, pts[c].tobytes())] = q_land
             tracked.append((count, int(c)))
             best = max(best, count)
         tracked.sort(key=lambda t: -t[0])
-        found = 0
-        for count, c in tracked:
-            yield pts[c], nrm[c], count
-            found += 1
-            if found >= limit:
-                return
-        for c, score in zip(keep[pos:], scores[pos:], strict=True):
-            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
-                continue
-            yield pts[c], nrm[c], int(score)
-            found += 1
-            if found >= limit:
-                return
+        return tracked, pos
 
     def _landing_fc(
         self, finger: int, grasp: GraspContacts, point: FloatArray, normal: FloatArray

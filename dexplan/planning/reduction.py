@@ -214,12 +214,12 @@ def _current_follow(
 
     The IK-only bound (:meth:`Transitions.follow_scores`), tightened by
     tracking the finger with its links collision-checked
-    (:meth:`Transitions.track_score`) when ``tracked_landings`` is set.
+    (:meth:`Transitions.track_score`) for tracked fingers (:meth:`Transitions.tracked_count`).
     """
     r = trans.hand.fingertip_radius
     tip = grasp.points[finger] + r * grasp.normals_out[finger]
     bound = int(trans.follow_scores(finger, tip[None], future)[0])
-    if trans.settings.tracked_landings <= 0 or bound <= 0:
+    if trans.tracked_count(finger) <= 0 or bound <= 0:
         return bound
     limit = bound + max(1, trans.settings.follow_stride)
     return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]

@@ -79,6 +79,10 @@ class TransitionSettings:
             rest of the motion with its links collision-checked against the
             palm, the object and the obstacles (:meth:`Transitions.track_score`);
             0: IK-only scores.
+        tracked_landings_simple: ``tracked_landings`` for non-redundant
+            fingers (one posture per IK branch): their IK-only score already
+            follows the finger's own motion and misses only link collisions,
+            so fewer are tracked (each costs a force-closure check and a track).
     """
 
     max_step_m: float = 0.008
@@ -97,6 +101,7 @@ class TransitionSettings:
     landing_alignment: float | None = 0.4
     tracked_landings: int = 16
     landing_reachable: int = 96
+    tracked_landings_simple: int = 4
 
 
 @dataclass(frozen=True)
