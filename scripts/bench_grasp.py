@@ -59,6 +59,50 @@ def timed(fn: Callable[[], object], calls: int) -> tuple[float, float]:
     return statistics.median(wall) * 1e6, statistics.median(cpu) * 1e6
 
 
+Grasp = tuple[np.ndarray, np.ndarray]
+
+
+def _fc_pool(rng: np.random.Generator, size: int = 200) -> list[Grasp]:
+    """Random 4-contact sphere grasps whose every 3-subgrasp is force closure."""
+    probe = ForceClosure(solver="nnls")
+    pool: list[Grasp] = []
+    while len(pool) < size:
+        p, n = sphere_grasp(rng.normal(size=(4, 3)))
+        if probe.min_subgrasp_quality(p, n, MU, torque_scale=TS) > 0:
+            pool.append((p, n))
+    return pool
+
+
+def _solver_rows(solver: str, cases: dict[str, Grasp], pool: list[Grasp], calls: int) -> None:
+    """One table row per case (and the random pool) for one pair solver."""
+    fc = ForceClosure(solver=solver)  # type: ignore[arg-type]
+    rows: list[tuple[str, Grasp | None]] = [*cases.items(), ("random", None)]
+    for name, grasp in rows:
+        counter = iter(range(10**9))
+
+        def pick(grasp=grasp, counter=counter) -> Grasp:
+            return grasp if grasp is not None else pool[next(counter) % len(pool)]
+
+        def quality(fc=fc, pick=pick) -> float:
+            p, n = pick()
+            return fc.quality(p, n, MU, torque_scale=TS)
+
+        def minsub(fc=fc, pick=pick, margin=None) -> float:
+            p, n = pick()
+            return fc.min_subgrasp_quality(p, n, MU, torque_scale=TS, margin=margin)
+
+        before = fc.stats["pairs_solved"], fc.stats["evaluations"]
+        t_q = timed(quality, calls)
+        t_m = timed(minsub, calls)
+        t_v = timed(lambda minsub=minsub: minsub(margin=MARGIN), calls)
+        pairs = (fc.stats["pairs_solved"] - before[0]) / (fc.stats["evaluations"] - before[1])
+        q = quality() if grasp is not None else float("nan")
+        m = minsub() if grasp is not None else float("nan")
+        cells = [f"{w:6.0f} / {c:6.0f}" for w, c in (t_q, t_m, t_v)]
+        print(f"{solver:6s} {name:8s} {q:8.4f} {m:8.4f}  " + "  ".join(cells) + f"  {pairs:6.2f}")
+    print(f"{solver:6s} stats: {fc.stats}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--calls", type=int, default=2000)
@@ -70,47 +114,14 @@ def main() -> None:
         "sub-nfc": sphere_grasp([[1, 0, 0], [-1, 0, 0], [0, 1, 0.2], [0, 0.2, 1]]),
         "non-fc": sphere_grasp([[1, 0, 1], [0, 1, 1], [-1, 0, 1], [0, -1, 1.2]]),
     }
-    rng = np.random.default_rng(args.seed)
-    probe = ForceClosure(solver="nnls")
-    pool: list[tuple[np.ndarray, np.ndarray]] = []
-    while len(pool) < 200:
-        p, n = sphere_grasp(rng.normal(size=(4, 3)))
-        if probe.min_subgrasp_quality(p, n, MU, torque_scale=TS) > 0:
-            pool.append((p, n))
+    pool = _fc_pool(np.random.default_rng(args.seed))
     load = os.getloadavg()[0]
     print(f"median microseconds per call over {args.calls} calls (wall / cpu), edges=8, mu={MU}")
     print(f"load average (1 min) before: {load:.2f} on {os.cpu_count()} cores\n")
     header = f"{'solver':6s} {'case':8s} {'Q':>8s} {'min sub':>8s}"
     print(f"{header}  {'quality':>15s}  {'min_subgrasp':>15s}  {'min_sub margin':>15s}  pairs/call")
     for solver in ("osqp", "nnls"):
-        fc = ForceClosure(solver=solver)
-        rows: list[tuple[str, object]] = [*cases.items(), ("random", None)]
-        for name, grasp in rows:
-            counter = iter(range(10**9))
-
-            def pick(grasp=grasp, counter=counter) -> tuple[np.ndarray, np.ndarray]:
-                return grasp if grasp is not None else pool[next(counter) % len(pool)]
-
-            def quality(fc=fc, pick=pick) -> float:
-                p, n = pick()
-                return fc.quality(p, n, MU, torque_scale=TS)
-
-            def minsub(fc=fc, pick=pick, margin=None) -> float:
-                p, n = pick()
-                return fc.min_subgrasp_quality(p, n, MU, torque_scale=TS, margin=margin)
-
-            before = fc.stats["pairs_solved"], fc.stats["evaluations"]
-            t_q = timed(quality, args.calls)
-            t_m = timed(minsub, args.calls)
-            t_v = timed(lambda minsub=minsub: minsub(margin=MARGIN), args.calls)
-            pairs = (fc.stats["pairs_solved"] - before[0]) / (fc.stats["evaluations"] - before[1])
-            q = quality() if grasp is not None else float("nan")
-            m = minsub() if grasp is not None else float("nan")
-            cells = [f"{w:6.0f} / {c:6.0f}" for w, c in (t_q, t_m, t_v)]
-            print(
-                f"{solver:6s} {name:8s} {q:8.4f} {m:8.4f}  " + "  ".join(cells) + f"  {pairs:6.2f}"
-            )
-        print(f"{solver:6s} stats: {fc.stats}")
+        _solver_rows(solver, cases, pool, args.calls)
     p, n = cases["tetra"]
     fc = ForceClosure()
     t_s = timed(lambda: fc.is_force_closure(p, n, MU, torque_scale=TS, subgrasps=True), args.calls)

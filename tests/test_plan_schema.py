@@ -68,6 +68,27 @@ def _wp(pose: np.ndarray, q: np.ndarray, contacts: list) -> dict[str, Any]:
     }
 
 
+def _regrasp_finger0(
+    hand: Hand, pose: np.ndarray, contacts: list, q: np.ndarray, start: dict[str, Any]
+) -> tuple[list[dict[str, Any]], list, np.ndarray]:
+    """Finger 0 lifts, moves 15 degrees round and lands (16 waypoints from ``start``).
+
+    Returns:
+        The waypoints, the contacts after landing and the last joint values.
+    """
+    regrasp = [start]
+    free = [None, *contacts[1:]]
+    for t in np.linspace(0.0, 1.0, 16)[1:-1]:  # lift finger 0, move 15 degrees round
+        lift = 0.008 * math.sin(math.pi * t) + 0.001
+        tip = _contact(45 + 15 * t) * (1.0 + (hand.fingertip_radius + lift) / RADIUS)
+        q = _reach(hand, q, 0, pose, tip)
+        regrasp.append(_wp(pose, q, free))
+    landed = [_contact(60.0), *contacts[1:]]
+    q = _grasp(hand, pose, [landed[0], None, None, None], q)
+    regrasp.append(_wp(pose, q, landed))
+    return regrasp, landed, q
+
+
 def make_plan(hand: Hand) -> dict[str, Any]:
     """Transfer (4 waypoints), regrasp of finger 0 (16), transfer (4); verify passes."""
     contacts = [_contact(45 + 90 * k) for k in range(4)]
@@ -78,21 +99,19 @@ def make_plan(hand: Hand) -> dict[str, Any]:
         q = _grasp(hand, pose, contacts, q)
         first.append(_wp(pose, q, contacts))
     pose = _pose(3 * YAW_STEP)
-    regrasp = [first[-1]]
-    free = [None, *contacts[1:]]
-    for t in np.linspace(0.0, 1.0, 16)[1:-1]:  # lift finger 0, move 15 degrees round
-        lift = 0.008 * math.sin(math.pi * t) + 0.001
-        tip = _contact(45 + 15 * t) * (1.0 + (hand.fingertip_radius + lift) / RADIUS)
-        q = _reach(hand, q, 0, pose, tip)
-        regrasp.append(_wp(pose, q, free))
-    landed = [_contact(60.0), *contacts[1:]]
-    q = _grasp(hand, pose, [landed[0], None, None, None], q)
-    regrasp.append(_wp(pose, q, landed))
+    regrasp, landed, q = _regrasp_finger0(hand, pose, contacts, q, first[-1])
     second = [regrasp[-1]]
     for k in range(4, 7):
         pose = _pose(YAW_STEP * k)
         q = _grasp(hand, pose, landed, q)
         second.append(_wp(pose, q, landed))
+    return _plan_document(hand, first, regrasp, second)
+
+
+def _plan_document(
+    hand: Hand, first: list[dict], regrasp: list[dict], second: list[dict]
+) -> dict[str, Any]:
+    """The plan file of the three segments (sphere, one table obstacle, tight goal)."""
     doc = {
         "format": "dexplan-plan/1",
         "scenario": "schema_test",

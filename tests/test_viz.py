@@ -218,18 +218,8 @@ def test_synthetic_plan_is_consistent(paper_hand: Hand, plan_doc: dict) -> None:
                 assert (abs(d - r) < 1e-6) if c is not None else d > r + 1e-3
 
 
-def test_record_plan_entities_and_timeline(
-    tmp_path: Path, paper_hand: Hand, plan_doc: dict, fc_stub
-) -> None:
-    from dexplan.viz import STEP_SECONDS, record_plan
-
-    roadmap = make_roadmap(plan_doc)
-    out = tmp_path / "plan.rrd"
-    record_plan(plan_doc, out, roadmap=roadmap)
-    assert out.stat().st_size > 0
-    ents = read_rrd(out)
-
-    n_wp = sum(len(s["waypoints"]) for s in plan_doc["segments"])
+def _expected_plan_entities(hand: Hand) -> set[str]:
+    """Every entity path a plan recording with a roadmap and one obstacle holds."""
     expected = {
         "/world",
         "/world/hand",
@@ -251,23 +241,26 @@ def test_record_plan_entities_and_timeline(
         "/plan/fc/full",
         "/plan/fc/min_subgrasp",
     }
-    expected |= {f"/world/contacts/finger_{i}" for i in range(paper_hand.n_fingers)}
-    expected |= {f"/world/contacts/finger_{i}/cone" for i in range(paper_hand.n_fingers)}
-    links = {f.name for f in paper_hand.model.frames if f.name.endswith(("_proximal", "_tip"))}
+    expected |= {f"/world/contacts/finger_{i}" for i in range(hand.n_fingers)}
+    expected |= {f"/world/contacts/finger_{i}/cone" for i in range(hand.n_fingers)}
+    links = {f.name for f in hand.model.frames if f.name.endswith(("_proximal", "_tip"))}
     expected |= {f"/world/hand/{name}" for name in links | {"palm"}}
-    assert expected <= set(ents), sorted(expected - set(ents))
+    return expected
 
-    # the world is right-handed, z up
-    assert column(ents["/world"], "ViewCoordinates:xyz")
 
-    # roadmap: one logged node per vertex, one strip per edge / link
+def _check_roadmap_entities(ents: dict, roadmap) -> None:
+    """One logged node per vertex, one strip per edge / link."""
     nodes = column(ents["/world/roadmap/nodes"], "Points3D:positions")
     assert len(nodes) == roadmap.n_vertices
     assert len(column(ents["/world/roadmap/edges"], "LineStrips3D:strips")) == len(roadmap.edges)
     assert len(column(ents["/world/roadmap/links"], "LineStrips3D:strips")) == 1
     assert column(ents["/world/roadmap"], "nodes_per_component") == [4, 2, 1]
 
-    # plan_step: one step per waypoint (boundary waypoints counted in both segments)
+
+def _check_timeline(ents: dict, n_wp: int) -> None:
+    """plan_step: one step per waypoint (boundary waypoints counted in both segments)."""
+    from dexplan.viz import STEP_SECONDS
+
     assert steps(ents["/world/object"]) == list(range(n_wp))
     assert steps(ents["/world/hand/f0_distal"]) == list(range(n_wp))
     times = steps(ents["/world/object"], "time")
@@ -278,21 +271,24 @@ def test_record_plan_entities_and_timeline(
     assert any("transfer" in t for t in texts) and any("regrasp of finger 0" in t for t in texts)
     assert column(ents["/plan/state/free_finger"], "StateChange:state") == ["none", "finger 0"]
 
-    # the object pose follows the waypoints
+
+def _check_poses(ents: dict, plan_doc: dict, hand: Hand) -> None:
+    """The object follows the waypoints; the hand links follow forward kinematics."""
     trans = column(ents["/world/object"], "Transform3D:translation")
     wps = [w for s in plan_doc["segments"] for w in s["waypoints"]]
     np.testing.assert_allclose(
         np.array(trans), np.array([w["object_pose_xyzquat"][:3] for w in wps]), atol=1e-6
     )
-
-    # hand links follow forward kinematics (the fingertip frames are the sphere centres)
+    # the fingertip frames are the sphere centres
     tip = np.array(column(ents["/world/hand/f2_tip"], "Transform3D:translation"))
-    fk = np.array([paper_hand.fingertip_positions(np.asarray(w["q"]))[2] for w in wps])
+    fk = np.array([hand.fingertip_positions(np.asarray(w["q"]))[2] for w in wps])
     np.testing.assert_allclose(tip, fk, atol=1e-6)
 
-    # finger 0 is free at the 3 interior regrasp waypoints: its contact is empty there
+
+def _check_contacts(ents: dict, plan_doc: dict, hand: Hand, n_wp: int) -> None:
+    """Finger 0 is free at the 3 interior regrasp waypoints: its contact is empty there."""
     free_steps = [6, 7, 8]
-    for i in range(paper_hand.n_fingers):
+    for i in range(hand.n_fingers):
         for name, per_step in (("", 1), ("/cone", plan_doc["friction_edges"] + 1)):
             chunks = ents[f"/world/contacts/finger_{i}{name}"]
             comp = "LineStrips3D:strips" if name else "Points3D:positions"
@@ -304,9 +300,30 @@ def test_record_plan_entities_and_timeline(
                     sizes.update({t: len(b) for t, b in zip(ts, bs, strict=True)})
             want = {t: 0 if (i == 0 and t in free_steps) else per_step for t in range(n_wp)}
             assert sizes == want, (i, name)
-
     # min over subgrasps only where every finger holds
     assert len(column(ents["/plan/fc/min_subgrasp"], "Scalars:scalars")) == n_wp - len(free_steps)
+
+
+def test_record_plan_entities_and_timeline(
+    tmp_path: Path, paper_hand: Hand, plan_doc: dict, fc_stub
+) -> None:
+    from dexplan.viz import record_plan
+
+    roadmap = make_roadmap(plan_doc)
+    out = tmp_path / "plan.rrd"
+    record_plan(plan_doc, out, roadmap=roadmap)
+    assert out.stat().st_size > 0
+    ents = read_rrd(out)
+
+    n_wp = sum(len(s["waypoints"]) for s in plan_doc["segments"])
+    expected = _expected_plan_entities(paper_hand)
+    assert expected <= set(ents), sorted(expected - set(ents))
+    # the world is right-handed, z up
+    assert column(ents["/world"], "ViewCoordinates:xyz")
+    _check_roadmap_entities(ents, roadmap)
+    _check_timeline(ents, n_wp)
+    _check_poses(ents, plan_doc, paper_hand)
+    _check_contacts(ents, plan_doc, paper_hand, n_wp)
 
     # a blueprint travels with the recording
     from rerun.chunk import RrdReader
