@@ -90,3 +90,18 @@ def test_allegro_start_grasp_at_the_start_pose(ctx) -> None:
     assert x is not None
     np.testing.assert_array_equal(x[:POSE_DIM], ctx.scenario.start.object_pose_xyzquat)
     assert ctx.validity.check(x).valid
+
+
+def test_half_space_screen_never_drops_a_force_closure_grasp() -> None:
+    """Grasps the sampler's half-space screen rejects are not force closure (every subgrasp)."""
+    ctx = build_context(load_scenario(ALLEGRO), seed=1)
+    sampler, validity = ctx.sampler, ctx.validity
+    rng = np.random.default_rng(5)
+    # random inward-ish normals on a sphere: many subgrasps fail, some hold
+    normals = rng.normal(size=(3000, 4, 3))
+    normals /= np.linalg.norm(normals, axis=2, keepdims=True)
+    rejected = sampler._cannot_hold(normals)
+    assert 0 < rejected.sum() < len(normals)
+    for n_out in normals[rejected][:300]:
+        points = 0.06 * n_out  # sphere of radius 6 cm: outward normal = direction
+        assert validity.grasp_quality(points, -n_out) <= validity.settings.fc_margin
