@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,38 +190,26 @@ def build_roadmap(
         projection=orientation_projection(),
         seed=settings.seed,
     )
+    grower = _Module1(problem, ctx, settings, scenario_key(ctx), say)
     m1_deadline = t0 + (MODULE1_SHARE * budget if settings.time_limit is not None else budget)
-    rounds = 0
-    roadmap = Roadmap(
-        np.zeros((0, ctx.gsn.ambient_dim)),
-        np.zeros((0, 2), dtype=np.int64),
-        np.zeros((0, 2), dtype=np.int64),
-        settings.planner,
-        scenario_key(ctx),
-    )
-    for target in _round_targets(settings.nodes):
-        left = m1_deadline - time.perf_counter()
-        if left <= 0.0:
-            break
-        rounds += 1
-        milestones = problem.grow_roadmap(left, max_milestones=target)
-        roadmap = _read_roadmap(problem, ctx, settings.planner, roadmap.scenario_key)
-        n_comp = roadmap.components(with_links=False)[0]
-        say(
-            Stage.MODULE1,
-            f"module 1: round {rounds}: {roadmap.n_vertices} nodes, {len(roadmap.edges)} edges, "
-            f"{n_comp} components",
-            rounds=rounds,
-            nodes=roadmap.n_vertices,
-            edges=len(roadmap.edges),
-            components=n_comp,
-        )
-        if milestones < target or (settings.nodes is not None and milestones >= settings.nodes):
-            break  # the clock stopped it, or the target is reached
-    t1 = time.perf_counter()
+    roadmap = grower.grow(m1_deadline, None)
     gsn_components = roadmap.components(with_links=False)[0]
+    t_m1 = time.perf_counter() - t0
+    t_m2 = time.perf_counter()
     attempts = link_components(ctx, roadmap, settings, deadline, say)
-    t2 = time.perf_counter()
+    t_m2 = time.perf_counter() - t_m2
+    # time left (only with a time limit): grow on, keep the links, link again
+    while settings.time_limit is not None and deadline - time.perf_counter() > 1.0:
+        t = time.perf_counter()
+        before = roadmap.n_vertices
+        roadmap = grower.grow(t + MODULE1_SHARE * (deadline - t), roadmap)
+        t_m1 += time.perf_counter() - t
+        if roadmap.n_vertices == before:
+            break
+        gsn_components = roadmap.components(with_links=False)[0]
+        t = time.perf_counter()
+        attempts += link_components(ctx, roadmap, settings, deadline, say)
+        t_m2 += time.perf_counter() - t
     stats = BuildStats(
         planner=settings.planner,
         seed=settings.seed,
@@ -230,16 +218,89 @@ def build_roadmap(
         links=len(roadmap.links),
         gsn_components=gsn_components,
         components=roadmap.components()[0],
-        rounds=rounds,
+        rounds=grower.rounds,
         link_attempts=attempts,
-        module1_time_s=round(t1 - t0, 6),
-        module2_time_s=round(t2 - t1, 6),
-        time_s=round(t2 - t0, 6),
+        module1_time_s=round(t_m1, 6),
+        module2_time_s=round(t_m2, 6),
+        time_s=round(time.perf_counter() - t0, 6),
         time_limit=settings.time_limit,
         target_nodes=settings.nodes,
     )
     roadmap.build = stats.as_dict()
     return roadmap, stats
+
+
+class _Module1:
+    """Module 1 of the learning phase: the PRM roadmap, grown in rounds of doubling size."""
+
+    def __init__(
+        self,
+        problem: PlanningProblem,
+        ctx: PlanningContext,
+        settings: BuildSettings,
+        key: str,
+        say: Callable[..., None],
+    ) -> None:
+        self.problem, self.ctx, self.settings, self.key, self.say = (
+            problem,
+            ctx,
+            settings,
+            key,
+            say,
+        )
+        self.rounds = 0
+        self.targets = _round_targets(settings.nodes)
+        self.milestones = 0
+
+    def grow(self, until: float, old: Roadmap | None) -> Roadmap:
+        """Rounds until ``until``, the node target or the clock; ``old``'s links are kept."""
+        roadmap = old or self._empty()
+        nodes = self.settings.nodes
+        while until - time.perf_counter() > 0.0:
+            if nodes is not None and self.milestones >= nodes:
+                break
+            target = max(next(self.targets), self.milestones + 1)
+            self.rounds += 1
+            self.milestones = self.problem.grow_roadmap(
+                until - time.perf_counter(), max_milestones=target
+            )
+            roadmap = _read_roadmap(self.problem, self.ctx, self.settings.planner, self.key)
+            if old is not None:
+                roadmap.links = _carry_links(old, roadmap)
+            n_comp = roadmap.components(with_links=False)[0]
+            self.say(
+                Stage.MODULE1,
+                f"module 1: round {self.rounds}: {roadmap.n_vertices} nodes, "
+                f"{len(roadmap.edges)} edges, {n_comp} components",
+                rounds=self.rounds,
+                nodes=roadmap.n_vertices,
+                edges=len(roadmap.edges),
+                components=n_comp,
+            )
+            if self.milestones < target:
+                break  # the clock stopped it
+        return roadmap
+
+    def _empty(self) -> Roadmap:
+        return Roadmap(
+            np.zeros((0, self.ctx.gsn.ambient_dim)),
+            np.zeros((0, 2), dtype=np.int64),
+            np.zeros((0, 2), dtype=np.int64),
+            self.settings.planner,
+            self.key,
+        )
+
+
+def _carry_links(old: Roadmap, new: Roadmap) -> np.ndarray:
+    """``old``'s links as indices of ``new`` (vertices matched exactly; lost ones dropped)."""
+    index = {row.tobytes(): i for i, row in enumerate(new.vertices)}
+    out = []
+    for a, b in old.links.tolist():
+        ia = index.get(old.vertices[a].tobytes())
+        ib = index.get(old.vertices[b].tobytes())
+        if ia is not None and ib is not None:
+            out.append((ia, ib))
+    return np.array(out, dtype=np.int64).reshape(-1, 2)
 
 
 def _round_targets(nodes: int | None) -> Iterator[int]:

@@ -30,6 +30,7 @@ from dexplan.planning.roadmap import (
     Roadmap,
     constraint_spec,
     link_query,
+    object_move_free,
     pose_distances,
 )
 from dexplan.typing import FloatArray
@@ -111,12 +112,13 @@ def answer_query(
     start = query.start
     if problem.check_motion(start, goal):  # no roadmap needed
         stats.update(gsn_time_s=time.perf_counter() - t0)
-        return GsnResult(_dense(problem, np.stack([start, goal])), roadmap, stats)
+        ends = [roadmap.n_vertices, roadmap.n_vertices + 1]
+        return GsnResult(_path_states(ctx, problem, roadmap, start, goal, ends), roadmap, stats)
     s_edges = _join(problem, roadmap, start, forward=True, deadline=deadline)
     g_edges = _join(problem, roadmap, goal, forward=False, deadline=deadline)
     ids = _search(roadmap, start, goal, s_edges, g_edges)
     if ids is not None:
-        states = _path_states(problem, roadmap, start, goal, ids)
+        states = _path_states(ctx, problem, roadmap, start, goal, ids)
         stats.update(gsn_time_s=time.perf_counter() - t0)
         return GsnResult(states, roadmap, stats)
     # grow the roadmap: start and goal join it, module 2 links components
@@ -193,22 +195,31 @@ def _search(
 
 
 def _path_states(
-    problem: PlanningProblem, roadmap: Roadmap, start: FloatArray, goal: FloatArray, ids: list[int]
+    ctx: PlanningContext,
+    problem: PlanningProblem,
+    roadmap: Roadmap,
+    start: FloatArray,
+    goal: FloatArray,
+    ids: list[int],
 ) -> FloatArray:
     """States along a searched path: GSn motions densified, module-2 links as they are.
 
     The motions were checked when they were made (the roadmap's edges by its
-    planner, the joins here); they are densified, not checked again: the
-    reduction checks what the hand does along the object trajectory, and the
-    verifier checks the plan.
+    planner, the joins here), so they are not checked again: the reduction
+    follows the path's object trajectory and checks what the hand does along
+    it, and the verifier checks the plan. A motion is densified on GSn only
+    where the object alone cannot move straight between its ends (an
+    obstacle in the way): elsewhere the straight move is what the reduction
+    follows anyway (it densifies and shortcuts the object trajectory).
     """
     n = roadmap.n_vertices
     verts = [start if i == n else goal if i == n + 1 else roadmap.vertices[i] for i in ids]
     links = {tuple(sorted(p)) for p in roadmap.links.tolist()}
     out = [verts[0]]
     for k in range(len(ids) - 1):
-        if tuple(sorted((ids[k], ids[k + 1]))) in links:
-            out.append(verts[k + 1])
+        a, b = verts[k], verts[k + 1]
+        if tuple(sorted((ids[k], ids[k + 1]))) in links or object_move_free(ctx, a, b):
+            out.append(b)
         else:
-            out.extend(problem.interpolate_path(np.stack([verts[k], verts[k + 1]]))[1:])
+            out.extend(problem.interpolate_path(np.stack([a, b]))[1:])
     return np.array(out)
