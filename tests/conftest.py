@@ -1,4 +1,4 @@
-"""Shared fixtures: the builtin hand, the paper scenario and its planning context.
+"""Shared fixtures: the builtin hand and the builtin scenario's plans, made once a session.
 
 Hypothesis profiles: ``default`` (CI: a few hundred examples per input format
 in all, well within two minutes) and ``thorough`` (thousands; select it with
@@ -8,6 +8,9 @@ in all, well within two minutes) and ``thorough`` (thousands; select it with
 from __future__ import annotations
 
 import os
+import shutil
+from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -33,3 +36,27 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 @pytest.fixture(scope="session")
 def paper_hand() -> Hand:
     return Hand.builtin("paper")
+
+
+@pytest.fixture(scope="session")
+def paper_plan(tmp_path_factory: pytest.TempPathFactory) -> Callable[[int, Path], Path]:
+    """``copy(seed, folder)``: the builtin scenario's plan of ``seed``, as ``folder/plan.json``.
+
+    ``dexplan plan --seed N -q`` runs once per seed for the whole session (the
+    export, forces, timing and replay tests read the same plans); every caller gets
+    its own copy, so that files it writes beside the plan stay its own.
+    """
+    from dexplan import cli
+
+    made: dict[int, Path] = {}
+
+    def copy(seed: int, folder: Path) -> Path:
+        if seed not in made:
+            path = tmp_path_factory.mktemp(f"paper_plan_seed{seed}") / "plan.json"
+            assert cli.run(["plan", "--seed", str(seed), "-q", "-o", str(path)]) == 0
+            made[seed] = path
+        out = Path(folder) / "plan.json"
+        shutil.copyfile(made[seed], out)
+        return out
+
+    return copy

@@ -13,10 +13,8 @@ from dexplan.plan_file import read_plan
 
 
 @pytest.fixture(scope="module")
-def plan_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("export") / "plan.json"
-    assert cli.run(["plan", "--seed", "3", "-q", "-o", str(path)]) == 0
-    return path
+def plan_file(tmp_path_factory, paper_plan):
+    return paper_plan(3, tmp_path_factory.mktemp("export"))
 
 
 @pytest.fixture(scope="module")

@@ -6,16 +6,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan import cli
 from dexplan.forces import ForceSettings, GripForceError, plan_waypoint_forces
 from dexplan.plan_file import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
-    path = tmp_path_factory.mktemp("forces") / "plan.json"
-    assert cli.run(["plan", "--seed", "2", "-q", "-o", str(path)]) == 0
-    doc = read_plan(path)
+def planned(tmp_path_factory, paper_plan):
+    doc = read_plan(paper_plan(2, tmp_path_factory.mktemp("forces")))
     return doc, hand_from_plan(doc["hand"])
 
 

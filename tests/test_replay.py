@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from cli_contract import assert_bad_input, run_cli
 
-from dexplan import cli
 from dexplan.exceptions import DependencyError
 from dexplan.plan_file import hand_from_plan, read_plan, write_plan
 
@@ -17,11 +16,9 @@ from dexplan.replay import build_mjcf, replay_plan, require_mujoco  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
+def planned(tmp_path_factory, paper_plan):
     folder = tmp_path_factory.mktemp("replay")
-    path = folder / "plan.json"
-    assert cli.run(["plan", "--seed", "1", "-q", "-o", str(path)]) == 0
-    doc = read_plan(path)
+    doc = read_plan(paper_plan(1, folder))
     return folder, doc, hand_from_plan(doc["hand"])
 
 

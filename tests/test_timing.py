@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from dexplan import cli
 from dexplan.exceptions import InvalidInputError
 from dexplan.plan_file import hand_from_plan, read_plan
 from dexplan.timing import (
@@ -15,10 +14,8 @@ from dexplan.timing import (
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
-    path = tmp_path_factory.mktemp("timing") / "plan.json"
-    assert cli.run(["plan", "--seed", "1", "-q", "-o", str(path)]) == 0
-    doc = read_plan(path)
+def planned(tmp_path_factory, paper_plan):
+    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("timing")))
     return doc, hand_from_plan(doc["hand"])
 
 
