@@ -14,7 +14,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.exceptions import DexplanError, InvalidInputError
 
 
 @contextlib.contextmanager
@@ -85,3 +85,24 @@ def file_sha256(path: str | Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def read_input_file(path: str | Path, what: str, error: type[DexplanError]) -> bytes:
+    """The bytes of an input file (a URDF, a mesh), or a one-line ``error``.
+
+    Args:
+        path: the file.
+        what: what it is, for the message (``"URDF"``, ``"mesh"``).
+        error: the exception raised (a :class:`~dexplan.exceptions.DexplanError`).
+
+    Raises:
+        error: ``"<what> file not found: '<path>'"`` or
+            ``"cannot read <what> file '<path>': <reason>"``.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise error(f"{what} file not found: {str(p)!r}")
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise error(f"cannot read {what} file {str(p)!r}: {exc.strerror or exc}") from exc

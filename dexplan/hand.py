@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.exceptions import DependencyError, InvalidInputError, ModelError, shorten
+from dexplan.files import read_input_file
 from dexplan.ik import FingerChain, SplitFingerIK, batch_dls
 from dexplan.typing import FloatArray, IntArray, as_vector
 from dexplan.urdf import (
@@ -266,12 +267,7 @@ class Hand:
                 :class:`Hand` rejects it.
         """
         path = Path(path)
-        if not path.is_file():
-            raise ModelError(f"URDF file not found: {str(path)!r}")
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise ModelError(f"cannot read URDF file {str(path)!r}: {exc.strerror}") from exc
+        data = read_input_file(path, "URDF", ModelError)
         text = urdf_text(data, f"URDF file {str(path)!r}")
         kwargs.setdefault("name", path.stem)
         kwargs.setdefault("package_dirs", [str(path.parent)])

@@ -38,6 +38,7 @@ import numpy as np
 import trimesh
 
 from dexplan.exceptions import InvalidInputError, MeshError
+from dexplan.files import read_input_file
 from dexplan.objects.shape import SCALAR_LOOP_MAX, Shape, check_sample_args, normalize_rows
 from dexplan.typing import FloatArray, IntArray, as_points, as_positive
 
@@ -244,12 +245,7 @@ class Mesh(Shape):
         """
         scale = as_positive(scale, "scale")
         p = Path(path)
-        if not p.is_file():
-            raise MeshError(f"mesh file not found: {str(p)!r}")
-        try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise MeshError(f"cannot read mesh file {str(p)!r}: {exc}") from exc
+        data = read_input_file(p, "mesh", MeshError)
         file_type = p.suffix.lower().lstrip(".")
         try:
             tm = trimesh.load(io.BytesIO(data), file_type=file_type, force="mesh", process=True)
