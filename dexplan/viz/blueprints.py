@@ -33,10 +33,12 @@ def _world_beside(name: str, side: Any) -> Any:
 def roadmap_blueprint(with_scene: bool) -> Any:
     """A roadmap: the 3D view and the component table (the node timeline with a scene)."""
     rrb = rerun_module().blueprint
+    side = rrb.Vertical(
+        rrb.Spatial3DView(origin="orientation", name="Orientations (rotation vector, rad)"),
+        rrb.TextDocumentView(origin="roadmap/summary", name="Components"),
+    )
     return rrb.Blueprint(
-        _world_beside(
-            "GSn roadmap", rrb.TextDocumentView(origin="roadmap/summary", name="Components")
-        ),
+        _world_beside("GSn roadmap", side),
         rrb.TimePanel(timeline=ROADMAP_NODE, state="collapsed" if with_scene else "hidden"),
         rrb.BlueprintPanel(state="collapsed"),
         collapse_panels=False,

@@ -71,13 +71,12 @@ def summarize_roadmap(roadmap: Roadmap) -> RoadmapSummary:
     li = np.asarray(roadmap.links, dtype=np.int64).reshape(-1, 2)
     edges = np.bincount(labels[e[:, 0]], minlength=n_c) if len(e) else np.zeros(n_c, int)
     links = np.zeros(n_c, dtype=int)
-    for a, b in li:
-        links[labels[a]] += 1
-        if labels[b] != labels[a]:
-            links[labels[b]] += 1
-    merged = np.zeros(n_c, dtype=int)
-    for k in range(n_c):
-        merged[k] = int(merged_labels[np.flatnonzero(labels == k)[0]])
+    if len(li):
+        np.add.at(links, labels[li[:, 0]], 1)
+        other = labels[li[:, 1]] != labels[li[:, 0]]
+        np.add.at(links, labels[li[other, 1]], 1)
+    first = np.unique(labels, return_index=True)[1] if n_c else np.zeros(0, int)
+    merged = merged_labels[first] if n_c else np.zeros(0, int)
     return RoadmapSummary(
         n_c,
         n_m,
@@ -161,14 +160,76 @@ def _log_node_axes(rec: Any, V: FloatArray, axis_length: float) -> None:
     rr = rerun_module()
     P = V[:, :3]
     R = _quat_matrices(V[:, 3:7])
-    strips, colors = [], []
-    for axis, col in ((0, (230, 60, 60)), (1, (60, 200, 60)), (2, (60, 90, 230))):
-        ends = P + axis_length * R[:, :, axis]
-        strips.extend(np.stack([P, ends], axis=1))
-        colors.extend([col] * len(P))
+    palette = np.array([(230, 60, 60), (60, 200, 60), (60, 90, 230)], dtype=np.uint8)
+    ends = P[:, None, :] + axis_length * np.moveaxis(R, 2, 1)  # (N, axis, 3)
+    strips = np.stack([np.repeat(P[None], 3, axis=0), np.moveaxis(ends, 1, 0)], axis=2)
     rec.log(
         "world/roadmap/axes",
-        rr.LineStrips3D(np.asarray(strips), colors=colors, radii=[0.0003]),
+        rr.LineStrips3D(
+            strips.reshape(-1, 2, 3), colors=np.repeat(palette, len(P), axis=0), radii=[0.0003]
+        ),
+        static=True,
+    )
+
+
+def rotation_vectors(q_xyzw: FloatArray) -> FloatArray:
+    """Rotation vectors ``(N, 3)`` (axis times angle, rad, angle in [0, pi]) of quaternions.
+
+    q and -q give the same vector (the one with ``w >= 0`` is used).
+    """
+    q = np.asarray(q_xyzw, dtype=float).reshape(-1, 4)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.where(q[:, 3:4] < 0.0, -q, q)
+    s = np.linalg.norm(q[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(s, q[:, 3])
+    scale = np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)
+    return q[:, :3] * scale[:, None]
+
+
+def log_orientations(rec: Any, roadmap: Roadmap) -> None:
+    """The roadmap in orientation space (static, under ``orientation``).
+
+    Nodes at the object's rotation vector (rad; the ball of radius pi),
+    coloured by GSn component, GSn edges in the component's colour, module-2
+    links in their own colour: one archetype each, so 10k nodes stay light.
+    """
+    rr = rerun_module()
+    summary = summarize_roadmap(roadmap)
+    _, labels = roadmap.components(with_links=False)
+    V = np.asarray(roadmap.vertices, dtype=float)
+    P = rotation_vectors(V[:, 3:7]) if len(V) else np.zeros((0, 3))
+    rec.log("orientation", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    rec.log(
+        "orientation",
+        rr.AnnotationContext(
+            [
+                (k, f"component {k} ({summary.nodes[k]} nodes)", _component_color(k))
+                for k in range(summary.components)
+            ]
+        ),
+        static=True,
+    )
+    rec.log(
+        "orientation/nodes",
+        rr.Points3D(P, class_ids=labels.astype(np.uint16), radii=[0.02], show_labels=False),
+        static=True,
+    )
+    e = _pairs(roadmap.edges)
+    rec.log(
+        "orientation/edges",
+        rr.LineStrips3D(
+            _segments(P, e),
+            class_ids=labels[e[:, 0]].astype(np.uint16) if len(e) else None,
+            radii=[0.004],
+            show_labels=False,
+        ),
+        static=True,
+    )
+    rec.log(
+        "orientation/links",
+        rr.LineStrips3D(
+            _segments(P, _pairs(roadmap.links)), colors=[rgba(LINK_COLOR)], radii=[0.01]
+        ),
         static=True,
     )
 
@@ -236,7 +297,8 @@ def record_roadmap(
     connected component, small orientation axes per node, the GSn edges, the
     module-2 links in their own colour, and the per-component counts (as
     entity values on ``world/roadmap``, a Markdown table and recording
-    properties).
+    properties); the same graph in orientation space under ``orientation``
+    (nodes at the object's rotation vector, :func:`log_orientations`).
 
     With ``scene`` (a plan document or a :class:`~dexplan.scenario.Scenario`)
     the hand geometry, object, goal and obstacles are drawn too, and with
@@ -268,6 +330,7 @@ def record_roadmap(
     browse = models is not None and browse_nodes and len(V) > 0
     name = f"dexplan roadmap ({roadmap.planner})"
     with recording(path, name, roadmap_blueprint(browse)) as rec:
+        log_orientations(rec, roadmap)
         if models is None:
             rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
             return log_roadmap(rec, roadmap, 0.01)
