@@ -110,7 +110,6 @@ def reduce_object_path(
         A :class:`ReductionResult`.
     """
     settings = settings or ReductionSettings()
-    n = trans.hand.n_fingers
     segments: list[Segment] = []
     idx, q = 0, q_start.copy()
     regrasps = stall = 0
@@ -135,33 +134,9 @@ def reduce_object_path(
                 _stats(trans, regrasps),
                 final=tr.reason == "object_collision",
             )
-        future = poses[idx:]
-        # the blocking finger first, then the others, least remaining follow first
-        # (the others' follows only when the blocking finger cannot move:
-        # it usually can, and tracking them costs more than the rest)
-        others = [i for i in range(n) if i != tr.blocking]
-        follow: dict[int, int] = {}
-        done = False
-        for f, must_gain in _passes(tr.blocking, others, follow, trans, q, grasp, future):
-            hint = None
-            if hints is not None:
-                h = hints[min(idx, len(hints) - 1), f]
-                hint = (h[:3], h[3:])
-            for point, normal, score in trans.landing_candidates(
-                f, poses[idx], q, grasp, future, hint
-            ):
-                if f != tr.blocking and must_gain and score <= follow[f]:
-                    break  # moving this finger would not help it follow further
-                seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
-                if seg is not None:
-                    segments.append(seg)
-                    q = seg.end.q
-                    grasp = grasp.replace(f, point, normal)
-                    done = True
-                    break
-            if done:
-                break
-        if not done:
+        hint_row = None if hints is None else hints[min(idx, len(hints) - 1)]
+        found = _regrasp_one(trans, poses, idx, q, grasp, tr.blocking, hint_row)
+        if found is None:
             return ReductionResult(
                 False,
                 tuple(segments),
@@ -170,6 +145,9 @@ def reduce_object_path(
                 f"{tr.blocking}: {tr.reason})",
                 _stats(trans, regrasps),
             )
+        seg, grasp = found
+        segments.append(seg)
+        q = seg.end.q
         regrasps += 1
         stall += 1
         if regrasps > settings.max_regrasps or stall > settings.max_stall:
@@ -180,6 +158,40 @@ def reduce_object_path(
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
                 _stats(trans, regrasps),
             )
+
+
+def _regrasp_one(
+    trans: Transitions,
+    poses: FloatArray,
+    idx: int,
+    q: FloatArray,
+    grasp: GraspContacts,
+    blocking: int,
+    hint_row: FloatArray | None,
+) -> tuple[Segment, GraspContacts] | None:
+    """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
+
+    The blocking finger first, then the others, least remaining follow first
+    (the others' follows only when the blocking finger cannot move: it
+    usually can, and tracking them costs more than the rest); see
+    :func:`_passes`. ``hint_row: (n, 6)`` the GSn path's contact point and
+    outward normal per finger there (object frame), offered as landings.
+
+    Returns:
+        ``(regrasp segment, new grasp)``.
+    """
+    future = poses[idx:]
+    others = [i for i in range(trans.hand.n_fingers) if i != blocking]
+    follow: dict[int, int] = {}
+    for f, must_gain in _passes(blocking, others, follow, trans, q, grasp, future):
+        hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
+        for point, normal, score in trans.landing_candidates(f, poses[idx], q, grasp, future, hint):
+            if f != blocking and must_gain and score <= follow[f]:
+                break  # moving this finger would not help it follow further
+            seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
+            if seg is not None:
+                return seg, grasp.replace(f, point, normal)
+    return None
 
 
 def _passes(

@@ -308,12 +308,7 @@ class GraspSampler:
         for i in order:
             pts, n_out = gsn.obj.sample_surface(s.candidates, rng)
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
-            centre, dmin, dmax = self._reach[i]
-            to_base = centre - tips
-            d = np.linalg.norm(to_base, axis=1)
-            ok = (d >= dmin) & (d <= dmax)
-            # the finger comes from outside: the surface must face its base
-            ok &= np.einsum("ij,ij->i", n_out @ R.T, to_base) > s.min_facing * d
+            ok = self._in_shell(i, tips, n_out @ R.T)
             for other in placed:
                 ok &= np.linalg.norm(tips - other, axis=1) >= 2 * r + s.tip_clearance
             found = False
@@ -403,6 +398,19 @@ class GraspSampler:
         finally:
             self.stats.time_s += time.perf_counter() - t0
 
+    def _in_shell(self, finger: int, tips: FloatArray, normals_w: FloatArray) -> np.ndarray:
+        """(N,) candidate fingertip centres ``tips: (N, 3)`` in the finger's reach shell.
+
+        The outward normals ``normals_w: (N, 3)`` (world frame) must face the
+        finger's base (``min_facing``): the finger comes from outside.
+        """
+        centre, dmin, dmax = self._reach[finger]
+        to_base = centre - tips
+        d = np.linalg.norm(to_base, axis=1)
+        ok = (d >= dmin) & (d <= dmax)
+        ok &= np.einsum("ij,ij->i", normals_w, to_base) > self.settings.min_facing * d
+        return ok
+
     def finger_pools(
         self, pose_xyzquat: FloatArray
     ) -> dict[int, tuple[FloatArray, FloatArray, FloatArray]] | None:
@@ -417,64 +425,68 @@ class GraspSampler:
             frame) and ``q: (P, m)`` the finger's joints; None when some
             contact finger has an empty pool.
         """
-        gsn, hand, s = self.gsn, self.gsn.hand, self.settings
-        world = self.validity.world
-        rng = self.rng
         self.stats.pools += 1
         R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
-        t = pose_xyzquat[:3]
-        r = hand.fingertip_radius
-        q = hand.neutral.copy()
+        q = self.gsn.hand.neutral.copy()
         M_obj = pose_to_se3(pose_xyzquat)
-        gm, gd = world.geom_model, world.geom_data
         pools = {}
-        for i in gsn.contact_ids:
-            pts, n_out = gsn.obj.sample_surface(s.pool_candidates, rng)
-            n_w = n_out @ R.T
-            tips = (pts + r * n_out) @ R.T + t
-            centre, dmin, dmax = self._reach[i]
-            to_base = centre - tips
-            d = np.linalg.norm(to_base, axis=1)
-            ok = (d >= dmin) & (d <= dmax)
-            ok &= np.einsum("ij,ij->i", n_w, to_base) > s.min_facing * d
-            ok[ok] = self._reachable(i, tips[ok])
-            cand = np.flatnonzero(ok)
-            if not len(cand):
+        for i in self.gsn.contact_ids:
+            pool = self._finger_pool(i, R, pose_xyzquat[:3], q, M_obj)
+            if pool is None:
                 self.stats.ik_failures += 1
                 return None
-            q_sol, solved = hand.finger_ik_candidates(i, tips[cand])
-            idx = hand.finger_q_index[i]
-            # off the limits: a finger at a limit cannot follow the object
-            m = s.joint_margin
-            solved &= np.all(
-                (q_sol >= hand.lower[idx] + m) & (q_sol <= hand.upper[idx] - m), axis=2
-            )
-            clearance = self._link_clearance(i, q_sol, solved, R, t)
-            keep_c, keep_q = [], []
-            for row in rng.permutation(len(cand)):
-                options = np.flatnonzero(solved[row])
-                if not len(options):
-                    continue
-                # the solutions whose links stay farthest from the object first
-                options = options[np.argsort(-clearance[row, options], kind="stable")]
-                for opt in options[: s.solutions_per_contact]:
-                    q[idx] = q_sol[row, opt]
-                    pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
-                    gd.oMg[world.object_geom] = M_obj  # the update reset it
-                    if any(pin.computeCollision(gm, gd, k) for k in self._finger_pairs[i]):
-                        self.stats.finger_rejections += 1
-                        continue
-                    keep_c.append(cand[row])
-                    keep_q.append(q_sol[row, opt].copy())
-                    break
-                if len(keep_c) >= s.pool_size:
-                    break
-            if not keep_c:
-                self.stats.ik_failures += 1
-                return None
-            c = np.array(keep_c)
-            pools[i] = (tips[c], n_w[c], np.array(keep_q))
+            pools[i] = pool
         return pools
+
+    def _finger_pool(
+        self, i: int, R: FloatArray, t: FloatArray, q: FloatArray, M_obj: pin.SE3
+    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """One finger's pool at object rotation ``R: (3, 3)``, position ``t: (3,)`` (world).
+
+        ``q: (nq,)`` a scratch hand configuration (its other fingers do not
+        matter: only this finger's pairs with the palm, the object and the
+        obstacles are checked). None when no candidate works.
+        """
+        hand, s, rng = self.gsn.hand, self.settings, self.rng
+        world = self.validity.world
+        gm, gd = world.geom_model, world.geom_data
+        pts, n_out = self.gsn.obj.sample_surface(s.pool_candidates, rng)
+        n_w = n_out @ R.T
+        tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
+        ok = self._in_shell(i, tips, n_w)
+        ok[ok] = self._reachable(i, tips[ok])
+        cand = np.flatnonzero(ok)
+        if not len(cand):
+            return None
+        q_sol, solved = hand.finger_ik_candidates(i, tips[cand])
+        idx = hand.finger_q_index[i]
+        # off the limits: a finger at a limit cannot follow the object
+        m = s.joint_margin
+        solved &= np.all((q_sol >= hand.lower[idx] + m) & (q_sol <= hand.upper[idx] - m), axis=2)
+        clearance = self._link_clearance(i, q_sol, solved, R, t)
+        keep_c, keep_q = [], []
+        for row in rng.permutation(len(cand)):
+            options = np.flatnonzero(solved[row])
+            if not len(options):
+                continue
+            # the solutions whose links stay farthest from the object first
+            options = options[np.argsort(-clearance[row, options], kind="stable")]
+            for opt in options[: s.solutions_per_contact]:
+                q[idx] = q_sol[row, opt]
+                pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
+                gd.oMg[world.object_geom] = M_obj  # the update reset it
+                if any(pin.computeCollision(gm, gd, k) for k in self._finger_pairs[i]):
+                    self.stats.finger_rejections += 1
+                    continue
+                keep_c.append(cand[row])
+                keep_q.append(q_sol[row, opt].copy())
+                break
+            if len(keep_c) >= s.pool_size:
+                break
+        if not keep_c:
+            return None
+        c = np.array(keep_c)
+        return tips[c], n_w[c], np.array(keep_q)
 
     def _link_clearance(
         self, finger: int, q_sol: FloatArray, solved: np.ndarray, R: FloatArray, t: FloatArray
