@@ -15,9 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cli_contract import assert_bad_input, run_cli
-from scipy.optimize import linprog
-from scipy.spatial import ConvexHull, QhullError
-from test_grasp import TETRA, random_grasp, ref_edges, sphere, torque_scale
+from test_grasp import (
+    TETRA,
+    hull_epsilon,
+    lp_quality,
+    random_grasp,
+    ref_edges,
+    sphere,
+    torque_scale,
+)
 
 from dexplan.exceptions import InvalidInputError, PlanFileError, ScenarioError
 from dexplan.grasp import (
@@ -59,34 +65,6 @@ def ref_soft_wrenches(points, normals, mu, edges, torsion, ts):
         for s in (1.0, -1.0):
             w.append(np.concatenate([n, (np.cross(p, n) + s * torsion * n) / ts]))
     return np.array(w)
-
-
-def hull_epsilon(w):
-    """Signed Ferrari-Canny epsilon of the hull of wrenches ``w`` (-inf: rank < 6)."""
-    if np.linalg.matrix_rank(w - w.mean(axis=0), tol=1e-9) < 6:
-        return -math.inf
-    try:
-        hull = ConvexHull(w)
-    except QhullError:
-        return -math.inf
-    return float(np.min(-hull.equations[:, -1]))
-
-
-def lp_quality(w):
-    """q = min_j max{t : t d_j = W^T lam, lam >= 0, sum(lam) <= 1} (HiGHS)."""
-    m = len(w)
-    best = math.inf
-    for j in range(12):
-        d = np.zeros(6)
-        d[j % 6] = 1.0 if j < 6 else -1.0
-        c = np.zeros(m + 1)
-        c[-1] = -1.0
-        a_eq = np.hstack([w.T, -d[:, None]])
-        a_ub = np.concatenate([np.ones(m), [0.0]])[None, :]
-        res = linprog(c, A_ub=a_ub, b_ub=[1.0], A_eq=a_eq, b_eq=np.zeros(6), method="highs")
-        assert res.status == 0
-        best = min(best, -res.fun)
-    return best
 
 
 def basis(n):

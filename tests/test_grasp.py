@@ -62,13 +62,12 @@ def ref_wrenches(points, normals, mu, edges, torque_scale):
     return np.array(w)
 
 
-def ref_signed_epsilon(points, normals, mu, edges, torque_scale):
-    """Signed Ferrari-Canny epsilon: min facet offset of the hull of the edge wrenches.
+def hull_epsilon(w):
+    """Signed Ferrari-Canny epsilon of the hull of wrenches ``w`` (-inf: rank < 6).
 
     Positive: radius of the largest origin-centred ball inside the hull. Negative
     (or -inf when the wrenches do not span 6D): the origin is outside the hull.
     """
-    w = ref_wrenches(points, normals, mu, edges, torque_scale)
     if np.linalg.matrix_rank(w - w.mean(axis=0), tol=1e-9) < 6:
         return -math.inf
     try:
@@ -78,9 +77,8 @@ def ref_signed_epsilon(points, normals, mu, edges, torque_scale):
     return float(np.min(-hull.equations[:, -1]))  # unit normals: n.x + off <= 0 inside
 
 
-def ref_lp_quality(points, normals, mu, edges, torque_scale):
+def lp_quality(w):
     """q = min_j max{t : t d_j = W^T lam, lam >= 0, sum(lam) <= 1} (HiGHS)."""
-    w = ref_wrenches(points, normals, mu, edges, torque_scale)
     m = len(w)
     best = math.inf
     for j in range(12):
@@ -94,6 +92,16 @@ def ref_lp_quality(points, normals, mu, edges, torque_scale):
         assert res.status == 0
         best = min(best, -res.fun)
     return best
+
+
+def ref_signed_epsilon(points, normals, mu, edges, torque_scale):
+    """Signed Ferrari-Canny epsilon of the hull of the grasp's edge wrenches."""
+    return hull_epsilon(ref_wrenches(points, normals, mu, edges, torque_scale))
+
+
+def ref_lp_quality(points, normals, mu, edges, torque_scale):
+    """The 12-direction LP quality ``q`` of the grasp's edge wrenches."""
+    return lp_quality(ref_wrenches(points, normals, mu, edges, torque_scale))
 
 
 def random_grasp(rng, k=None, mu=None, kind=None):
