@@ -226,3 +226,43 @@ def test_load_goals_file(tmp_path: Path) -> None:
     path = _goals_file(tmp_path, f"[[goals]]\nobject_pose_xyzquat = {_yaw(10)}\n")
     (g,) = load_goals(path, GoalSpec(np.array(_yaw(0))))
     assert np.allclose(g.object_pose_xyzquat, _yaw(10))
+
+
+def _query_memory(roadmap_file: Path, n: int) -> tuple[list[float], list[float], int, int]:
+    """Python heap (tracemalloc) and RSS (MiB) after each of ``n`` cheap queries."""
+    import gc
+    import tracemalloc
+
+    rp = RoadmapPlanner.load(PAPER, roadmap_file)
+    before = rp.roadmap.n_vertices
+    heap, rss = [], []
+    tracemalloc.start()
+    try:
+        for _ in range(n):
+            p = rp.query(_yaw(3.0))  # a small turn: answered on the roadmap, cheap
+            assert p.solved, p.result.message
+            del p
+            gc.collect()
+            heap.append(tracemalloc.get_traced_memory()[0] / 2**20)
+            with open("/proc/self/statm") as fh:
+                rss.append(int(fh.read().split()[1]) * 4096 / 2**20)
+    finally:
+        tracemalloc.stop()
+    return heap, rss, before, rp.roadmap.n_vertices
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs /proc")
+def test_queries_do_not_grow_memory(roadmap_file: Path) -> None:
+    """A query answered on the roadmap leaves nothing behind (fast variant: 12 queries)."""
+    heap, _, before, after = _query_memory(roadmap_file, 12)
+    assert after == before  # answered as it is: the roadmap did not grow
+    assert heap[-1] - heap[3] < 0.25  # MiB over 8 queries (a plan kept per query would show)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs /proc")
+def test_a_thousand_queries_do_not_grow_memory(roadmap_file: Path) -> None:
+    heap, rss, before, after = _query_memory(roadmap_file, 1000)
+    assert after == before
+    assert heap[-1] - heap[99] < 2.0  # MiB over 900 queries
+    assert rss[-1] - rss[99] < 32.0
