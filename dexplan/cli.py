@@ -222,7 +222,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
     hand = _check_plan_options(args, scenario)
     if cli_roadmap.many_goals(args):
-        cli_roadmap.query_goals(args, scenario)  # a bad goals file fails before any work
+        cli_roadmap.query_goals(args, scenario, hand)  # a bad goals file fails before any work
         cli_roadmap.output_dir(args)
     roadmap = (
         None if args.load_roadmap is None else _load_roadmap(args.load_roadmap, scenario, hand)

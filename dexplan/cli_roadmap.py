@@ -153,14 +153,21 @@ def many_goals(args: argparse.Namespace) -> bool:
     return args.goals is not None or args.random_goals is not None
 
 
-def query_goals(args: argparse.Namespace, scenario: Any) -> list[Any]:
-    """The goals of ``--goals`` or ``--random-goals`` (checked)."""
+def query_goals(args: argparse.Namespace, scenario: Any, hand: Any) -> list[Any]:
+    """The goals of ``--goals`` or ``--random-goals`` (checked).
+
+    Random goal poses where the object alone meets an obstacle are drawn again.
+    """
     from dexplan.goals import load_goals, random_goals
+    from dexplan.planning.context import build_context
 
     if args.goals is not None:
         return load_goals(args.goals, scenario.goal)
     seed = scenario.planner.seed if args.seed is None else args.seed
-    return random_goals(scenario, args.random_goals, seed, args.goal_kind)
+    world = build_context(scenario, hand=hand).world
+    return random_goals(
+        scenario, args.random_goals, seed, args.goal_kind, lambda p: not world.object_collides(p)
+    )
 
 
 def output_dir(args: argparse.Namespace) -> Path:
@@ -192,7 +199,7 @@ def run_queries(
 
     from dexplan.api import plan
 
-    goals = query_goals(args, scenario)
+    goals = query_goals(args, scenario, hand)
     out = output_dir(args)
     mode = "the roadmap" if roadmap is not None else "single-query planning"
     if not args.quiet:

@@ -14,6 +14,7 @@ in a one-line :class:`~dexplan.exceptions.ScenarioError`.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from dexplan.scenario import (
     _only,
     _pose,
 )
+from dexplan.typing import FloatArray
 
 MAX_GOALS = 100_000
 """Most goals one run answers."""
@@ -119,7 +121,11 @@ def load_goals(path: str | Path, default: GoalSpec) -> list[GoalSpec]:
 
 
 def random_goals(
-    scenario: Scenario, count: int, seed: int, kind: str = "orientation"
+    scenario: Scenario,
+    count: int,
+    seed: int,
+    kind: str = "orientation",
+    accept: Callable[[FloatArray], bool] | None = None,
 ) -> list[GoalSpec]:
     """``count`` random goals (uniform orientations; with ``pose``, positions too).
 
@@ -127,8 +133,17 @@ def random_goals(
     start position; tolerances are the scenario goal's. The same seed gives
     the same goals.
 
+    Args:
+        scenario: the start pose, workspace and tolerances.
+        count: how many goals.
+        seed: random seed.
+        kind: one of :data:`GOAL_KINDS`.
+        accept: ``accept(pose (7,)) -> bool``; poses it refuses are drawn again
+            (e.g. the object alone colliding with an obstacle: no goal at all).
+
     Raises:
-        InvalidInputError: ``count`` outside ``[1, MAX_GOALS]`` or an unknown kind.
+        InvalidInputError: ``count`` outside ``[1, MAX_GOALS]``, an unknown kind,
+            or ``accept`` refusing 1000 draws in a row.
     """
     if not 1 <= count <= MAX_GOALS:
         raise InvalidInputError(f"--random-goals must be in [1, {MAX_GOALS}], got {count}")
@@ -138,9 +153,14 @@ def random_goals(
     centre = scenario.start.object_pose_xyzquat[:3]
     half = np.asarray(scenario.workspace_half_extent, dtype=float)
     out = []
-    for _ in range(count):
-        pos = centre + rng.uniform(-half, half) if kind == "pose" else centre.copy()
-        quat = random_quaternion(rng)
+    while len(out) < count:
+        for _ in range(1000):
+            pos = centre + rng.uniform(-half, half) if kind == "pose" else centre.copy()
+            quat = random_quaternion(rng)
+            if accept is None or accept(np.concatenate([pos, quat])):
+                break
+        else:
+            raise InvalidInputError("no random goal pose is free of the obstacles (1000 draws)")
         out.append(
             GoalSpec(
                 np.concatenate([pos, quat]),
