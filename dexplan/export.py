@@ -88,6 +88,8 @@ class Trajectory:
         segments: per segment ``(kind, finger, first_sample, last_sample)``.
         timing: the :class:`~dexplan.timing.PlanTiming`.
         settings: the :class:`~dexplan.forces.ForceSettings`.
+        joint_effort: (nq,) the URDF's joint effort (torque) limits (N m), NaN
+            where a joint has none; None when unknown.
     """
 
     t: FloatArray
@@ -106,6 +108,7 @@ class Trajectory:
     segments: tuple[tuple[str, int | None, int, int], ...]
     timing: PlanTiming
     settings: ForceSettings
+    joint_effort: FloatArray | None = None
 
     @property
     def duration(self) -> float:
@@ -174,7 +177,19 @@ def build_trajectory(
             )
         samples.add_states(float(timing.start_times[si]) + ts, smp)
         ranges.append((seg["kind"], seg["finger"], first, len(samples.t) - 1))
-    return samples.trajectory(n, hand.nq, tuple(ranges), timing, settings)
+    traj = samples.trajectory(n, hand.nq, tuple(ranges), timing, settings)
+    return replace(traj, joint_effort=joint_effort_limits(hand.model))
+
+
+def joint_effort_limits(model: Any) -> FloatArray:
+    """The URDF's joint effort (torque) limits, ``(nq,)`` N m; NaN where none is set.
+
+    Args:
+        model: the hand's Pinocchio model (``model.effortLimit``, (nv,)).
+    """
+    e = np.array(model.effortLimit, dtype=float).reshape(-1)
+    e[~(np.isfinite(e) & (e > 0))] = np.nan
+    return e
 
 
 def _sample_times(duration: float, rate: float, *, shared_start: bool) -> FloatArray:
@@ -397,6 +412,11 @@ def trajectory_document(
         "duration": traj.duration,
         "limits": {
             "joint_velocity": [float(v) for v in traj.timing.joint_velocity],
+            "joint_effort": (
+                None
+                if traj.joint_effort is None
+                else [None if math.isnan(v) else float(v) for v in traj.joint_effort]
+            ),
             "joint_acceleration": lim.max_acceleration,
             "object_speed": lim.object_speed,
             "object_angular_speed": lim.object_angular_speed,
@@ -539,7 +559,8 @@ def read_trajectory(path: str | Path) -> dict[str, Any]:
 def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str]:
     """Violations of a trajectory document's own limits (empty when it passes).
 
-    Checked at every point: joint velocities and accelerations, object speed,
+    Checked at every point: joint velocities and accelerations, joint torques
+    within the URDF's effort limits (``limits.joint_effort``), object speed,
     angular speed and accelerations within ``limits``; every grip force inside
     its exact contact set (round Coulomb cone ``|f_t| <= mu f_n``, or the
     elliptic soft-finger set ``|f_t|^2 / mu^2 + tau^2 / torsion^2 <= f_n^2``)
@@ -553,6 +574,7 @@ def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str
     out: list[str] = []
     lim = doc["limits"]
     vj = np.asarray(lim["joint_velocity"], dtype=float)
+    effort = lim.get("joint_effort")  # absent in files written before it was checked
     con = doc["contact"]
     mu, model, torsion = float(con["mu"]), con["contact_model"], float(con["torsion"])
     pts = doc["points"]
@@ -562,6 +584,7 @@ def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str
         msgs = ["time goes backwards"] if t < prev_t else []
         prev_t = t
         msgs += _joint_violations(p, lim, vj, doc["joint_names"], tol)
+        msgs += _effort_violations(p, effort, doc["joint_names"], tol)
         msgs += _object_violations(p, lim, tol)
         msgs += _force_violations(p, mu, model, torsion, tol)
         for msg in msgs:
@@ -605,6 +628,30 @@ def _joint_violations(
     if a > 1 + tol:
         msgs.append(f"joint acceleration at {a:.4f} x the limit")
     return msgs
+
+
+def _effort_violations(
+    p: Mapping[str, Any], effort: list[float | None] | None, joint_names: list[str], tol: float
+) -> list[str]:
+    """A point's joint torques beyond the joints' effort limits (the grip needs more).
+
+    Args:
+        p: the point.
+        effort: per joint its effort limit (N m) or None (no limit), or None.
+        joint_names: the joints, in the point's order.
+        tol: relative tolerance.
+    """
+    if effort is None:
+        return []
+    lim = np.array([np.inf if e is None else float(e) for e in effort])
+    r = np.abs(np.asarray(p["joint_torques"], dtype=float)) / lim
+    if r.size and r.max() > 1 + tol:
+        j = int(r.argmax())
+        return [
+            f"joint {joint_names[j]} torque {abs(p['joint_torques'][j]):.4g} N m "
+            f"above its effort limit {lim[j]:g} N m"
+        ]
+    return []
 
 
 def _object_violations(p: Mapping[str, Any], lim: Mapping[str, Any], tol: float) -> list[str]:

@@ -58,6 +58,19 @@ def test_limits_check_catches_violations(exported) -> None:
     assert "velocity limit" in found and "friction cone" in found and "not at rest" in found
 
 
+def test_effort_limits_are_the_urdfs_and_checked(exported) -> None:
+    effort = exported["limits"]["joint_effort"]
+    assert effort == [1.0] * len(exported["joint_names"])  # paper_hand.urdf: effort="1"
+    doc = copy.deepcopy(exported)
+    p = doc["points"][7]
+    p["joint_torques"][2] = 1.5
+    found = check_trajectory(doc)
+    assert len(found) == 1 and "torque 1.5 N m above its effort limit 1 N m" in found[0]
+    assert doc["joint_names"][2] in found[0]
+    doc["limits"]["joint_effort"][2] = None  # no limit on that joint
+    assert check_trajectory(doc) == []
+
+
 def test_csv_round_trips(exported, plan_file) -> None:
     out = plan_file.with_name("traj.csv")
     assert cli.run(["export", str(plan_file), "-o", str(out), "--rate", "50"]) == 0
