@@ -54,6 +54,7 @@ __all__ = [
     "build_plan_document",
     "fingertip_contact",
     "hand_from_plan",
+    "hand_table",
     "read_plan",
     "segments_from_dicts",
     "validate_plan",
@@ -147,6 +148,17 @@ def read_plan(path: str | Path, base_dir: str | Path | None = None) -> dict[str,
     except PlanFileError as exc:
         raise PlanFileError(f"{path}: {exc}") from exc
     return doc
+
+
+def hand_table(hand: Hand) -> dict[str, Any]:
+    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from."""
+    return {
+        "urdf_xml": hand.urdf_xml,
+        "joint_names": list(hand.joint_names),
+        "fingertip_frames": list(hand.fingertip_frames),
+        "fingertip_radius": hand.fingertip_radius,
+        "collision_exclude": [list(p) for p in hand.collision_exclude],
+    }
 
 
 def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
@@ -321,13 +333,7 @@ def build_plan_document(
     doc = {
         "format": FORMAT,
         "scenario": scenario.name,
-        "hand": {
-            "urdf_xml": hand.urdf_xml,
-            "joint_names": list(hand.joint_names),
-            "fingertip_frames": list(hand.fingertip_frames),
-            "fingertip_radius": hand.fingertip_radius,
-            "collision_exclude": [list(p) for p in hand.collision_exclude],
-        },
+        "hand": hand_table(hand),
         "object": _object_table(scenario, base, out_dir),
         "mu": scenario.mu,
         "friction_edges": scenario.friction_edges,

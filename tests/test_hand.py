@@ -50,18 +50,23 @@ def test_jacobians_match_finite_differences(hand: Hand) -> None:
             np.testing.assert_allclose(hand.fingertip_positions(qp)[i], p[i], atol=1e-12)
 
 
-def test_ik_round_trip_on_reachable_targets(hand: Hand) -> None:
-    rng = np.random.default_rng(1)
-    for _ in range(40):
+def _ik_of_reachable_targets(hand: Hand, seed: int, rounds: int):
+    """``(finger, target, finger_ik result)`` for the tips of random joint values."""
+    rng = np.random.default_rng(seed)
+    for _ in range(rounds):
         q = rng.uniform(hand.lower, hand.upper)
         target = hand.fingertip_positions(q)
         for i in range(hand.n_fingers):
-            res = hand.finger_ik(i, target[i])
-            assert res.success, (i, target[i], res)
-            q2 = hand.neutral.copy()
-            q2[hand.finger_q_index[i]] = res.q_finger
-            assert np.linalg.norm(hand.fingertip_positions(q2)[i] - target[i]) < 1e-6
-            assert hand.within_limits(q2)
+            yield i, target[i], hand.finger_ik(i, target[i])
+
+
+def test_ik_round_trip_on_reachable_targets(hand: Hand) -> None:
+    for i, target, res in _ik_of_reachable_targets(hand, 1, 40):
+        assert res.success, (i, target, res)
+        q2 = hand.neutral.copy()
+        q2[hand.finger_q_index[i]] = res.q_finger
+        assert np.linalg.norm(hand.fingertip_positions(q2)[i] - target) < 1e-6
+        assert hand.within_limits(q2)
 
 
 def test_ik_unreachable_fails_cleanly(hand: Hand) -> None:
@@ -114,13 +119,8 @@ def test_damped_least_squares_path_without_closed_form() -> None:
     h = Hand.builtin("paper")
     assert all(s is not None for s in h._analytic_ik)  # the builtin hand gets closed-form IK
     h._analytic_ik = [None] * h.n_fingers
-    rng = np.random.default_rng(2)
-    for _ in range(15):
-        q = rng.uniform(h.lower, h.upper)
-        target = h.fingertip_positions(q)
-        for i in range(h.n_fingers):
-            res = h.finger_ik(i, target[i])
-            assert res.success and res.residual < 1e-6, (i, res)
+    for i, _, res in _ik_of_reachable_targets(h, 2, 15):
+        assert res.success and res.residual < 1e-6, (i, res)
 
 
 def test_batch_ik_matches_forward_kinematics(hand: Hand) -> None:

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from dexplan import plan_schema
 from dexplan.hand import Hand
-from dexplan.plan_file import read_plan, verify_plan
+from dexplan.plan_file import hand_table, read_plan, verify_plan
 from dexplan.pose import quat_from_axis_angle, transform_points
 
 RADIUS = 0.04
@@ -115,13 +115,7 @@ def _plan_document(
     doc = {
         "format": "dexplan-plan/1",
         "scenario": "schema_test",
-        "hand": {
-            "urdf_xml": hand.urdf_xml,
-            "joint_names": list(hand.joint_names),
-            "fingertip_frames": list(hand.fingertip_frames),
-            "fingertip_radius": hand.fingertip_radius,
-            "collision_exclude": [],
-        },
+        "hand": hand_table(hand),
         "object": {"shape": "sphere", "radius": RADIUS},
         "mu": 0.8,
         "friction_edges": 8,

@@ -11,6 +11,7 @@ import pytest
 
 from dexplan.exceptions import DependencyError
 from dexplan.hand import Hand
+from dexplan.plan_file import hand_table
 from dexplan.pose import quat_from_axis_angle, transform_points
 
 RADIUS = 0.04
@@ -79,13 +80,7 @@ def make_plan_doc(hand: Hand) -> dict:
     return {
         "format": "dexplan-plan/1",
         "scenario": "viz_test",
-        "hand": {
-            "urdf_xml": hand.urdf_xml,
-            "joint_names": list(hand.joint_names),
-            "fingertip_frames": list(hand.fingertip_frames),
-            "fingertip_radius": hand.fingertip_radius,
-            "collision_exclude": [],
-        },
+        "hand": hand_table(hand),
         "object": {"shape": "sphere", "radius": RADIUS},
         "mu": 0.8,
         "friction_edges": 8,
