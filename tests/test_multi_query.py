@@ -266,3 +266,18 @@ def test_a_thousand_queries_do_not_grow_memory(roadmap_file: Path) -> None:
     assert after == before
     assert heap[-1] - heap[99] < 2.0  # MiB over 900 queries
     assert rss[-1] - rss[99] < 32.0
+
+
+@pytest.mark.parametrize(
+    ("build", "needle"),
+    [([1, 2], "meta.build must be a JSON object"), ({"nodes": [1]}, "meta.build.nodes")],
+)
+def test_malformed_build_statistics_are_refused(
+    capfd, tmp_path: Path, roadmap_file: Path, build: object, needle: str
+) -> None:
+    vertices, edges, links, meta = read_roadmap_arrays(roadmap_file)
+    meta = {**meta, "build": build}
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, vertices=vertices, edges=edges, links=links, meta=np.array(json.dumps(meta)))
+    code, _, err = run_cli(capfd, "roadmap", "info", bad)
+    assert_bad_input(code, err, names=[needle])

@@ -466,8 +466,9 @@ def read_roadmap_arrays(
     :data:`MAX_ROADMAP_VERTICES` rows and :data:`MAX_ROADMAP_NUMBERS` numbers,
     ``(n, 2)`` integer ``edges`` and ``links`` of at most
     :data:`MAX_ROADMAP_EDGES` rows, and a JSON string ``meta``; then the data:
-    ``meta`` is an object with exactly ``format`` (= :data:`ROADMAP_FORMAT`),
-    ``planner`` and ``scenario_key``, every vertex is finite with a unit
+    ``meta`` is an object with ``format`` (= :data:`ROADMAP_FORMAT`),
+    ``planner``, ``scenario_key`` and optionally ``build`` (a flat object of
+    numbers, strings and nulls: the learning phase's statistics), every vertex is finite with a unit
     quaternion (within :data:`ROADMAP_QUAT_TOL`), and every index refers to a
     vertex. Arrays are read with ``allow_pickle=False``.
 
