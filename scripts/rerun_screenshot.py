@@ -21,7 +21,9 @@ enough seconds for the recording to load (60-90 s for a few MB on 2 cores).
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -85,6 +87,7 @@ def main() -> int:
         command,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        start_new_session=True,  # `rerun` execs a viewer child: stop the whole group
     )
     try:
         _wait_for_port(web, 30.0)
@@ -98,7 +101,7 @@ def main() -> int:
             page.screenshot(path=str(args.output))
             browser.close()
     finally:
-        server.terminate()
+        os.killpg(server.pid, signal.SIGTERM)
         server.wait(timeout=10)
     print(args.output)
     return 0
