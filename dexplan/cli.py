@@ -535,8 +535,7 @@ def cmd_roadmap(args: argparse.Namespace) -> int:
     from dexplan import cli_roadmap
 
     if args.roadmap_func == "build":
-        quiet = args.quiet
-        return cli_roadmap.cmd_roadmap_build(args, _progress(quiet))
+        return cli_roadmap.cmd_roadmap_build(args, _check_interrupted)
     return cli_roadmap.cmd_roadmap_info(args)
 
 

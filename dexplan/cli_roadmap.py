@@ -39,7 +39,43 @@ def _err(msg: str) -> None:
 
 
 # --------------------------------------------------------------------- build
-def cmd_roadmap_build(args: argparse.Namespace, progress: Callable[[Any], None]) -> int:
+class BuildView:
+    """Progress of a build on stderr: a tqdm bar (nodes, or seconds with --time), else lines."""
+
+    def __init__(self, args: argparse.Namespace, check_interrupted: Callable[[], None]) -> None:
+        self.check = check_interrupted
+        self.quiet = args.quiet
+        self.by_time = args.time is not None
+        self.bar: Any = None
+        if not self.quiet:
+            try:
+                from tqdm import tqdm
+            except ImportError:  # plain progress lines instead of a bar
+                return
+            total = args.time if self.by_time else args.nodes
+            unit = "s" if self.by_time else "node"
+            self.bar = tqdm(total=total, unit=unit, file=sys.stderr, dynamic_ncols=True)
+
+    def __call__(self, event: Any) -> None:
+        """Show one :class:`~dexplan.planning.progress.ProgressEvent`."""
+        self.check()
+        if self.quiet:
+            return
+        if self.bar is None:
+            _err(event.message)
+            return
+        c = event.counts
+        done = event.elapsed_s if self.by_time else c.get("nodes", self.bar.n)
+        self.bar.update(max(0.0, min(done, self.bar.total) - self.bar.n))
+        self.bar.set_postfix_str(event.message.split(": ", 1)[-1], refresh=True)
+
+    def close(self) -> None:
+        """Close the bar, if one was opened."""
+        if self.bar is not None:
+            self.bar.close()
+
+
+def cmd_roadmap_build(args: argparse.Namespace, check_interrupted: Callable[[], None]) -> int:
     """The learning phase: build a goal-independent roadmap and write it."""
     from dexplan.files import check_output_path
     from dexplan.planning.context import build_hand
@@ -61,7 +97,11 @@ def cmd_roadmap_build(args: argparse.Namespace, progress: Callable[[Any], None])
     if not args.quiet:
         budget = f"{args.time:g} s" if args.time is not None else f"{args.nodes} nodes"
         _err(f"building a roadmap of {scenario.name!r} with {args.planner} ({budget})")
-    roadmap, st = build_roadmap(scenario, settings, hand=hand, progress=progress)
+    view = BuildView(args, check_interrupted)
+    try:
+        roadmap, st = build_roadmap(scenario, settings, hand=hand, progress=view)
+    finally:
+        view.close()
     roadmap.save(args.output)
     sys.stdout.write(
         f"roadmap: {args.output}\nplanner: {st.planner}  seed: {st.seed}\n"
