@@ -11,6 +11,7 @@ import argparse
 import csv
 import statistics
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ SUMMARY_FIELDS = (
     "status",
     "solved",
     "time_s",
+    "cpu_s",
     "gsn_time_s",
     "reduction_time_s",
     "verify_time_s",
@@ -247,6 +249,7 @@ def run_queries(
     rows = []
     for k, goal in enumerate(goals, start=1):
         scen = dataclasses.replace(scenario, goal=goal)
+        cpu0 = time.process_time()
         planned = plan(
             scen,
             planner=args.planner,
@@ -257,8 +260,9 @@ def run_queries(
             reduction=args.reduction,
             hand=hand,
         )
+        cpu = time.process_time() - cpu0
         check_interrupted()
-        rows.append(_write_query(out, k, planned))
+        rows.append({**_write_query(out, k, planned), "cpu_s": cpu})
         if not args.quiet:
             r = rows[-1]
             _err(f"query {k}/{len(goals)}: {r['status']} in {r['time_s']:.3f} s")
@@ -319,17 +323,20 @@ def _write_summary(path: Path, rows: list[dict[str, Any]]) -> None:
 
 def format_table(rows: list[dict[str, Any]]) -> str:
     """The stdout table: one line per query, then solved count and time quantiles."""
-    lines = [f"{'query':>5}  {'status':<16} {'time_s':>8} {'regrasps':>8}  roadmap"]
+    head = f"{'query':>5}  {'status':<16} {'time_s':>8} {'cpu_s':>8} {'regrasps':>8}  roadmap"
+    lines = [head]
     for r in rows:
         reg = "-" if r["regrasps"] is None else str(r["regrasps"])
         lines.append(
-            f"{r['query']:>5}  {r['status']:<16} {r['time_s']:>8.3f} {reg:>8}  "
-            f"{r['gsn_status'] or '-'}"
+            f"{r['query']:>5}  {r['status']:<16} {r['time_s']:>8.3f} {r['cpu_s']:>8.3f} "
+            f"{reg:>8}  {r['gsn_status'] or '-'}"
         )
     times = [r["time_s"] for r in rows]
+    cpu = [r["cpu_s"] for r in rows]
     solved = sum(r["solved"] for r in rows)
     lines.append(
         f"solved: {solved}/{len(rows)}  time_s median {statistics.median(times):.3f}  "
-        f"mean {statistics.fmean(times):.3f}  max {max(times):.3f}"
+        f"mean {statistics.fmean(times):.3f}  max {max(times):.3f}  "
+        f"cpu_s median {statistics.median(cpu):.3f}"
     )
     return "\n".join(lines) + "\n"
