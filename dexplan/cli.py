@@ -561,12 +561,16 @@ def _add_bench(sub: Any) -> None:
         sub, "bench", "benchmark planners: Planner Arena SQLite, CSV, plots, summary table"
     )
     p_bench.add_argument(
-        "scenarios", nargs="+", metavar="SCENARIO", help="scenario TOML files or builtin names"
+        "scenarios",
+        nargs="+",
+        metavar="SCENARIO",
+        help="scenario TOML files, folders of them, or builtin names",
     )
     p_bench.add_argument(
         "--planners",
         default="PRM,RRTConnect,KPIECE1",
-        help="comma-separated OMPL planner names (default: PRM,RRTConnect,KPIECE1)",
+        help="comma-separated OMPL planner names; 'all': every registered planner; "
+        "'default': each scenario's own (default: PRM,RRTConnect,KPIECE1)",
     )
     p_bench.add_argument("--seeds", type=int, default=10, help="seeds per planner (10)")
     p_bench.add_argument("--first-seed", type=int, default=1, help="first seed (1)")

@@ -45,7 +45,9 @@ from dexplan.bench.tasks import (
     make_tasks,
     parse_planners,
     resolve_scenario,
+    scenario_files,
     scenario_hash,
+    scenario_planners,
     validate_sweep,
 )
 from dexplan.exceptions import InvalidInputError
@@ -168,6 +170,7 @@ def run_benchmark(
     )
     with BenchDatabase(out / DB_NAME) as db:
         done, skipped = _run_new(db, tasks, seeds, backend, execute, progress)
+        names = list(dict.fromkeys(t.planner for t in tasks))  # "default" resolved
         records = _sweep_records(db, tasks, unique, names)
         counts = db.counts()
     rows = summarize(records, baseline)
@@ -220,7 +223,7 @@ def _check_sweep(
     from dexplan.planning.ompl import check_planner
 
     for s in unique:  # planner parameters of the scenario must suit every planner
-        for name in names:
+        for name in scenario_planners(s, names):
             check_planner(name, s.planner.params)
     if plots:
         require_matplotlib()
@@ -239,7 +242,11 @@ def _load_scenarios(scenarios: Sequence[str | Path | Scenario]) -> list[Scenario
     """
     if not scenarios:
         raise InvalidInputError("give at least one scenario")
-    loaded = [s if isinstance(s, Scenario) else resolve_scenario(s) for s in scenarios]
+    loaded = [
+        s if isinstance(s, Scenario) else resolve_scenario(f)
+        for s in scenarios
+        for f in ([s] if isinstance(s, Scenario) else scenario_files(s))
+    ]
     seen: dict[str, str] = {}
     unique: list[Scenario] = []
     for s in loaded:

@@ -77,17 +77,44 @@ def run_key(scenario: str, digest: str, planner: str, seed: int, time_limit: flo
     return f"{scenario}@{digest}/{planner}/{int(seed)}/{float(time_limit)!r}"
 
 
+def scenario_files(arg: str | Path) -> list[str | Path]:
+    """A sweep's scenario argument: a folder gives its ``*.toml`` files (sorted by name).
+
+    Raises:
+        ScenarioError: a folder without scenario files.
+    """
+    path = Path(arg)
+    if not path.is_dir():
+        return [arg]
+    files = sorted(path.glob("*.toml"))
+    if not files:
+        raise ScenarioError(f"scenario folder {str(arg)!r} holds no .toml file")
+    return list(files)
+
+
+#: ``--planners`` word for every registered planner.
+ALL_PLANNERS = "all"
+#: ``--planners`` word for each scenario's own planner (its ``[planner] name``).
+SCENARIO_PLANNER = "default"
+
+
 def parse_planners(planners: str | Sequence[str]) -> list[str]:
     """Planner names from a list or a comma-separated string, stripped, without repeats.
+
+    ``all`` stands for every registered planner (:func:`available_planners`,
+    in its order); ``default`` for each scenario's own planner.
 
     Raises:
         InvalidInputError: no planner name.
     """
+    from dexplan.planning.ompl import available_planners
+
     names = planners.split(",") if isinstance(planners, str) else list(planners)
     out: list[str] = []
     for name in (str(n).strip() for n in names):
-        if name and name not in out:
-            out.append(name)
+        for one in available_planners() if name == ALL_PLANNERS else [name]:
+            if one and one not in out:
+                out.append(one)
     if not out:
         raise InvalidInputError(f"--planners: give at least one planner name, got {planners!r}")
     return out
@@ -122,7 +149,7 @@ def validate_sweep(
 
     valid = available_planners()
     for name in [*planners, *([baseline] if baseline else [])]:
-        if name not in valid:
+        if name not in valid and name != SCENARIO_PLANNER:
             raise PlannerError(f"unknown planner {name!r}; valid planners: {', '.join(valid)}")
 
 
@@ -147,7 +174,7 @@ def make_tasks(
     for seed in seeds:
         for scenario, digest in zip(scenarios, digests, strict=True):
             limit = float(scenario.planner.time_limit if time_limit is None else time_limit)
-            for planner in planners:
+            for planner in scenario_planners(scenario, planners):
                 out.append(
                     RunTask(
                         scenario,
@@ -158,4 +185,14 @@ def make_tasks(
                         None if plan_dir is None else str(plan_dir),
                     )
                 )
+    return out
+
+
+def scenario_planners(scenario: Scenario, planners: Sequence[str]) -> list[str]:
+    """The planners a scenario is run with: ``default`` is its own, without repeats."""
+    out: list[str] = []
+    for name in planners:
+        one = scenario.planner.name if name == SCENARIO_PLANNER else name
+        if one not in out:
+            out.append(one)
     return out
