@@ -97,3 +97,17 @@ def test_not_force_closure_names_the_waypoint(planned) -> None:
         w["contacts"][i] = None  # one finger cannot hold the weight
     with pytest.raises(GripForceError, match="segment 0, waypoint 1"):
         plan_waypoint_forces(bad, hand=hand)
+
+
+def test_forces_kept_within_the_joints_effort_limits(planned) -> None:
+    doc, hand = planned
+    effort = np.asarray(hand.model.effortLimit)
+    assert np.allclose(effort, 1.0)  # paper_hand.urdf: effort="1"
+    forces = plan_waypoint_forces(doc, ForceSettings(mass=0.1), hand=hand)
+    worst = max(float(np.max(np.abs(gf.joint_torques))) for rows in forces for gf in rows)
+    assert worst <= 1.0 + 1e-6
+    # a weight no grasp holds within 1 N m: the forces still balance it, beyond the limits
+    heavy = plan_waypoint_forces(doc, ForceSettings(mass=3.0), hand=hand)
+    gfs = [gf for rows in heavy for gf in rows]
+    assert all(np.allclose(gf.residual, 0.0, atol=1e-5) for gf in gfs)
+    assert max(float(np.max(np.abs(gf.joint_torques))) for gf in gfs) > 1.0
