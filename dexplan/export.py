@@ -383,48 +383,15 @@ def trajectory_document(
         plan: the plan it was built from (joint names, friction).
         sha256: the plan file's SHA-256 (default: :func:`plan_sha256` of ``plan``).
     """
-    lim = traj.timing.limits
     st = traj.settings
-    points = []
-    for j in range(traj.t.size):
-        points.append(
-            {
-                "time_from_start": float(traj.t[j]),
-                "positions": [float(v) for v in traj.q[j]],
-                "velocities": [float(v) for v in traj.qd[j]],
-                "accelerations": [float(v) for v in traj.qdd[j]],
-                "object_pose_xyzquat": [float(v) for v in traj.object_pose[j]],
-                "object_velocity": [float(v) for v in traj.object_velocity[j]],
-                "object_acceleration": [float(v) for v in traj.object_acceleration[j]],
-                "contacts": [_vec(c) for c in traj.contacts[j]],
-                "contact_normals": [_vec(c) for c in traj.normals[j]],
-                "grip_forces": [_vec(f) for f in traj.forces[j]],
-                "torsional_moments": [None if math.isnan(v) else float(v) for v in traj.torsion[j]],
-                "joint_torques": [float(v) for v in traj.joint_torques[j]],
-                "cone_margin": float(traj.margins[j]),
-            }
-        )
+    points = [_point(traj, j) for j in range(traj.t.size)]
     return {
         "format": TRAJECTORY_FORMAT,
         "plan_sha256": sha256 if sha256 is not None else plan_sha256(plan),
         "joint_names": list(plan["hand"]["joint_names"]),
         "fingertip_frames": list(plan["hand"]["fingertip_frames"]),
         "duration": traj.duration,
-        "limits": {
-            "joint_velocity": [float(v) for v in traj.timing.joint_velocity],
-            "joint_effort": (
-                None
-                if traj.joint_effort is None
-                else [None if math.isnan(v) else float(v) for v in traj.joint_effort]
-            ),
-            "joint_acceleration": lim.max_acceleration,
-            "object_speed": lim.object_speed,
-            "object_angular_speed": lim.object_angular_speed,
-            "object_acceleration": lim.object_acceleration,
-            "object_angular_acceleration": lim.object_angular_acceleration,
-            "approach_scale": lim.approach_scale,
-            "approach_steps": lim.approach_steps,
-        },
+        "limits": _limits_table(traj),
         "contact": {
             "mu": float(plan["mu"]),
             "friction_edges": int(plan.get("friction_edges", 8)),
@@ -440,6 +407,45 @@ def trajectory_document(
             {"kind": k, "finger": f, "first_point": a, "last_point": b}
             for k, f, a, b in traj.segments
         ],
+    }
+
+
+def _point(traj: Trajectory, j: int) -> dict[str, Any]:
+    """Sample ``j`` of the trajectory as a ``points`` entry of the document."""
+    return {
+        "time_from_start": float(traj.t[j]),
+        "positions": [float(v) for v in traj.q[j]],
+        "velocities": [float(v) for v in traj.qd[j]],
+        "accelerations": [float(v) for v in traj.qdd[j]],
+        "object_pose_xyzquat": [float(v) for v in traj.object_pose[j]],
+        "object_velocity": [float(v) for v in traj.object_velocity[j]],
+        "object_acceleration": [float(v) for v in traj.object_acceleration[j]],
+        "contacts": [_vec(c) for c in traj.contacts[j]],
+        "contact_normals": [_vec(c) for c in traj.normals[j]],
+        "grip_forces": [_vec(f) for f in traj.forces[j]],
+        "torsional_moments": [None if math.isnan(v) else float(v) for v in traj.torsion[j]],
+        "joint_torques": [float(v) for v in traj.joint_torques[j]],
+        "cone_margin": float(traj.margins[j]),
+    }
+
+
+def _limits_table(traj: Trajectory) -> dict[str, Any]:
+    """The document's ``limits``: the joint and object limits the timing used."""
+    lim = traj.timing.limits
+    return {
+        "joint_velocity": [float(v) for v in traj.timing.joint_velocity],
+        "joint_effort": (
+            None
+            if traj.joint_effort is None
+            else [None if math.isnan(v) else float(v) for v in traj.joint_effort]
+        ),
+        "joint_acceleration": lim.max_acceleration,
+        "object_speed": lim.object_speed,
+        "object_angular_speed": lim.object_angular_speed,
+        "object_acceleration": lim.object_acceleration,
+        "object_angular_acceleration": lim.object_angular_acceleration,
+        "approach_scale": lim.approach_scale,
+        "approach_steps": lim.approach_steps,
     }
 
 
