@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import signal
 import threading
-from typing import Any
+from typing import Any, NoReturn
 
 # SIGINT: some libraries catch BaseException around their own imports
 # (trimesh does), which swallows the KeyboardInterrupt raised there. The flag
@@ -670,9 +670,17 @@ def _add_replay(sub: Any) -> None:
     p_rep.set_defaults(func=cmd_replay)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), like every bad input."""
+
+    def error(self, message: str) -> NoReturn:
+        """Write ``dexplan CMD: error: ... (see dexplan CMD --help)`` and exit 2."""
+        self.exit(2, f"{self.prog}: error: {one_line(message, 300)} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``dexplan`` command."""
-    parser = argparse.ArgumentParser(
+    """The argument parser of the ``dexplan`` command (subcommands share its class)."""
+    parser = _Parser(
         prog="dexplan",
         description="Dexterous in-hand manipulation planning in the n-finger grasp subspace.",
         epilog=EPILOG,
