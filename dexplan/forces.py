@@ -441,7 +441,7 @@ class GripForceSolver:
             ``(T, effort)``: (j, m) rows and (j,) limits (N m) of the limited
             joints, or None when no joint has a limit.
         """
-        model, data = self.hand.model, self._data
+        model = self.hand.model
         e = np.array(model.effortLimit, dtype=float).reshape(-1)
         limited = np.flatnonzero(np.isfinite(e) & (e > 0))
         if limited.size == 0:
@@ -449,12 +449,7 @@ class GripForceSolver:
         soft = self.contact_model == "soft"
         r = 4 if soft else 3
         T = np.zeros((model.nv, len(idx) * r))
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        for c, i in enumerate(idx):
-            fid = self.hand.tip_frame_ids[i]
-            J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-            d = pose[:3] + R @ P[i] - data.oMf[fid].translation
+        for c, (i, J, d) in enumerate(self._tip_jacobians(q, pose, R, P, idx)):
             S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
             T[:, c * r : c * r + 3] = J.T @ np.vstack([R, S @ R])
             if soft:
@@ -472,21 +467,33 @@ class GripForceSolver:
         tors: FloatArray,
         idx: list[int],
     ) -> FloatArray:
-        model, data = self.hand.model, self._data
-        q = np.asarray(q, dtype=float)
-        tau = np.zeros(model.nv)
+        tau = np.zeros(self.hand.model.nv)
+        for i, J, d in self._tip_jacobians(np.asarray(q, dtype=float), pose, R, P, idx):
+            m = np.cross(d, fw[i]) + tors[i] * (R @ N[i])
+            tau += J.T @ np.concatenate([fw[i], m])
+        return tau
+
+    def _tip_jacobians(
+        self, q: FloatArray, pose: FloatArray, R: FloatArray, P: FloatArray, idx: list[int]
+    ) -> list[tuple[int, FloatArray, FloatArray]]:
+        """Per loaded finger ``i``: its tip frame Jacobian and the lever from tip to contact.
+
+        Returns:
+            ``(i, J, d)``: ``J`` the (6, nv) ``LOCAL_WORLD_ALIGNED`` Jacobian of
+            the fingertip frame at ``q``, ``d`` (3,) contact point minus tip
+            centre, world frame.
+        """
         if not idx:
-            return tau
+            return []
+        model, data = self.hand.model, self._data
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
+        out = []
         for i in idx:
             fid = self.hand.tip_frame_ids[i]
             J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-            p_tip = data.oMf[fid].translation
-            p_c = pose[:3] + R @ P[i]
-            m = np.cross(p_c - p_tip, fw[i]) + tors[i] * (R @ N[i])
-            tau += J.T @ np.concatenate([fw[i], m])
-        return tau
+            out.append((i, J, pose[:3] + R @ P[i] - data.oMf[fid].translation))
+        return out
 
 
 def _balance_rows(
