@@ -35,9 +35,8 @@ from dexplan.planning.ompl import MULTI_QUERY_PLANNERS, PlanningProblem, check_p
 from dexplan.planning.progress import Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap import (
     Roadmap,
-    constraint_spec,
+    gsn_problem,
     object_move_free,
-    orientation_projection,
     pose_distances,
     scenario_key,
     try_link,
@@ -180,15 +179,8 @@ def build_roadmap(
         if progress is not None:
             progress(ProgressEvent(stage, message, time.perf_counter() - t0, counts))
 
-    problem = PlanningProblem(
-        constraint_spec(ctx, scenario.planner.space),
-        ctx.validity.is_valid,
-        planner=settings.planner,
-        params=dict(scenario.planner.params),
-        valid_sampler=ctx.sampler.sample,
-        check_sampled_states=False,
-        projection=orientation_projection(),
-        seed=settings.seed,
+    problem = gsn_problem(
+        ctx, settings.planner, scenario.planner.params, scenario.planner.space, settings.seed
     )
     grower = _Module1(problem, ctx, settings, scenario_key(ctx), say)
     m1_deadline = t0 + (MODULE1_SHARE * budget if settings.time_limit is not None else budget)

@@ -662,20 +662,7 @@ def explore_gsn(
     """
     t0 = time.perf_counter()
     report = on_round or (lambda _module, _counts: None)
-    problem = PlanningProblem(
-        constraint_spec(ctx, space),
-        ctx.validity.is_valid,
-        planner=planner,
-        params=dict(params or {}),
-        valid_sampler=ctx.sampler.sample,
-        check_sampled_states=False,  # the sampler returns checked states
-        projection=orientation_projection(),
-        seed=seed,
-    )
-    problem.set_start(query.start)
-    problem.set_goal(
-        GoalSpec(distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler)
-    )
+    problem = _query_problem(ctx, query, planner, params, space, seed)
     key = scenario_key(ctx)
     stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
     iterations, milestones, rounds = ROUND_ITERATIONS, ROUND_MILESTONES, 0
@@ -716,6 +703,43 @@ def explore_gsn(
         )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
+
+
+def gsn_problem(
+    ctx: PlanningContext,
+    planner: str,
+    params: Mapping[str, Any] | None,
+    space: str,
+    seed: int,
+) -> PlanningProblem:
+    """The OMPL problem over GSn: the constraint, the validity checker and the RLG sampler."""
+    return PlanningProblem(
+        constraint_spec(ctx, space),
+        ctx.validity.is_valid,
+        planner=planner,
+        params=dict(params or {}),
+        valid_sampler=ctx.sampler.sample,
+        check_sampled_states=False,  # the sampler returns checked states
+        projection=orientation_projection(),
+        seed=seed,
+    )
+
+
+def _query_problem(
+    ctx: PlanningContext,
+    query: GsnQuery,
+    planner: str,
+    params: Mapping[str, Any] | None,
+    space: str,
+    seed: int,
+) -> PlanningProblem:
+    """The OMPL problem of a query: :func:`gsn_problem` with its start and goal."""
+    problem = gsn_problem(ctx, planner, params, space, seed)
+    problem.set_start(query.start)
+    problem.set_goal(
+        GoalSpec(distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler)
+    )
+    return problem
 
 
 def _module1_round(
@@ -833,22 +857,11 @@ def link_query(
         path_ids = roadmap.shortest_path(start, goals) if goals else None
         if path_ids is not None:
             break
-        _, labels = roadmap.components()
-        src = np.flatnonzero(labels == labels[start])
-        dst = np.flatnonzero(labels != labels[start])
-        if len(dst) == 0 or not goals:
+        if not goals:
             break
-        # Pairs ranked by link length plus how far the far end still is from
-        # the goal: links straight into a goal component come first, links
-        # into other components (merged on the way, as in the paper) next.
-        goal_v = roadmap.vertices[goals[0]]
-        to_goal = np.array([pose_distance(roadmap.vertices[b], goal_v) for b in dst])
-        to_goal[np.isin(labels[dst], labels[goals])] = 0.0
-        d = np.array(
-            [[pose_distance(roadmap.vertices[a], roadmap.vertices[b]) for b in dst] for a in src]
-        )
-        d = d + to_goal[None, :]
-        order = np.argsort(d, axis=None)[:64]
+        src, dst, order = _link_candidates(roadmap, start, goals)
+        if len(dst) == 0:
+            break
         linked = False
         for flat in order:
             if max_attempts is not None and attempts >= max_attempts:
@@ -872,3 +885,32 @@ def link_query(
     if path_ids is None:
         return GsnResult(None, roadmap, stats, "start and goal are not connected in GSn")
     return GsnResult(roadmap.path_states(path_ids, geodesic), roadmap, stats)
+
+
+def _link_candidates(
+    roadmap: Roadmap, start: int, goals: list[int]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Module-2 link candidates from the start's component, best first.
+
+    Pairs are ranked by link length plus how far the far end still is from
+    the goal: links straight into a goal component come first, links into
+    other components (merged on the way, as in the paper) next.
+
+    Returns:
+        ``(src, dst, order)``: the start component's vertices, the other
+        vertices, and the first 64 pairs as flat indices into
+        ``len(src) x len(dst)``.
+    """
+    _, labels = roadmap.components()
+    src = np.flatnonzero(labels == labels[start])
+    dst = np.flatnonzero(labels != labels[start])
+    if len(dst) == 0:
+        return src, dst, np.zeros(0, dtype=np.int64)
+    goal_v = roadmap.vertices[goals[0]]
+    to_goal = np.array([pose_distance(roadmap.vertices[b], goal_v) for b in dst])
+    to_goal[np.isin(labels[dst], labels[goals])] = 0.0
+    d = np.array(
+        [[pose_distance(roadmap.vertices[a], roadmap.vertices[b]) for b in dst] for a in src]
+    )
+    d = d + to_goal[None, :]
+    return src, dst, np.argsort(d, axis=None)[:64]
