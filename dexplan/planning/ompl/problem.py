@@ -575,6 +575,17 @@ class PlanningProblem:
             PlannerError: a callback raised.
 
         """
+        path = self._geometric_path(waypoints)
+        result = self._post_process(path, interpolate=interpolate, check=True)
+        self._raise_callback_error()
+        return result
+
+    def _geometric_path(self, waypoints: object) -> Any:
+        """An ``og.PathGeometric`` of ``(M, n)`` ambient waypoints, M >= 1 (planning coordinates).
+
+        Raises:
+            InvalidInputError: wrong shape or non-finite values.
+        """
         arr = np.asarray(waypoints, dtype=np.float64)
         n = self._spec.ambient_dim
         if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
@@ -584,9 +595,7 @@ class PlanningProblem:
         path = og.PathGeometric(self._si)
         for x in arr:
             path.append(self._alloc(self._frame.to_y(x)))
-        result = self._post_process(path, interpolate=interpolate, check=True)
-        self._raise_callback_error()
-        return result
+        return path
 
     def interpolate_path(self, waypoints: object) -> FloatArray:
         """Densify a path of ambient states along the space's discrete geodesics, unchecked.
@@ -604,20 +613,12 @@ class PlanningProblem:
         Raises:
             InvalidInputError: wrong shape or non-finite values.
         """
-        arr = np.asarray(waypoints, dtype=np.float64)
-        n = self._spec.ambient_dim
-        if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
-            raise InvalidInputError(f"waypoints must have shape (M, {n}), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise InvalidInputError("waypoints must be finite")
-        path = og.PathGeometric(self._si)
-        for x in arr:
-            path.append(self._alloc(self._frame.to_y(x)))
+        path = self._geometric_path(waypoints)
         path.interpolate()
         read = self._frame.read
         ys = np.array([read(path.getState(i)) for i in range(path.getStateCount())])
         self._raise_callback_error()
-        return self._frame.to_x(ys.reshape(-1, n))
+        return self._frame.to_x(ys.reshape(-1, self._spec.ambient_dim))
 
     def _states_ok(self, ys: FloatArray) -> bool:
         """Whether every planning-coordinate state is on the manifold, in bounds, valid."""
