@@ -30,10 +30,7 @@ def as_vector(value: object, name: str, size: int | None = None) -> FloatArray:
     Raises:
         InvalidInputError: wrong shape or a NaN/inf entry.
     """
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {shorten(value)}") from exc
+    arr = _float_array(value, name)
     if arr.ndim != 1 or (size is not None and arr.shape[0] != size):
         want = f"({size},)" if size is not None else "a 1-D array"
         raise InvalidInputError(f"{name} must have shape {want}, got shape {arr.shape}")
@@ -50,10 +47,7 @@ def as_points(value: object, name: str, width: int = 3) -> FloatArray:
     Raises:
         InvalidInputError: wrong shape or a NaN/inf entry.
     """
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {shorten(value)}") from exc
+    arr = _float_array(value, name)
     if arr.ndim == 1 and arr.shape[0] == width:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != width:
@@ -77,3 +71,11 @@ def as_positive(value: object, name: str, *, allow_zero: bool = False) -> float:
         bound = ">= 0" if allow_zero else "> 0"
         raise InvalidInputError(f"{name} must be finite and {bound}, got {x!r}")
     return x
+
+
+def _float_array(value: object, name: str) -> FloatArray:
+    """``value`` as a float64 array, or InvalidInputError naming ``name``."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name} must be numeric, got {shorten(value)}") from exc
