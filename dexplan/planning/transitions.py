@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,7 +41,7 @@ from dexplan.planning.ompl import plan_joint_path
 from dexplan.planning.validity import ValiditySettings
 from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
 from dexplan.segments import Segment, Waypoint
-from dexplan.typing import FloatArray
+from dexplan.typing import FloatArray, IntArray
 
 
 @dataclass(frozen=True)
@@ -372,15 +373,30 @@ class Transitions(Landings):
         tip = self.tip_targets(pose, grasp)[finger]
         inward = -(R @ grasp.normals_out[finger])
         options = hand.finger_ik_alternatives(finger, tip, q_a, inward)
-        for q_f in options[: self.settings.posture_options]:
-            if np.any(q_f < self._lo[idx]) or np.any(q_f > self._hi[idx]):
-                continue
-            if np.array_equal(q_f, q_b[idx]):
-                continue
-            q = q_b.copy()
-            q[idx] = q_f
-            if self.world.is_free(q, pose, self.all_contact):
-                return q
+        lo, hi = self._lo[idx], self._hi[idx]
+        others = (
+            q_f
+            for q_f in options[: self.settings.posture_options]
+            if not (np.any(q_f < lo) or np.any(q_f > hi) or np.array_equal(q_f, q_b[idx]))
+        )
+        return self._first_free(q_b, idx, others, pose)
+
+    def _first_free(
+        self, q: FloatArray, idx: IntArray, postures: Iterable[FloatArray], pose: FloatArray
+    ) -> FloatArray | None:
+        """``q`` with the finger joints ``idx`` set to the first collision-free posture, or None.
+
+        Args:
+            q: (nq,) the hand's joints.
+            idx: the finger's joint indexes.
+            postures: candidate finger joint values (len(idx),), tried in order.
+            pose: (7,) the object pose, world frame.
+        """
+        for q_f in postures:
+            q1 = q.copy()
+            q1[idx] = q_f
+            if self.world.is_free(q1, pose, self.all_contact):
+                return q1
         return None
 
     # ------------------------------------------------------------------ regrasp
@@ -474,14 +490,12 @@ class Transitions(Landings):
         ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=1)
         opts = np.flatnonzero(ok)
         opts = opts[np.argsort(np.linalg.norm(cands[opts] - q[idx], axis=1), kind="stable")]
-        for k in opts[: self.settings.landing_solutions]:
-            if any(np.array_equal(cands[k], t) for t in tried):
-                continue
-            q1 = q.copy()
-            q1[idx] = cands[k]
-            if self.world.is_free(q1, pose, self.all_contact):
-                return q1
-        return None
+        untried = (
+            cands[k]
+            for k in opts[: self.settings.landing_solutions]
+            if not any(np.array_equal(cands[k], t) for t in tried)
+        )
+        return self._first_free(q, idx, untried, pose)
 
     def _straight_tip_move(
         self,
