@@ -214,24 +214,7 @@ def log_orientations(rec: Any, roadmap: Roadmap) -> None:
         rr.Points3D(P, class_ids=labels.astype(np.uint16), radii=[0.02], show_labels=False),
         static=True,
     )
-    e = _pairs(roadmap.edges)
-    rec.log(
-        "orientation/edges",
-        rr.LineStrips3D(
-            _segments(P, e),
-            class_ids=labels[e[:, 0]].astype(np.uint16) if len(e) else None,
-            radii=[0.004],
-            show_labels=False,
-        ),
-        static=True,
-    )
-    rec.log(
-        "orientation/links",
-        rr.LineStrips3D(
-            _segments(P, _pairs(roadmap.links)), colors=[rgba(LINK_COLOR)], radii=[0.01]
-        ),
-        static=True,
-    )
+    _log_graph_lines(rec, "orientation", roadmap, P, labels, (0.004, 0.01))
 
 
 def log_roadmap(rec: Any, roadmap: Roadmap, axis_length: float) -> RoadmapSummary:
@@ -253,24 +236,7 @@ def log_roadmap(rec: Any, roadmap: Roadmap, axis_length: float) -> RoadmapSummar
     )
     if len(V):
         _log_node_axes(rec, V, axis_length)
-    e = _pairs(roadmap.edges)
-    rec.log(
-        "world/roadmap/edges",
-        rr.LineStrips3D(
-            _segments(P, e),
-            class_ids=labels[e[:, 0]].astype(np.uint16) if len(e) else None,
-            radii=[0.0005],
-            show_labels=False,
-        ),
-        static=True,
-    )
-    rec.log(
-        "world/roadmap/links",
-        rr.LineStrips3D(
-            _segments(P, _pairs(roadmap.links)), colors=[rgba(LINK_COLOR)], radii=[0.0012]
-        ),
-        static=True,
-    )
+    _log_graph_lines(rec, "world/roadmap", roadmap, P, labels, (0.0005, 0.0012))
     rec.log(
         "roadmap/summary",
         rr.TextDocument(summary.markdown(), media_type=rr.MediaType.MARKDOWN),
@@ -366,3 +332,42 @@ def _send_still_configuration(
         V[0, 7:] if len(V) else models.hand.neutral
     )  # fmt: skip
     send_configurations(rec, models, layout, None, np.asarray(pose)[None], np.asarray(q)[None])
+
+
+def _log_graph_lines(
+    rec: Any,
+    prefix: str,
+    roadmap: Roadmap,
+    P: FloatArray,
+    labels: np.ndarray,
+    radii: tuple[float, float],
+) -> None:
+    """GSn edges (coloured by component) and module-2 links (one colour) as two line batches.
+
+    Args:
+        rec: the recording stream.
+        prefix: entity path the ``edges`` and ``links`` go under.
+        roadmap: the roadmap.
+        P: (V, 3) where each vertex is drawn.
+        labels: (V,) component label of each vertex.
+        radii: line radii of the edges and the links.
+    """
+    rr = rerun_module()
+    e = _pairs(roadmap.edges)
+    rec.log(
+        f"{prefix}/edges",
+        rr.LineStrips3D(
+            _segments(P, e),
+            class_ids=labels[e[:, 0]].astype(np.uint16) if len(e) else None,
+            radii=[radii[0]],
+            show_labels=False,
+        ),
+        static=True,
+    )
+    rec.log(
+        f"{prefix}/links",
+        rr.LineStrips3D(
+            _segments(P, _pairs(roadmap.links)), colors=[rgba(LINK_COLOR)], radii=[radii[1]]
+        ),
+        static=True,
+    )
