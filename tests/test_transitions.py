@@ -128,19 +128,24 @@ def test_tracked_follow_bounds_the_transfer() -> None:
     assert res.reached + 1 <= min(counts)
 
 
+def _start_grasp_and_yaw_turn(ctx, scenario):
+    """A sampled grasp at the start pose and the densified poses of a 180-degree yaw from it."""
+    x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+    assert x is not None
+    pose, q = x[:7], x[7:]
+    grasp = grasp_from_state(ctx.transitions, pose, q)
+    goal = pose.copy()
+    goal[3:] = [0.0, 0.0, 1.0, 0.0]
+    return pose, q, grasp, densify_poses(np.stack([pose, goal]), 0.008, 0.04)
+
+
 def test_resumed_track_equals_a_fresh_one() -> None:
     """A track resumed from a stored one (later start, longer horizon) counts as a fresh one."""
     scenario = default_scenario()
     ctx = build_context(scenario, seed=2)
     fresh = build_context(scenario, seed=2).transitions
-    x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
-    assert x is not None
-    pose, q = x[:7], x[7:]
+    _pose, q, grasp, poses = _start_grasp_and_yaw_turn(ctx, scenario)
     tr = ctx.transitions
-    grasp = grasp_from_state(tr, pose, q)
-    goal = pose.copy()
-    goal[3:] = [0.0, 0.0, 1.0, 0.0]
-    poses = densify_poses(np.stack([pose, goal]), 0.008, 0.04)
     r = ctx.hand.fingertip_radius
     idx = ctx.hand.finger_q_index
     for f in range(ctx.hand.n_fingers):
@@ -166,14 +171,8 @@ def test_non_redundant_fingers_track_fewer_landings() -> None:
     for simple in (0, 2):
         settings = TransitionSettings(tracked_landings_simple=simple)
         ctx = build_context(scenario, seed=2, transition_settings=settings)
-        x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
-        assert x is not None
-        pose, q = x[:7], x[7:]
+        pose, q, grasp, poses = _start_grasp_and_yaw_turn(ctx, scenario)
         tr = ctx.transitions
-        grasp = grasp_from_state(tr, pose, q)
-        goal = pose.copy()
-        goal[3:] = [0.0, 0.0, 1.0, 0.0]
-        poses = densify_poses(np.stack([pose, goal]), 0.008, 0.04)
         assert tr.tracked_count(0) == min(simple, tr.settings.tracked_landings)
         got = list(tr.landing_candidates(0, pose, q, grasp, poses, limit=6))
         assert got
