@@ -203,6 +203,8 @@ class Hand:
         self.urdf_xml = urdf_text(urdf_xml, f"URDF of hand {name!r}")
         self.fingertip_radius = check_fingertip_radius(fingertip_radius, name)
         description = parse_urdf(self.urdf_xml, name)
+        #: folders the URDF's mesh files were found in (viewers load its visual meshes there)
+        self.package_dirs: tuple[str, ...] = tuple(str(d) for d in package_dirs)
         self.model, self.geom_model = build_models(description, name, package_dirs)
         self.data: pin.Data = self.model.createData()
 
@@ -721,6 +723,24 @@ _ERD = "example-robot-data"
 _ERD_PIP = "pip install 'dexplan[allegro]' (or: pip install example-robot-data)"
 
 
+def example_robot_data_share(robot_file: Path | None = None) -> Path:
+    """The folder ``package://example-robot-data/robots/...`` mesh URIs resolve against.
+
+    Args:
+        robot_file: a file of the distribution,
+            ``.../share/example-robot-data/robots/<robot>/<folder>/<file>``
+            (default: the Allegro right hand's URDF).
+
+    Raises:
+        DependencyError: example-robot-data is not installed.
+    """
+    if robot_file is None:
+        robot_file = example_robot_data_file(
+            "allegro_hand_description/urdf/allegro_right_hand.urdf"
+        )
+    return robot_file.parents[4]
+
+
 def example_robot_data_file(relative: str) -> Path:
     """Path of a file the installed ``example-robot-data`` distribution ships.
 
@@ -762,13 +782,11 @@ def _allegro_hand(*, left: bool) -> Hand:
     except DependencyError as exc:
         raise DependencyError(f"hand {hand_name!r}: {exc}") from None
     text = urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
-    # mesh URIs are package://example-robot-data/robots/...: the folder above it
-    share = path.parents[3].parent
     return Hand(
         mount_urdf(text, ALLEGRO_MOUNT_RPY),
         ALLEGRO_TIPS,
         ALLEGRO_TIP_RADIUS,
         collision_exclude=ALLEGRO_COLLISION_EXCLUDE,
         name=hand_name,
-        package_dirs=[str(share)],
+        package_dirs=[str(example_robot_data_share(path))],
     )

@@ -10,7 +10,7 @@ from dexplan.viz.visuals import hand_package_dirs, visual_geometry
 
 def test_allegro_visual_meshes_load_one_per_link(tmp_path: Path) -> None:
     hand = Hand.builtin("allegro")
-    visual = visual_geometry(hand, hand_package_dirs(tmp_path))
+    visual = visual_geometry(hand)
     assert visual is not None
     # the URDF has one <visual> per link, each an STL mesh with triangles
     assert visual.ngeoms == hand.urdf_xml.count("<visual>")
@@ -22,8 +22,10 @@ def test_allegro_visual_meshes_load_one_per_link(tmp_path: Path) -> None:
 
 def test_missing_meshes_fall_back_to_collision_geometry(tmp_path: Path) -> None:
     hand = Hand.builtin("allegro")
-    assert visual_geometry(hand, [tmp_path]) is None  # meshes not found there
+    assert hand.package_dirs == (str(hand_package_dirs(tmp_path)[1]),)
+    hand.package_dirs = (str(tmp_path),)  # a plan moved to where the meshes are not
+    assert visual_geometry(hand) is None
 
 
 def test_hand_without_visuals_uses_collision_geometry(tmp_path: Path) -> None:
-    assert visual_geometry(Hand.builtin("paper"), hand_package_dirs(tmp_path)) is None
+    assert visual_geometry(Hand.builtin("paper")) is None

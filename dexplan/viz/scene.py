@@ -51,7 +51,6 @@ class Scene:
     goal_pose: FloatArray | None = None
     start_pose: FloatArray | None = None
     start_q: FloatArray | None = None
-    package_dirs: list[str | Path] = field(default_factory=list)  # where hand meshes are found
 
 
 @dataclass
@@ -119,7 +118,6 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
         goal_pose=_pose_or_none(goal.get("object_pose_xyzquat")),
         start_pose=_pose_or_none(start.get("object_pose_xyzquat")),
         start_q=None if start.get("q") is None else np.asarray(start["q"], dtype=float),
-        package_dirs=hand_package_dirs(base_dir),
     )
 
 
@@ -140,11 +138,6 @@ def scene_from_scenario(scenario: Any) -> Scene:
         goal_pose=_pose_or_none(scenario.goal.object_pose_xyzquat),
         start_pose=_pose_or_none(scenario.start.object_pose_xyzquat),
         start_q=None if scenario.start.q is None else np.asarray(scenario.start.q, dtype=float),
-        package_dirs=(
-            hand_package_dirs(base)
-            if scenario.hand.urdf is None
-            else [Path(scenario.hand.urdf).parent, *hand_package_dirs(base)]
-        ),
     )
 
 
@@ -197,7 +190,7 @@ def _finger_of_frame(hand: Hand) -> dict[int, int | None]:
     return {fid: finger_of(fid) for fid in range(model.nframes)}
 
 
-def _log_hand_static(rec: Any, hand: Hand, package_dirs: Sequence[str | Path]) -> HandLayout:
+def _log_hand_static(rec: Any, hand: Hand) -> HandLayout:
     """Hand link geometry (static, in each link's frame) and the palm frame axes.
 
     The URDF's visual geometry when it loads (:func:`visual_geometry`), else
@@ -207,7 +200,7 @@ def _log_hand_static(rec: Any, hand: Hand, package_dirs: Sequence[str | Path]) -
     import pinocchio as pin
 
     model, data = hand.model, hand.data
-    geometry = visual_geometry(hand, package_dirs) or hand.geom_model
+    geometry = visual_geometry(hand) or hand.geom_model
     pin.framesForwardKinematics(model, data, hand.neutral)
     finger_of_frame = _finger_of_frame(hand)
     tip_ids = set(hand.tip_frame_ids)
@@ -268,9 +261,7 @@ def log_scene_static(rec: Any, scene: Scene) -> HandLayout | None:
     """
     rr = rerun_module()
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    layout = (
-        _log_hand_static(rec, scene.hand, scene.package_dirs) if scene.hand is not None else None
-    )
+    layout = _log_hand_static(rec, scene.hand) if scene.hand is not None else None
     if scene.obj is not None:
         size = scene.obj.bounding_radius
         rec.log("world/object/shape", shape_archetype(scene.obj, OBJECT), static=True)

@@ -7,14 +7,14 @@ one of them loads, and falls back to the collision geometry otherwise (the
 builtin paper and three-finger hands have no visuals; a plan file moved to a
 machine without the hand's meshes still shows something true).
 
-Mesh files are resolved like the hand's own: ``package://`` and relative
-paths against the search folders the scene was built with (the plan's or
-URDF's folder, and example-robot-data's ``share`` folder when installed).
+Mesh files are resolved like the hand's collision meshes, in the folders the
+hand was built with (:attr:`Hand.package_dirs`: the URDF's or plan's folder,
+and example-robot-data's ``share`` folder for the Allegro hands).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,23 +25,20 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 
 def hand_package_dirs(base_dir: Path) -> list[str | Path]:
-    """Folders a hand's mesh files are searched in: ``base_dir``, then example-robot-data's.
+    """Folders the mesh files of a plan's embedded hand are searched in.
 
-    Args:
-        base_dir: the plan's or scenario's folder.
+    ``base_dir`` (the plan's folder), then example-robot-data's ``share``
+    folder when installed (the Allegro hands' ``package://`` meshes).
     """
-    from dexplan.hand import example_robot_data_file
+    from dexplan.hand import example_robot_data_share
 
     dirs: list[str | Path] = [base_dir]
-    try:  # the Allegro hand's meshes live in example-robot-data's share folder
-        urdf = example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
-        dirs.append(urdf.parents[4])  # .../share, holding example-robot-data/
-    except DependencyError:
-        pass
+    with contextlib.suppress(DependencyError):  # no Allegro meshes to find then
+        dirs.append(example_robot_data_share())
     return dirs
 
 
-def visual_geometry(hand: Hand, package_dirs: Sequence[str | Path]) -> Any | None:
+def visual_geometry(hand: Hand) -> Any | None:
     """The hand's visual ``pin.GeometryModel``, or None to draw its collision geometry.
 
     None when the URDF has no ``<visual>`` element, or when any visual mesh
@@ -49,8 +46,8 @@ def visual_geometry(hand: Hand, package_dirs: Sequence[str | Path]) -> Any | Non
     What the native loaders print is captured and dropped.
 
     Args:
-        hand: the hand (its ``urdf_xml`` and Pinocchio ``model``).
-        package_dirs: folders ``package://`` and relative mesh paths resolve against.
+        hand: the hand (its ``urdf_xml``, Pinocchio ``model`` and the
+            ``package_dirs`` its meshes were found in).
     """
     import pinocchio as pin
 
@@ -58,11 +55,10 @@ def visual_geometry(hand: Hand, package_dirs: Sequence[str | Path]) -> Any | Non
 
     if "<visual" not in hand.urdf_xml:
         return None
-    dirs = [str(d) for d in package_dirs]
     try:
         with captured_stderr():
             model = pin.buildGeomFromUrdfString(
-                hand.model, hand.urdf_xml, pin.VISUAL, package_dirs=dirs
+                hand.model, hand.urdf_xml, pin.VISUAL, package_dirs=list(hand.package_dirs)
             )
     except (ValueError, RuntimeError, OSError):
         return None
