@@ -119,16 +119,7 @@ def _segments(P: FloatArray, pairs: np.ndarray) -> FloatArray:
 def _log_counts(rec: Any, roadmap: Roadmap, summary: RoadmapSummary) -> None:
     """Component classes and per-component counts on ``world/roadmap`` (static)."""
     rr = rerun_module()
-    rec.log(
-        "world/roadmap",
-        rr.AnnotationContext(
-            [
-                (k, f"component {k} ({summary.nodes[k]} nodes)", _component_color(k))
-                for k in range(summary.components)
-            ]
-        ),
-        static=True,
-    )
+    _log_component_classes(rec, "world/roadmap", summary)
     rec.log(
         "world/roadmap",
         rr.AnyValues(
@@ -199,16 +190,7 @@ def log_orientations(rec: Any, roadmap: Roadmap) -> None:
     V = np.asarray(roadmap.vertices, dtype=float)
     P = rotation_vectors(V[:, 3:7]) if len(V) else np.zeros((0, 3))
     rec.log("orientation", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    rec.log(
-        "orientation",
-        rr.AnnotationContext(
-            [
-                (k, f"component {k} ({summary.nodes[k]} nodes)", _component_color(k))
-                for k in range(summary.components)
-            ]
-        ),
-        static=True,
-    )
+    _log_component_classes(rec, "orientation", summary)
     rec.log(
         "orientation/nodes",
         rr.Points3D(P, class_ids=labels.astype(np.uint16), radii=[0.02], show_labels=False),
@@ -368,6 +350,21 @@ def _log_graph_lines(
         f"{prefix}/links",
         rr.LineStrips3D(
             _segments(P, _pairs(roadmap.links)), colors=[rgba(LINK_COLOR)], radii=[radii[1]]
+        ),
+        static=True,
+    )
+
+
+def _log_component_classes(rec: Any, path: str, summary: RoadmapSummary) -> None:
+    """One annotation class per component (its colour and node count) at ``path``, static."""
+    rr = rerun_module()
+    rec.log(
+        path,
+        rr.AnnotationContext(
+            [
+                (k, f"component {k} ({summary.nodes[k]} nodes)", _component_color(k))
+                for k in range(summary.components)
+            ]
         ),
         static=True,
     )
