@@ -41,6 +41,7 @@ from dexplan.forces import (
     GripForces,
     GripForceSolver,
     force_settings_from_plan,
+    joint_effort_limits,
     solver_from_plan,
 )
 from dexplan.timing import PlanTiming, SegmentTiming, TimingLimits, TrajectorySample, time_plan
@@ -179,17 +180,6 @@ def build_trajectory(
         ranges.append((seg["kind"], seg["finger"], first, len(samples.t) - 1))
     traj = samples.trajectory(n, hand.nq, tuple(ranges), timing, settings)
     return replace(traj, joint_effort=joint_effort_limits(hand.model))
-
-
-def joint_effort_limits(model: Any) -> FloatArray:
-    """The URDF's joint effort (torque) limits, ``(nq,)`` N m; NaN where none is set.
-
-    Args:
-        model: the hand's Pinocchio model (``model.effortLimit``, (nv,)).
-    """
-    e = np.array(model.effortLimit, dtype=float).reshape(-1)
-    e[~(np.isfinite(e) & (e > 0))] = np.nan
-    return e
 
 
 def _sample_times(duration: float, rate: float, *, shared_start: bool) -> FloatArray:

@@ -442,8 +442,8 @@ class GripForceSolver:
             joints, or None when no joint has a limit.
         """
         model = self.hand.model
-        e = np.array(model.effortLimit, dtype=float).reshape(-1)
-        limited = np.flatnonzero(np.isfinite(e) & (e > 0))
+        e = joint_effort_limits(model)
+        limited = np.flatnonzero(~np.isnan(e))
         if limited.size == 0:
             return None
         soft = self.contact_model == "soft"
@@ -494,6 +494,17 @@ class GripForceSolver:
             J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
             out.append((i, J, pose[:3] + R @ P[i] - data.oMf[fid].translation))
         return out
+
+
+def joint_effort_limits(model: Any) -> FloatArray:
+    """The URDF's joint effort (torque) limits, ``(nq,)`` N m; NaN where none is set.
+
+    Args:
+        model: the hand's Pinocchio model (``model.effortLimit``, (nv,)).
+    """
+    e = np.array(model.effortLimit, dtype=float).reshape(-1)
+    e[~(np.isfinite(e) & (e > 0))] = np.nan
+    return e
 
 
 def _balance_rows(
