@@ -109,7 +109,11 @@ RULES: dict[str, str] = {
 
 # ---------------------------------------------------------------- contacts
 def fingertip_contact(
-    obj: Shape, c_obj: FloatArray, tip_obj: FloatArray, radius: float
+    obj: Shape,
+    c_obj: FloatArray,
+    tip_obj: FloatArray,
+    radius: float,
+    stated: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, float]:
     """Where and along which normal a fingertip pushes on the object (the one rule).
 
@@ -124,13 +128,15 @@ def fingertip_contact(
         c_obj: (3,) the stated contact, object frame.
         tip_obj: (3,) the fingertip centre, object frame.
         radius: fingertip radius (m).
+        stated: ``obj.closest_point(c_obj)`` when the caller has it already
+            (a transfer holds the same contacts at every waypoint).
 
     Returns:
         ``(p, n_out, gap)``: (3,) the surface point of the contact and (3,) the
         outward unit normal the fingertip pushes along, both object frame, and
         the distance (m) between the stated contact and the fingertip's own.
     """
-    p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(c_obj))
+    p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in (stated or obj.closest_point(c_obj)))
     gap = float(np.linalg.norm(p_s + radius * n_s - tip_obj))
     if gap > TIP_DISTANCE_TOL:
         p_t, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tip_obj))
@@ -180,6 +186,7 @@ class _Checker:
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
         self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
+        self._surface_memo: dict[bytes, tuple[float, tuple[FloatArray, FloatArray]]] = {}
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
         """Record a violation of ``rule`` (a name of :data:`RULES`)."""
@@ -238,17 +245,30 @@ class _Checker:
             if abs(d_tip) > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface"
                 self.add(si, wi, "fingertip_distance", msg)
-            d_c = float(obj.signed_distance(c))
+            d_c, stated = self._surface(c)
             if abs(d_c) > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface"
                 self.add(si, wi, "contact_on_surface", msg)
-            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r)
+            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r, stated)
             if gap > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's"
                 self.add(si, wi, "contact_matches_fingertip", msg)
             pts.append(np.asarray(p_s).reshape(3))
             nrm.append(-np.asarray(n_s).reshape(3))
         return pts, nrm
+
+    def _surface(self, c: FloatArray) -> tuple[float, tuple[FloatArray, FloatArray]]:
+        """Signed distance and closest surface point of a stated contact, by exact value.
+
+        A contact is held over a whole transfer: its surface figures are
+        computed once (the same numbers give the same answers).
+        """
+        key = np.asarray(c, dtype=float).tobytes()
+        out = self._surface_memo.get(key)
+        if out is None:
+            p_s, n_s = self.obj.closest_point(c)
+            out = self._surface_memo[key] = (float(self.obj.signed_distance(c)), (p_s, n_s))
+        return out
 
     def collisions(self, si: int, wi: int, w: Waypoint) -> None:
         """``collision`` and ``penetration``."""
@@ -433,6 +453,34 @@ class _Checker:
             self.add(*last, "goal", msg)
 
 
+_HANDS: dict[str, Any] = {}
+_HANDS_SIZE = 4
+"""Hands rebuilt from plan files, by the ``hand`` table's content (most recent last)."""
+
+
+def _plan_hand(table: Mapping[str, Any]) -> Any:
+    """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
+
+    Many queries of one process carry the same hand: rebuilding its model
+    (URDF parsing, Pinocchio and coal geometry) for each plan cost as much as
+    checking a third of its waypoints. The key is the whole table (URDF text,
+    fingertip frames and radius, exclusions, joint names), so a plan of any
+    other hand is rebuilt from its own file, as before.
+    """
+    import json
+
+    from dexplan.plan_file import hand_from_plan
+
+    key = json.dumps(table, sort_keys=True)
+    hand = _HANDS.pop(key, None)
+    if hand is None:
+        hand = hand_from_plan(table)
+        if len(_HANDS) >= _HANDS_SIZE:
+            _HANDS.pop(next(iter(_HANDS)))
+    _HANDS[key] = hand
+    return hand
+
+
 def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
     """Check every rule of a ``dexplan-plan/1`` document.
 
@@ -452,7 +500,8 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
 
     validate_plan(doc, base_dir)
     try:
-        chk = _Checker(models_from_document(doc, Path(base_dir)))
+        hand = _plan_hand(doc["hand"])
+        chk = _Checker(models_from_document(doc, Path(base_dir), hand=hand))
     except PlanFileError:
         raise
     except DexplanError as exc:  # a mesh file that changed since validation, coal

@@ -30,7 +30,7 @@ def test_blocked_free_finger_move_falls_back_to_ompl() -> None:
         if ctx.world.is_free(q, pose, mask):
             free.append(q)
     pairs = itertools.combinations(free, 2)
-    blocked = [(a, b) for a, b in pairs if tr._segment_free(a, b, pose, mask) is None][:4]
+    blocked = [(a, b) for a, b in pairs if tr._segment_free(finger, a, b, pose, mask) is None][:4]
     assert blocked, "expected free configurations the straight line cannot join"
     found = 0
     for qa, qb in blocked:
@@ -180,3 +180,47 @@ def test_non_redundant_fingers_track_fewer_landings() -> None:
         for point, normal, _ in got:
             new = grasp.replace(0, point, normal)
             assert tr.grasp_quality(new, exact=True) > ctx.validity.settings.fc_margin
+
+
+def test_free_finger_checks_agree_with_the_full_check() -> None:
+    """A free finger's moves are checked on its own pairs: same answers as is_free.
+
+    From a collision-free reference (only the finger free), random postures of
+    that finger, colliding and not, get the full check's answer; a
+    configuration where another finger moves too, or another mask, falls back
+    to the full check.
+    """
+    from dexplan.scenario import load_scenario
+
+    for path, fingers in (
+        ("scenarios/paper_sphere.toml", (0, 2)),
+        ("scenarios/allegro_sphere.toml", (1, 3)),
+        ("scenarios/cube_obstacle.toml", (0,)),
+    ):
+        scenario = load_scenario(path)
+        ctx = build_context(scenario, seed=2)
+        tr, hand, world = ctx.transitions, ctx.hand, ctx.world
+        x = ctx.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+        assert x is not None
+        pose, q0 = x[:7], x[7:]
+        rng = np.random.default_rng(1)
+        for finger in fingers:
+            idx = hand.finger_q_index[finger]
+            mask = tuple(i != finger for i in range(hand.n_fingers))
+            ref = None
+            while ref is None:
+                q = q0.copy()
+                q[idx] = rng.uniform(hand.lower[idx], hand.upper[idx])
+                ref = q if world.is_free(q, pose, mask) else None
+            answers = []
+            for _ in range(150):
+                q = ref.copy()
+                q[idx] = rng.uniform(hand.lower[idx], hand.upper[idx])
+                full = world.is_free(q, pose, mask)
+                assert tr._moved_free(finger, q, ref, pose, mask) == full
+                answers.append(full)
+            assert any(answers) and not all(answers), path  # both kinds were met
+            other = hand.finger_q_index[(finger + 1) % hand.n_fingers]
+            q = ref.copy()
+            q[other] = hand.upper[other]
+            assert tr._moved_free(finger, q, ref, pose, mask) == world.is_free(q, pose, mask)

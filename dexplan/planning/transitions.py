@@ -206,6 +206,7 @@ class Transitions(Landings):
             self._finger_of_joint[idx] = i
         self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
         self._own_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
+        self._moving_pairs = [self._pairs_moving(i) for i in range(hand.n_fingers)]
         # landing postures found by track_score, keyed by (finger, fingertip centre)
         self._postures: dict[tuple[int, bytes], FloatArray] = {}
         # finger tracks by (finger, contact, joints of no finger): poses followed,
@@ -214,6 +215,10 @@ class Transitions(Landings):
         fingers = np.concatenate([np.asarray(i, dtype=np.int64) for i in hand.finger_q_index])
         self._shared_q = np.setdiff1d(np.arange(hand.nq), fingers)
         self._pose_frames: dict[bytes, tuple[FloatArray, pin.SE3]] = {}
+        n = hand.n_fingers
+        self._free_masks = [tuple(j != i for j in range(n)) for i in range(n)]
+        self._rest_q = [np.setdiff1d(np.arange(hand.nq), idx) for idx in hand.finger_q_index]
+        self._move_gd: dict[int, pin.GeometryData] = {}
 
     def _pairs_of_finger(self, finger: int) -> list[int]:
         """Collision pairs of a finger's links against the palm, object and obstacles.
@@ -235,6 +240,62 @@ class Transitions(Landings):
                 if other not in on_fingers:
                     out.append(k)
         return out
+
+    def _pairs_moving(self, finger: int) -> list[int]:
+        """The collision pairs a move of ``finger`` alone can change, while it is free.
+
+        Every pair with a geometry on the finger (its fingertip-object pair
+        included, as a free finger's is checked), except the other fingers'
+        fingertip-object pairs, which a contact mask with only ``finger`` free
+        switches off.
+        """
+        world = self.world
+        mine = set(world.finger_geoms[finger])
+        off = {k for j, k in enumerate(world._tip_object_pairs) if j != finger}
+        return [
+            k
+            for k, cp in enumerate(world.geom_model.collisionPairs)
+            if (cp.first in mine or cp.second in mine) and k not in off
+        ]
+
+    def _moved_free(
+        self, finger: int, q: FloatArray, ref: FloatArray, pose: FloatArray, mask: tuple[bool, ...]
+    ) -> bool:
+        """``world.is_free(q, pose, mask)`` when ``ref`` is a configuration it accepted.
+
+        ``q`` must differ from ``ref`` in ``finger``'s joints only, with only
+        ``finger`` free in ``mask``: every other pair, and the contact fingers'
+        penetration, are then as they were at ``ref`` (free), so only the
+        finger's own pairs (:meth:`_pairs_moving`) are checked. The answer is
+        the full check's; anything else gets the full check.
+        """
+        world, hand = self.world, self.hand
+        rest = self._rest_q[finger]
+        if mask != self._free_masks[finger] or not np.array_equal(q[rest], ref[rest]):
+            return world.is_free(q, pose, mask)
+        gm, gd = world.geom_model, self._move_data(finger)
+        pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
+        gd.oMg[world.object_geom] = self._frames(pose)[1]
+        return not pin.computeCollisions(gm, gd, True)
+
+    def _move_data(self, finger: int) -> pin.GeometryData:
+        """Geometry data of the world with only ``finger``'s moving pairs active (made once).
+
+        One C++ call then checks them (a Python loop over the pairs cost 3x more).
+        Collision requests are set as the world's own (contacts on).
+        """
+        gd = self._move_gd.get(finger)
+        if gd is None:
+            gd = pin.GeometryData(self.world.geom_model)
+            for req, own in zip(
+                gd.collisionRequests, self.world.geom_data.collisionRequests, strict=True
+            ):
+                req.enable_contact = own.enable_contact
+            gd.deactivateAllCollisionPairs()
+            for k in self._moving_pairs[finger]:
+                gd.activateCollisionPair(k)
+            self._move_gd[finger] = gd
+        return gd
 
     def _finger_free(self, finger: int, q: FloatArray, M_obj: pin.SE3) -> bool:
         """``finger``'s links at ``q: (nq,)`` clear of palm, object (pose ``M_obj``), obstacles."""
@@ -565,12 +626,13 @@ class Transitions(Landings):
             return None
         return [qa + (qb - qa) * (j / k) for j in range(k + 1)]
 
-    def _segment_free(self, qa, qb, pose, free_mask) -> list[FloatArray] | None:
+    def _segment_free(self, finger, qa, qb, pose, free_mask) -> list[FloatArray] | None:
+        """Joint-space line qa -> qb of ``finger`` (qa collision-free), checked; None if blocked."""
         sub = self._subdivide(qa, qb)
         if sub is None:
             return None
         for qi in sub[1:]:
-            if not self.world.is_free(qi, pose, free_mask):
+            if not self._moved_free(finger, qi, qa, pose, free_mask):
                 return None
         return sub
 
@@ -583,7 +645,7 @@ class Transitions(Landings):
         free_mask: tuple[bool, ...],
     ) -> list[FloatArray] | None:
         """Collision-free joint-space move of one finger: straight, via points, else OMPL."""
-        direct = self._segment_free(qa, qb, pose, free_mask)
+        direct = self._segment_free(finger, qa, qb, pose, free_mask)
         if direct is not None:
             return direct
         hand = self.hand
@@ -596,12 +658,12 @@ class Transitions(Landings):
         for k in np.argsort(cost):
             qv = qa.copy()
             qv[idx] = vias[k]
-            if not self.world.is_free(qv, pose, free_mask):
+            if not self._moved_free(finger, qv, qa, pose, free_mask):
                 continue
-            first = self._segment_free(qa, qv, pose, free_mask)
+            first = self._segment_free(finger, qa, qv, pose, free_mask)
             if first is None:
                 continue
-            second = self._segment_free(qv, qb, pose, free_mask)
+            second = self._segment_free(finger, qv, qb, pose, free_mask)
             if second is None:
                 continue
             return first + second[1:]
@@ -625,7 +687,7 @@ class Transitions(Landings):
         def free(q_f: FloatArray) -> bool:
             q = qa.copy()
             q[idx] = q_f
-            return self.world.is_free(q, pose, free_mask)
+            return self._moved_free(finger, q, qa, pose, free_mask)
 
         via = plan_joint_path(
             qa[idx],
@@ -645,7 +707,7 @@ class Transitions(Landings):
         for q_f in via[1:]:
             q = qa.copy()
             q[idx] = q_f
-            leg = self._segment_free(qs[-1], q, pose, free_mask)  # re-checked at our resolution
+            leg = self._segment_free(finger, qs[-1], q, pose, free_mask)  # at our resolution
             if leg is None:
                 return None
             qs.extend(leg[1:])
