@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import pose_to_se3
+from dexplan.grasp.halfspace import cannot_be_force_closure
 from dexplan.ik import nearest_branch, planar_branches
 from dexplan.pose import quat_to_matrix
 from dexplan.typing import FloatArray
@@ -32,6 +33,8 @@ if TYPE_CHECKING:
 
 #: Poses whose closed-form IK branches a track solves at once.
 _TRACK_BATCH = 16
+#: Poses (after the follow stride) scored at a time by ``follow_scores``.
+_FOLLOW_CHUNK = 4
 
 
 @dataclass
@@ -111,30 +114,53 @@ class Landings:
         """
         stride = max(1, self.settings.follow_stride)
         poses = future_poses[::stride]
-        C, P = len(candidates_tip_obj), len(poses)
-        targets = np.empty((P, C, 3))
-        for k, pose in enumerate(poses):
-            R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
-            targets[k] = candidates_tip_obj @ R.T + pose[:3]
+        C = len(candidates_tip_obj)
+        follow = np.zeros(C, dtype=np.int64)
+        alive = np.arange(C)
+        # a few poses at a time, for the candidates still followed: most stop
+        # within the first poses, and the IK of a redundant finger is costly
+        for lo in range(0, len(poses), _FOLLOW_CHUNK):
+            chunk = poses[lo : lo + _FOLLOW_CHUNK]
+            ok = self._follow_chunk(
+                finger,
+                candidates_tip_obj[alive],
+                chunk,
+                None if normals_obj is None else normals_obj[alive],
+            )
+            run = np.cumprod(ok, axis=0).sum(axis=0)
+            follow[alive] += run
+            alive = alive[run == len(chunk)]
+            if not len(alive):
+                break
+        return follow * stride
+
+    def _follow_chunk(
+        self,
+        finger: int,
+        tips_obj: FloatArray,
+        poses: FloatArray,
+        normals_obj: FloatArray | None,
+    ) -> np.ndarray:
+        """(P, C) where the finger reaches fingertip centres ``tips_obj: (C, 3)`` at ``poses``.
+
+        Reached: IK within the joint margin and, for a redundant finger with
+        ``normals_obj: (C, 3)`` given, the alignment bound of :meth:`follow_scores`.
+        """
+        C, P = len(tips_obj), len(poses)
+        Rs = [self._frames(pose)[0] for pose in poses]
+        targets = np.stack([tips_obj @ R.T + pose[:3] for R, pose in zip(Rs, poses, strict=True)])
         q, ok = self.hand.finger_ik_batch(finger, targets.reshape(-1, 3))
         idx = self.hand.finger_q_index[finger]
         ok &= np.all(q >= self._lo[idx], axis=1) & np.all(q <= self._hi[idx], axis=1)
         split = self.hand._split_ik[finger]
         limit = self.settings.landing_alignment
         if normals_obj is not None and split is not None and limit is not None and ok.any():
-            inward = np.empty((P, C, 3))
-            for k, pose in enumerate(poses):
-                R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
-                inward[k] = -normals_obj @ R.T
-            inward = inward.reshape(-1, 3)
+            inward = np.stack([-normals_obj @ R.T for R in Rs]).reshape(-1, 3)
             rows = np.flatnonzero(ok)
             axes = split.chain.forward(q[rows])[2][:, split.sub[1]]  # flexion-plane normals
             off = np.einsum("ij,ij->i", axes, inward[rows])
             ok[rows] = np.sqrt(np.maximum(0.0, 1.0 - off * off)) >= limit
-        ok = ok.reshape(P, C)
-        # consecutive successes from the first pose
-        follow = np.cumprod(ok, axis=0).sum(axis=0)
-        return follow * stride
+        return ok.reshape(P, C)
 
     def track_score(
         self,
@@ -398,6 +424,10 @@ class Landings:
         # a landing next to the current contact gains nothing
         moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
         keep = np.flatnonzero(apart & moved)
+        # the half-space test (sound, vectorised) before the exact force closure
+        normals = np.repeat(grasp.normals_out[None], len(keep), axis=0)
+        normals[:, finger] = nrm[keep]
+        keep = keep[~cannot_be_force_closure(normals, self.validity.mu)]
         if len(keep) == 0:
             return None
         # reachable now (one IK batch), then at most landing_reachable of them

@@ -37,6 +37,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import pose_to_se3
+from dexplan.grasp.halfspace import cannot_be_force_closure
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.validity import GraspValidity
@@ -522,32 +523,12 @@ class GraspSampler:
         return out
 
     def _cannot_hold(self, normals_out: FloatArray) -> np.ndarray:
-        """(M,) True where some required (sub)grasp cannot be force closure.
+        """(M,) True where a required (sub)grasp of ``normals_out: (M, k, 3)`` cannot hold.
 
-        ``normals_out: (M, k, 3)`` outward contact normals (any common
-        frame). The grasp, and with ``subgrasps`` each of its (k-1)-contact
-        subgrasps, is tested against the direction ``v`` of its mean inward
-        normal: when every inward normal is within ``90 deg - atan(mu)`` of
-        ``v`` (``v . n > sin(atan(mu))``), every friction cone (and every
-        soft-finger generator, whose force lies in the cone) is in the open
-        half-space ``v . f > 0``, so no positive combination of contact
-        forces is zero: not force closure, whatever the torques. A sound
-        rejection (never drops a grasp the validity check would accept).
+        The half-space test, :func:`dexplan.grasp.halfspace.cannot_be_force_closure`.
         """
         vs = self.validity.settings
-        inward = -normals_out
-        k = inward.shape[1]
-        if vs.subgrasps and k >= 2:
-            keep = ~np.eye(k, dtype=bool)  # row j: the subgrasp without contact j
-            subs = np.stack([inward[:, row] for row in keep], axis=1)  # (M, k, k-1, 3)
-        else:
-            subs = inward[:, None]  # (M, 1, k, 3)
-        mean = subs.sum(axis=2)
-        norm = np.linalg.norm(mean, axis=2, keepdims=True)
-        v = mean / np.maximum(norm, 1e-12)
-        cos = np.einsum("msc,msjc->msj", v, subs).min(axis=2)
-        bound = vs.mu / np.sqrt(1.0 + vs.mu * vs.mu)  # sin(atan(mu))
-        return np.any((cos > bound) & (norm[..., 0] > 1e-9), axis=1)
+        return cannot_be_force_closure(normals_out, vs.mu, subgrasps=vs.subgrasps)
 
     def combinations(
         self, pose_xyzquat: FloatArray, pools: dict[int, tuple[FloatArray, FloatArray, FloatArray]]
