@@ -463,7 +463,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
         check_output_path(args.rrd, "--rrd")
     doc = read_plan(args.plan)
     result = replay_plan(
-        doc, gravity=args.gravity, base_dir=Path(args.plan).resolve().parent, rate=args.rate
+        doc,
+        gravity=args.gravity,
+        base_dir=Path(args.plan).resolve().parent,
+        rate=args.rate,
+        feedback=not args.open_loop,
     )
     _check_interrupted()
     if args.rrd is not None:
@@ -664,6 +668,11 @@ def _add_replay(sub: Any) -> None:
     )
     grav.add_argument("--no-gravity", dest="gravity", action="store_false", help="without gravity")
     p_rep.add_argument("--rate", type=float, default=100.0, help="trajectory samples per second")
+    p_rep.add_argument(
+        "--open-loop",
+        action="store_true",
+        help="planned joints only, no object-pose feedback (docs/trajectory_format.md)",
+    )
     p_rep.add_argument(
         "--rrd", help="write a Rerun recording, plan and replay (needs the viz extra)"
     )

@@ -50,6 +50,7 @@ import pinocchio as pin
 
 from dexplan.exceptions import DependencyError, PlanFileError
 from dexplan.pose import quat_angle
+from dexplan.replay_control import CONTROL_PERIOD, FORCE_EVERY
 from dexplan.typing import FloatArray
 
 __all__ = [
@@ -427,6 +428,7 @@ def replay_plan(
     mass: float | None = None,
     gravity_vector: FloatArray | None = None,
     hand: Any = None,
+    feedback: bool = True,
 ) -> ReplayResult:
     """Simulate the plan in MuJoCo and measure how far the object strays from it.
 
@@ -438,6 +440,9 @@ def replay_plan(
         mass: object mass (kg), default the plan's ``object.mass`` or 0.1.
         gravity_vector: (3,) overrides the plan's gravity (world frame).
         hand: the plan's hand (rebuilt from the file when None).
+        feedback: correct the fingertip targets from the measured object pose
+            (:class:`dexplan.replay_control.ObjectFeedback`); False: the
+            planned joints open loop.
 
     Where no grip forces balance the wrench (a tampered plan) the fingers get
     no feed-forward there and only follow their targets; the result counts
@@ -464,7 +469,14 @@ def replay_plan(
         m = mujoco.MjModel.from_xml_string(xml)
     except Exception as exc:  # mujoco's ValueError
         raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
-    run = _Replay(mujoco, m, hand, tips, traj)
+    feedback_ctl = None
+    if feedback:
+        from dexplan.forces import solver_from_plan
+        from dexplan.replay_control import ObjectFeedback
+
+        solver = solver_from_plan(doc, settings, hand, base_dir)
+        feedback_ctl = ObjectFeedback(hand, traj, solver)
+    run = _Replay(mujoco, m, hand, tips, traj, feedback_ctl)
     run.simulate()
     return _replay_result(doc, gravity, traj, run)
 
@@ -556,7 +568,9 @@ class _Replay:
         drop_time: when the object first strayed more than :data:`DROP_TOL` (s), or None.
     """
 
-    def __init__(self, mujoco: Any, m: Any, hand: Any, tips: list[int], traj: Any) -> None:
+    def __init__(
+        self, mujoco: Any, m: Any, hand: Any, tips: list[int], traj: Any, feedback: Any = None
+    ) -> None:
         self.mujoco, self.m, self.traj = mujoco, m, traj
         self.d = mujoco.MjData(m)
         self.nq = hand.nq
@@ -572,6 +586,7 @@ class _Replay:
         n = hand.n_fingers
         self.n = n
         self.loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
+        self.feedback = feedback
         self.sim_pose = np.empty((traj.t.size, 7))
         self.sim_q = np.empty((traj.t.size, self.nq))
         self.rec_idx = 0
@@ -590,8 +605,20 @@ class _Replay:
         d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
         mujoco.mj_forward(m, d)
         steps_total = math.ceil((SETTLE_TIME + traj.t[-1]) / TIMESTEP) + 1
+        every = max(1, round(CONTROL_PERIOD / TIMESTEP))
+        target, ff_now = traj.q[0], traj.joint_torques[0]
+        pose_now = traj.object_pose[0]
         for step in range(steps_total):
-            i, target, ff = self._targets(step * TIMESTEP - SETTLE_TIME)
+            i, planned, ff, planned_pose = self._targets(step * TIMESTEP - SETTLE_TIME)
+            if self.feedback is None:
+                target = planned
+            elif step % every == 0:
+                q_sim = d.qpos[self.jq]
+                target = self.feedback.targets(i, planned, q_sim, planned_pose, pose_now)
+                if step % (every * FORCE_EVERY) == 0:
+                    ff_now = self.feedback.feed_forward(i, q_sim, pose_now, ff)
+            if self.feedback is not None:
+                ff = ff_now
             d.ctrl[: self.nq] = target
             d.qfrc_applied[:] = 0.0
             d.qfrc_applied[self.jv] = ff
@@ -609,11 +636,12 @@ class _Replay:
             self.sim_q[self.rec_idx] = self.sim_q[self.rec_idx - 1]
             self.rec_idx += 1
 
-    def _targets(self, now: float) -> tuple[int, FloatArray, FloatArray]:
-        """The sample before ``now`` and the joint targets and feed-forward torques at ``now``.
+    def _targets(self, now: float) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+        """The sample before ``now``, the planned joints, feed-forward torques and object pose.
 
-        Both are interpolated linearly between samples; ``now`` is clipped to
-        the trajectory (before its start: the start; after its end: the end).
+        All are interpolated linearly between samples (the quaternion
+        normalised); ``now`` is clipped to the trajectory (before its start:
+        the start; after its end: the end).
         """
         t, traj = self.traj.t, self.traj
         tt = min(max(now, 0.0), t[-1])
@@ -622,9 +650,14 @@ class _Replay:
             w = (tt - t[i]) / (t[i + 1] - t[i])
             target = (1 - w) * traj.q[i] + w * traj.q[i + 1]
             ff = (1 - w) * traj.joint_torques[i] + w * traj.joint_torques[i + 1]
+            a, b = traj.object_pose[i], traj.object_pose[i + 1]
+            if float(np.dot(a[3:], b[3:])) < 0.0:
+                b = np.concatenate([b[:3], -b[3:]])
+            pose = (1 - w) * a + w * b
+            pose[3:] /= np.linalg.norm(pose[3:])
         else:
-            target, ff = traj.q[i], traj.joint_torques[i]
-        return i, target, ff
+            target, ff, pose = traj.q[i], traj.joint_torques[i], traj.object_pose[i]
+        return i, target, ff, pose
 
     def _scan_contacts(self, i: int, now: float, pose_now: FloatArray) -> np.ndarray:
         """The fingertips touching the object; records penetration depth and slips.
