@@ -38,9 +38,16 @@ from scipy.sparse.csgraph import dijkstra
 from dexplan.exceptions import InvalidInputError, RoadmapFileError, shorten, unknown_field
 from dexplan.files import atomic_output
 from dexplan.objects.factory import field_key
+from dexplan.planning.chart import ChartProblem, ContactChart
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn import POSE_DIM
-from dexplan.planning.ompl import ConstraintSpec, GoalSpec, PlanningProblem, ProjectionSpec
+from dexplan.planning.ompl import (
+    MULTI_QUERY_PLANNERS,
+    ConstraintSpec,
+    GoalSpec,
+    PlanningProblem,
+    ProjectionSpec,
+)
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_object_path
 from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
@@ -552,6 +559,9 @@ ROUND_ITERATIONS = 50
 ROUND_MILESTONES = 4
 """Roadmap size after a PRM-family planner's first module-1 round (doubling per round)."""
 
+CHART_RANGE = 0.5
+"""Default ``range`` of tree planners on the contact chart (planning units)."""
+
 
 def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
     """Object-pose distance of two states: translation / length + rotation angle."""
@@ -732,19 +742,64 @@ def _query_problem(
     params: Mapping[str, Any] | None,
     space: str,
     seed: int,
-) -> PlanningProblem:
-    """The OMPL problem of a query: :func:`gsn_problem` with its start and goal."""
+) -> PlanningProblem | ChartProblem:
+    """The OMPL problem of a query, with its start and goal.
+
+    Tree planners search the contact chart (:func:`chart_problem`) when it
+    represents the start state; the PRM family (which draws the RLG
+    sampler's states) and unrepresentable starts use :func:`gsn_problem`.
+    """
+
+    def distance(x: FloatArray) -> float:
+        return query.goal_test(x)[1]
+
+    if planner not in MULTI_QUERY_PLANNERS:
+        charted = chart_problem(ctx, planner, params, space, seed, query.start)
+        if charted is not None:
+            charted.set_query(query.start, distance, 1.0, query.goal_sampler)
+            return charted
     problem = gsn_problem(ctx, planner, params, space, seed)
     problem.set_start(query.start)
-    problem.set_goal(
-        GoalSpec(distance=lambda x: query.goal_test(x)[1], threshold=1.0, sample=query.goal_sampler)
-    )
+    problem.set_goal(GoalSpec(distance=distance, threshold=1.0, sample=query.goal_sampler))
     return problem
+
+
+def chart_problem(
+    ctx: PlanningContext,
+    planner: str,
+    params: Mapping[str, Any] | None,
+    space: str,
+    seed: int,
+    start: FloatArray,
+) -> ChartProblem | None:
+    """The OMPL problem over GSn's contact chart (:mod:`dexplan.planning.chart`), or None.
+
+    None when rays from the object's origin do not parameterise its surface,
+    or when the chart does not map the start state back onto itself (within
+    1e-7). Planners with a ``range`` get :data:`CHART_RANGE` unless ``params``
+    sets one.
+    """
+    if not ContactChart.applies(ctx.gsn):
+        return None
+    chart = ContactChart(ctx.gsn, ctx.validity.is_valid)
+    if chart.round_trip_error(start) > 1e-7:
+        return None
+    problem = PlanningProblem(
+        chart.constraint_spec(1.0 / (2.0 * ctx.obj.characteristic_length), space),
+        chart.is_valid_chart,
+        planner=planner,
+        params=dict(params or {}),
+        projection=orientation_projection(),
+        seed=seed,
+    )
+    if "range" not in (params or {}) and "range" in problem.parameters():
+        problem.set_param("range", CHART_RANGE)
+    return ChartProblem(chart, problem)
 
 
 def _module1_round(
     ctx: PlanningContext,
-    problem: PlanningProblem,
+    problem: PlanningProblem | ChartProblem,
     query: GsnQuery,
     planner: str,
     key: str,
@@ -796,7 +851,7 @@ def _roadmap_path(
     return np.asarray(checked.path) if checked.path_valid else None
 
 
-def _geodesic(problem: PlanningProblem) -> Geodesic:
+def _geodesic(problem: PlanningProblem | ChartProblem) -> Geodesic:
     """GSn motions of a roadmap's edges, re-checked in travel direction."""
 
     def states(a: FloatArray, b: FloatArray) -> FloatArray | None:

@@ -1,0 +1,376 @@
+"""GSn in the paper's own coordinates: object pose and one contact direction per finger.
+
+The ompl 2.0.1 wheel cannot give a tree planner (RRT, RRTConnect, the KPIECE
+family, FMT, BITstar...) a Python state sampler (no
+``StateSpace.setStateSamplerAllocator`` binding; Python overrides of
+``allocDefaultStateSampler``, on the constrained space or on its ambient space,
+are ignored: measured). Those planners draw uniform ambient states of
+``(object pose, hand joints)`` and project them onto GSn, and on a box that
+projection mostly fails. This module gives them a space in which every ambient
+sample projects at once: the **contact chart**
+
+    y = [x, y, z, qx, qy, qz, qw, d_1 (3), ..., d_k (3), q_free...]
+
+object position and quaternion, then for each contact finger a unit direction
+``d_i`` in the object frame, then the joints of the fingers not in contact
+(none on GSn). The constraint rows are ``|quat|^2 - 1`` and ``|d_i|^2 - 1``:
+a product of spheres, onto which OMPL's Newton projection converges from any
+point not at the origin, and along which OMPL's discrete geodesics stay close
+to straight lines in ``y``.
+
+A chart state maps to an ambient GSn state (:meth:`ContactChart.to_ambient`):
+the fingertip-sphere centre of finger i is where the ray from the object-frame
+origin along ``d_i`` meets the offset surface ``{p : sdf(p) = r}`` (r the tip
+radius), found by safeguarded Newton steps from outside (monotone on convex
+objects: the signed distance is convex along the ray); the finger's joints are
+its IK solution nearest the hand's neutral posture. The offset surface of a box
+has rounded edges of radius r, so a chart motion may roll a fingertip over an
+edge: the map is continuous there. The ambient state then goes to the usual
+validity checker (bounds, joint limits, collisions, force closure). Hence the
+tree planners sample the paper's coordinates natively, interpolation keeps
+every state exactly on GSn (no projection of hand joints), and motions are
+symmetric (a -> b valid iff b -> a).
+
+The inverse (:meth:`ContactChart.to_chart`) reads the pose and each fingertip
+centre's direction from the origin. It is exact for star-shaped offset
+surfaces seen from the origin (every primitive, convex meshes); a caller checks
+:meth:`ContactChart.round_trip_error` on its start state and falls back to the
+ambient space when the chart cannot represent it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from dexplan.planning.gsn import POSE_DIM, GraspSubspace
+from dexplan.planning.ompl import (
+    ConstraintSpec,
+    GoalSpec,
+    PathCheck,
+    PlanningProblem,
+    RoadmapData,
+    SolveResult,
+)
+from dexplan.pose import quat_to_matrix
+from dexplan.typing import FloatArray
+
+__all__ = ["GOAL_POOL", "RAY_ITERATIONS", "RAY_TOLERANCE", "ChartProblem", "ContactChart"]
+
+RAY_ITERATIONS = 40
+"""Newton/bisection steps allowed to find one fingertip centre on a ray."""
+
+RAY_TOLERANCE = 1e-10
+"""|sdf(p) - r| (m) at which a fingertip centre on a ray is accepted."""
+
+GOAL_POOL = 10
+"""Goal states drawn per query; later goal requests reuse them in turn."""
+
+_CACHE_MAX = 200_000
+"""Chart states whose ambient image is kept (tree vertices are read every round)."""
+
+_PIN_BOUND = 1e-12
+"""Bound of the pinned coordinate: every ambient sample is within tolerance of f = 0."""
+
+_MIN_NORM = 1e-3
+"""Quaternions and directions shorter than this do not map (no direction)."""
+
+
+class ContactChart:
+    """The contact chart of a grasp subspace: chart states ``y`` <-> ambient states ``x``.
+
+    Args:
+        gsn: the grasp subspace (its hand, object, contact fingers and bounds).
+        is_valid: ``is_valid(x) -> bool``, the ambient validity checker.
+
+    Raises:
+        ValueError: the object-frame origin is not inside the object (rays
+            from it would not cross the surface once); use :meth:`applies`
+            first.
+    """
+
+    def __init__(self, gsn: GraspSubspace, is_valid: Callable[[FloatArray], Any]) -> None:
+        if not self.applies(gsn):
+            raise ValueError("the object-frame origin is not inside the object")
+        self.gsn = gsn
+        self.is_valid = is_valid
+        hand = gsn.hand
+        self.contact_ids = tuple(gsn.contact_ids)
+        self.free_ids = tuple(i for i in range(hand.n_fingers) if i not in self.contact_ids)
+        self._free_q = np.array(
+            [j for i in self.free_ids for j in hand.finger_q_index[i]], dtype=np.int64
+        )
+        self.k = len(self.contact_ids)
+        self.dim = POSE_DIM + 3 * self.k + len(self._free_q) + 1
+        self._radius = float(hand.fingertip_radius)
+        self._t_max = float(gsn.obj.bounding_radius) + self._radius + 1e-3
+        self._neutral = np.asarray(hand.neutral, dtype=np.float64)
+        self._cache: dict[bytes, FloatArray | None] = {}
+        self.stats = {"maps": 0, "ray_failures": 0, "ik_failures": 0}
+
+    @staticmethod
+    def applies(gsn: GraspSubspace) -> bool:
+        """Whether rays from the object-frame origin can parameterise contacts."""
+        return float(gsn.obj.signed_distance(np.zeros(3))) < 0.0
+
+    # ---------------------------------------------------------------- layout
+    def bounds(self) -> tuple[FloatArray, FloatArray]:
+        """``(lower, upper)`` of chart states: the GSn bounds of the pose and free joints."""
+        g, hand = self.gsn, self.gsn.hand
+        ones = np.ones(3 * self.k)
+        lo = np.concatenate([g.lower[:POSE_DIM], -ones, hand.lower[self._free_q], [-_PIN_BOUND]])
+        up = np.concatenate([g.upper[:POSE_DIM], ones, hand.upper[self._free_q], [_PIN_BOUND]])
+        return lo, up
+
+    @staticmethod
+    def function(y: FloatArray) -> FloatArray:
+        """The one constraint row: the pinned last coordinate."""
+        return y[-1:]
+
+    def jacobian(self, y: FloatArray) -> FloatArray:
+        """Constraint Jacobian ``(1, dim)``."""
+        J = np.zeros((1, self.dim))
+        J[0, -1] = 1.0
+        return J
+
+    def constraint_spec(
+        self, scale_position: float, space: str = "projected", delta: float = 0.15
+    ) -> ConstraintSpec:
+        """The chart as an OMPL constraint; positions scaled by ``scale_position``."""
+        lo, up = self.bounds()
+        scale = np.ones(self.dim)
+        scale[:3] = scale_position
+        return ConstraintSpec(
+            ambient_dim=self.dim,
+            co_dim=1,
+            function=self.function,
+            jacobian=self.jacobian,
+            lower=lo,
+            upper=up,
+            tolerance=1e-9,
+            space=space,  # type: ignore[arg-type]
+            scale=scale,
+            delta=delta,
+        )
+
+    # ------------------------------------------------------------------ maps
+    def tip_centres(self, dirs: FloatArray) -> FloatArray | None:
+        """Fingertip centres ``(k, 3)`` (object frame) on the offset surface along ``dirs``.
+
+        Newton steps on ``g(t) = sdf(t d) - r`` from ``t_max`` (outside), kept
+        inside the bracket ``[lo, hi]`` with ``g(lo) < 0 < g(hi)`` by bisection.
+
+        Returns:
+            The centres, or None when a ray did not converge.
+        """
+        obj, r = self.gsn.obj, self._radius
+        k = len(dirs)
+        lo = np.zeros(k)
+        hi = np.full(k, self._t_max)
+        t = hi.copy()
+        for _ in range(RAY_ITERATIONS):
+            d, grad = obj.signed_distance_and_gradient(t[:, None] * dirs)
+            g = np.atleast_1d(d) - r
+            if np.all(np.abs(g) < RAY_TOLERANCE):
+                return t[:, None] * dirs
+            grad = np.asarray(grad).reshape(k, 3)
+            below = g < 0.0
+            lo = np.where(below, t, lo)
+            hi = np.where(below, hi, t)
+            slope = np.einsum("ij,ij->i", grad, dirs)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = t - g / slope
+            ok = (slope > 1e-9) & (step > lo) & (step < hi)
+            t = np.where(np.abs(g) < RAY_TOLERANCE, t, np.where(ok, step, 0.5 * (lo + hi)))
+        self.stats["ray_failures"] += 1
+        return None
+
+    def to_ambient(self, y: FloatArray) -> FloatArray | None:
+        """The ambient GSn state ``(7 + nq,)`` of a chart state, or None (no IK, no ray).
+
+        Cached: OMPL asks for the same state's validity, distance and vertex data.
+        """
+        key = y.tobytes()
+        if key in self._cache:
+            return self._cache[key]
+        x = self._map(np.asarray(y, dtype=np.float64))
+        if len(self._cache) >= _CACHE_MAX:
+            self._cache.clear()
+        self._cache[key] = x
+        return x
+
+    def _map(self, y: FloatArray) -> FloatArray | None:
+        self.stats["maps"] += 1
+        hand = self.gsn.hand
+        qn = math.sqrt(float(y[3:POSE_DIM] @ y[3:POSE_DIM]))
+        d = y[POSE_DIM : POSE_DIM + 3 * self.k].reshape(self.k, 3)
+        dn = np.linalg.norm(d, axis=1)
+        if qn < _MIN_NORM or np.any(dn < _MIN_NORM):
+            return None
+        quat = y[3:POSE_DIM] / qn
+        R = quat_to_matrix(quat)
+        tips = self.tip_centres((d / dn[:, None]) @ R)  # world directions, object frame
+        if tips is None:
+            return None
+        world = tips @ R.T + y[:3]
+        q = self._neutral.copy()
+        if len(self._free_q):
+            q[self._free_q] = y[POSE_DIM + 3 * self.k : -1]
+        for row, i in enumerate(self.contact_ids):
+            sol = hand.finger_ik_fast(i, world[row], self._neutral)
+            if sol is None:
+                self.stats["ik_failures"] += 1
+                return None
+            q[hand.finger_q_index[i]] = sol
+        return np.concatenate([y[:3], quat, q])
+
+    def to_chart(self, x: FloatArray) -> FloatArray:
+        """The chart state of an ambient GSn state (pose, tip-centre directions, free joints)."""
+        x = np.asarray(x, dtype=np.float64)
+        tips = self.gsn.hand.fingertip_positions(x[POSE_DIM:])[list(self.contact_ids)] - x[:3]
+        dirs = tips / np.linalg.norm(tips, axis=1, keepdims=True)
+        quat = x[3:POSE_DIM] / np.linalg.norm(x[3:POSE_DIM])
+        free = x[POSE_DIM:][self._free_q]
+        return np.concatenate([x[:3], quat, dirs.reshape(-1), free, [0.0]])
+
+    def round_trip_error(self, x: FloatArray) -> float:
+        """Largest coordinate change of ``x -> to_chart -> to_ambient`` (inf when it fails)."""
+        back = self.to_ambient(self.to_chart(x))
+        if back is None:
+            return math.inf
+        return float(np.max(np.abs(back - np.asarray(x, dtype=np.float64))))
+
+    def is_valid_chart(self, y: FloatArray) -> bool:
+        """Validity of a chart state: it maps (rays, IK) and its ambient state is valid."""
+        x = self.to_ambient(y)
+        return x is not None and bool(self.is_valid(x))
+
+    def path_to_ambient(self, ys: FloatArray) -> FloatArray | None:
+        """Ambient states ``(K, 7 + nq)`` of chart states ``(K, dim)``, or None if one fails."""
+        out = []
+        for y in np.asarray(ys, dtype=np.float64):
+            x = self.to_ambient(y)
+            if x is None:
+                return None
+            out.append(x)
+        return np.array(out).reshape(-1, self.gsn.ambient_dim)
+
+
+class ChartProblem:
+    """A :class:`PlanningProblem` over the contact chart, seen in ambient GSn states.
+
+    It answers what module 1 asks of a problem (:meth:`solve`,
+    :meth:`planner_data`, :meth:`check_path`) with ambient ``(7 + nq,)``
+    states, so roadmaps, module 2 and the reduction never see chart states.
+    Start, goal states and goal samples are converted with
+    :meth:`ContactChart.to_chart`; OMPL's returned path is re-checked in
+    travel direction in chart coordinates, densified there, then mapped.
+
+    Args:
+        chart: the contact chart.
+        problem: the OMPL problem over the chart (its validity checker is
+            :meth:`ContactChart.is_valid_chart`).
+    """
+
+    def __init__(self, chart: ContactChart, problem: PlanningProblem) -> None:
+        self.chart = chart
+        self.problem = problem
+
+    @property
+    def is_multi_query(self) -> bool:
+        """Whether the planner keeps a roadmap across queries (PRM family)."""
+        return self.problem.is_multi_query
+
+    def set_query(
+        self,
+        start: FloatArray,
+        distance: Callable[[FloatArray], float],
+        threshold: float,
+        sample: Callable[[], FloatArray | None],
+    ) -> None:
+        """Set the start (ambient) and the goal region (ambient distance and sampler)."""
+        chart = self.chart
+
+        def chart_distance(y: FloatArray) -> float:
+            x = chart.to_ambient(y)
+            return math.inf if x is None else float(distance(x))
+
+        pool: list[FloatArray] = []
+        turn = [0]
+
+        def chart_sample() -> FloatArray | None:
+            # RRT's goal bias asks for a goal state on every biased iteration:
+            # the first GOAL_POOL draws are kept and handed out in turn.
+            if len(pool) >= GOAL_POOL:
+                turn[0] += 1
+                return pool[turn[0] % len(pool)]
+            x = sample()
+            if x is None:
+                return None
+            pool.append(chart.to_chart(x))
+            return pool[-1]
+
+        self.problem.set_start(chart.to_chart(start))
+        self.problem.set_goal(GoalSpec(chart_distance, threshold, sample=chart_sample))
+
+    def grow_roadmap(self, time_limit: float, max_milestones: int | None = None) -> int:
+        """:meth:`PlanningProblem.grow_roadmap`."""
+        return self.problem.grow_roadmap(time_limit, max_milestones=max_milestones)
+
+    def solve(self, time_limit: float, *, max_iterations: int | None = None) -> SolveResult:
+        """:meth:`PlanningProblem.solve`, the path and waypoints as ambient states."""
+        res = self.problem.solve(time_limit, max_iterations=max_iterations)
+        if res.path is None:
+            return res
+        path = self.chart.path_to_ambient(res.path)
+        waypoints = None if res.waypoints is None else self.chart.path_to_ambient(res.waypoints)
+        if path is None:
+            return dataclasses.replace(
+                res, status="path_invalid", solved=False, path_valid=False, path=None
+            )
+        return dataclasses.replace(res, path=path, waypoints=waypoints)
+
+    def planner_data(self) -> RoadmapData:
+        """The planner's graph with ambient vertices.
+
+        OMPL's ``ConstrainedMotionValidator`` does not check a motion's end
+        state, so a tree may hold states the chart cannot map (a finger out
+        of reach): those vertices and their edges are left out.
+        """
+        data = self.problem.planner_data()
+        dim = self.chart.gsn.ambient_dim
+        mapped = [self.chart.to_ambient(y) for y in np.asarray(data.vertices, dtype=np.float64)]
+        keep = np.array([x is not None for x in mapped], dtype=bool)
+        new_id = np.cumsum(keep) - 1
+        edges = np.asarray(data.edges, dtype=np.int64).reshape(-1, 2)
+        edges = new_id[edges[keep[edges].all(axis=1)]] if len(edges) else edges
+        vertices = np.array([x for x in mapped if x is not None]).reshape(-1, dim)
+
+        def ids(a: Any) -> Any:
+            a = np.asarray(a, dtype=np.int64)
+            return new_id[a[keep[a]]]
+
+        return RoadmapData(
+            vertices=vertices,
+            edges=edges.reshape(-1, 2),
+            start_ids=ids(data.start_ids),
+            goal_ids=ids(data.goal_ids),
+        )
+
+    def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
+        """Re-check ambient waypoints in travel direction along chart motions.
+
+        The waypoints must be chart-representable (:meth:`ContactChart.to_chart`
+        of each maps back to it): the check is made on the chart states.
+        """
+        ys = np.array([self.chart.to_chart(x) for x in np.asarray(waypoints, dtype=np.float64)])
+        checked = self.problem.check_path(ys, interpolate=interpolate)
+        given = np.asarray(waypoints, dtype=np.float64)
+        path = self.chart.path_to_ambient(checked.path)
+        if path is None:
+            return dataclasses.replace(checked, path=given, waypoints=given, path_valid=False)
+        return dataclasses.replace(checked, path=path, waypoints=given)
