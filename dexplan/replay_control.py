@@ -40,14 +40,16 @@ __all__ = ["CONTROL_PERIOD", "FORCE_EVERY", "LIFT_BLEND", "ObjectFeedback", "pos
 
 #: Feedback update period (s); the grip forces are recomputed every FORCE_EVERY updates.
 CONTROL_PERIOD = 0.005
-FORCE_EVERY = 4
+FORCE_EVERY = 10
 #: A released finger's offset from the plan fades out as the plan lifts its tip this far (m).
 LIFT_BLEND = 0.01
 #: Pull of a redundant finger's null space toward the planned joints (per update).
 NULL_GAIN = 0.1
-#: Largest tip correction per update (m) and the damping of the least squares step (m).
+#: Largest tip correction (m) and joint step (rad) per update; the damping of the
+#: least squares step (m): near full extension a finger's joint steps blow up.
 MAX_CORRECTION = 0.02
-_DAMPING = 1e-3
+MAX_JOINT_STEP = 0.05
+_DAMPING = 5e-3
 
 
 def pose_se3(p: FloatArray) -> pin.SE3:
@@ -57,8 +59,10 @@ def pose_se3(p: FloatArray) -> pin.SE3:
 
 
 def _dls(J: FloatArray, dx: FloatArray) -> FloatArray:
-    """Damped least squares joint step for a tip displacement ``dx`` (3,)."""
-    return J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), dx)
+    """Damped least squares joint step (at most MAX_JOINT_STEP) for a tip displacement ``dx``."""
+    dq = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), dx)
+    big = float(np.abs(dq).max(initial=0.0))
+    return dq if big <= MAX_JOINT_STEP else dq * (MAX_JOINT_STEP / big)
 
 
 def _clip(dx: FloatArray) -> FloatArray:
@@ -131,9 +135,10 @@ class ObjectFeedback:
                 keep = max(0.0, 1.0 - self.lifted[f] / LIFT_BLEND)
                 goal = Xm.act(plan_tip + keep * self.offset[f])
             J = J_sim[f]
-            dq = _dls(J, _clip(goal - p_sim[f]))
-            null = np.eye(len(ix)) - np.linalg.pinv(J) @ J
-            out[ix] = q_sim[ix] + dq + NULL_GAIN * null @ (q_plan[ix] - q_sim[ix])
+            out[ix] = q_sim[ix] + _dls(J, _clip(goal - p_sim[f]))
+            if len(ix) > 3:  # a redundant finger: its null space toward the plan
+                null = np.eye(len(ix)) - np.linalg.pinv(J) @ J
+                out[ix] += NULL_GAIN * null @ (q_plan[ix] - q_sim[ix])
         return np.clip(out, self.lower, self.upper)
 
     def feed_forward(
