@@ -93,6 +93,8 @@ def cmd_roadmap_build(args: argparse.Namespace, check_interrupted: Callable[[], 
         time_limit=args.time,
         nodes=args.nodes,
         max_link_attempts=args.link_attempts,
+        jobs=args.jobs,
+        ray_address=args.ray,
     )
     check_output_path(args.output, "-o")
     hand = build_hand(scenario)
@@ -112,6 +114,7 @@ def cmd_roadmap_build(args: argparse.Namespace, check_interrupted: Callable[[], 
         f"components: {st.components}  (GSn edges alone: {st.gsn_components})\n"
         f"time_s: {st.time_s:.3f}  (module 1 {st.module1_time_s:.3f}, "
         f"module 2 {st.module2_time_s:.3f})\n"
+        + (f"workers: {st.workers}  tasks: {st.tasks}\n" if st.tasks else "")
     )
     return 0
 
@@ -159,6 +162,18 @@ def add_roadmap(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> No
         type=int,
         help="most module-2 link attempts (default: until merged, or 20 per component "
         "with --nodes)",
+    )
+    p_b.add_argument(
+        "--jobs",
+        type=int,
+        help="build in tasks over K local processes (the same roadmap for a seed and "
+        "--nodes whatever K; 1: tasks in this process)",
+    )
+    p_b.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="build in tasks over a Ray cluster (auto, ray://HOST:10001, or local; "
+        "needs dexplan[ray]); --jobs caps the workers",
     )
     p_b.add_argument("-o", "--output", required=True, help="roadmap file (.npz)")
     p_b.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")

@@ -29,6 +29,8 @@ import numpy as np
 
 from dexplan.exceptions import InvalidInputError
 from dexplan.hand import Hand
+from dexplan.planning import build_tasks as bt
+from dexplan.planning.build_tasks import MAX_JOBS
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import MULTI_QUERY_PLANNERS, PlanningProblem, check_planner
@@ -70,6 +72,12 @@ class BuildSettings:
         nodes: module-1 roadmap size (vertices), or None.
         max_link_attempts: most module-2 link attempts (None: until merged or
             out of time; with ``nodes`` and no time limit, 20 per component).
+        jobs: build in tasks (:mod:`dexplan.planning.build_tasks`) over this
+            many local processes (1: tasks in this process); None: the serial
+            OMPL build, unless ``ray_address`` is given.
+        ray_address: build in tasks over a Ray cluster (``auto``, a
+            ``ray://host:port`` address, or ``local`` for a Ray instance
+            started here); ``jobs`` then caps the actors.
     """
 
     planner: str = "PRM"
@@ -77,6 +85,13 @@ class BuildSettings:
     time_limit: float | None = None
     nodes: int | None = None
     max_link_attempts: int | None = None
+    jobs: int | None = None
+    ray_address: str | None = None
+
+    @property
+    def tasks(self) -> bool:
+        """Whether the build runs in tasks (``--jobs`` or ``--ray``)."""
+        return self.jobs is not None or self.ray_address is not None
 
     def __post_init__(self) -> None:
         if (self.time_limit is None) == (self.nodes is None):
@@ -87,6 +102,8 @@ class BuildSettings:
             )
         if self.nodes is not None and not 2 <= self.nodes <= MAX_NODES:
             raise InvalidInputError(f"--nodes must be in [2, {MAX_NODES}], got {self.nodes}")
+        if self.jobs is not None and not 1 <= self.jobs <= MAX_JOBS:
+            raise InvalidInputError(f"--jobs must be in [1, {MAX_JOBS}], got {self.jobs}")
         if self.planner not in MULTI_QUERY_PLANNERS:
             raise InvalidInputError(
                 f"--planner: a roadmap is built by a multi-query planner "
@@ -107,6 +124,8 @@ class BuildStats:
         link_attempts: module-2 link attempts.
         module1_time_s, module2_time_s, time_s: seconds.
         time_limit: the budget (s), or None. target_nodes: the node target, or None.
+        workers: processes or Ray actors the tasks ran on (1: the serial build).
+        tasks: build tasks run (0: the serial build).
     """
 
     planner: str
@@ -123,6 +142,8 @@ class BuildStats:
     time_s: float
     time_limit: float | None
     target_nodes: int | None
+    workers: int = 1
+    tasks: int = 0
 
     def as_dict(self) -> dict[str, object]:
         """The stats as a JSON-ready mapping."""
@@ -170,6 +191,8 @@ def build_roadmap(
         InvalidInputError: bad settings or planner parameters.
     """
     check_planner(settings.planner, scenario.planner.params)
+    if settings.tasks:
+        return _build_in_tasks(scenario, settings, hand, progress)
     t0 = time.perf_counter()
     ctx = learning_context(scenario, settings.seed, hand)
     budget = settings.time_limit if settings.time_limit is not None else MAX_TIME_LIMIT
@@ -419,3 +442,78 @@ def _nearest_pairs(
             best.append((float(d[i, j]), int(chunk[i]), int(dst[j])))
     best.sort()
     return [(a, b) for _, a, b in best[:k]]
+
+
+def _build_in_tasks(
+    scenario: Scenario, settings: BuildSettings, hand: Hand | None, progress: Progress | None
+) -> tuple[Roadmap, BuildStats]:
+    """:func:`build_roadmap` in tasks over workers (:mod:`dexplan.planning.build_tasks`)."""
+    t0 = time.perf_counter()
+    ctx = learning_context(scenario, settings.seed, hand)
+    budget = settings.time_limit if settings.time_limit is not None else MAX_TIME_LIMIT
+    timed = settings.time_limit is not None
+
+    def say(stage: Stage, message: str, **counts: int) -> None:
+        if progress is not None:
+            progress(ProgressEvent(stage, message, time.perf_counter() - t0, counts))
+
+    space = scenario.planner.space
+    runner = bt.make_runner(scenario, space, settings.jobs, settings.ray_address, ctx.hand)
+    try:
+        targets = _task_targets(settings.nodes, runner.workers)
+        limit = settings.max_link_attempts
+        if limit is None and not timed:
+            limit = -1  # 20 per component, fixed after module 1
+        st = bt.run_build(
+            runner,
+            ctx,
+            settings.seed,
+            lambda: next(targets),
+            t0 + (MODULE1_SHARE * budget if timed else budget),
+            t0 + budget,
+            say,
+            limit,
+            space,
+        )
+    finally:
+        runner.close()
+    roadmap = bt.st_roadmap(st, settings.planner, scenario_key(ctx))
+    t_m1 = st.module1_time_s
+    stats = BuildStats(
+        planner=settings.planner,
+        seed=settings.seed,
+        nodes=roadmap.n_vertices,
+        edges=len(roadmap.edges),
+        links=len(roadmap.links),
+        gsn_components=roadmap.components(with_links=False)[0],
+        components=roadmap.components()[0],
+        rounds=st.rounds,
+        link_attempts=st.link_attempts,
+        module1_time_s=round(t_m1, 6),
+        module2_time_s=round(time.perf_counter() - t0 - t_m1, 6),
+        time_s=round(time.perf_counter() - t0, 6),
+        time_limit=settings.time_limit,
+        target_nodes=settings.nodes,
+        workers=runner.workers,
+        tasks=st.sample_tasks + st.edge_tasks + st.link_attempts,
+    )
+    roadmap.build = stats.as_dict()
+    return roadmap, stats
+
+
+def _task_targets(nodes: int | None, workers: int) -> Iterator[int | None]:
+    """Vertex targets of the task build's module-1 rounds (None: no more rounds).
+
+    With ``nodes``: doubling from :data:`FIRST_ROUND_MILESTONES` up to it,
+    whatever the worker count (the roadmap must not depend on it). With a time
+    limit: doubling, by at most 64 vertices per worker a round, so the last
+    round does not overrun the budget by much.
+    """
+    if nodes is not None:
+        yield from _round_targets(nodes)
+        while True:
+            yield None
+    target = FIRST_ROUND_MILESTONES
+    while True:
+        yield target
+        target += min(target, 64 * workers)
