@@ -98,3 +98,31 @@ def test_object_clearance_to_obstacles(paper_hand: Hand) -> None:
         assert not world.object_collides(pose)
     assert world.object_clearance(CENTRE) <= 0.0 and world.object_collides(CENTRE)
     assert CollisionWorld(paper_hand, Sphere(0.01)).object_clearance(CENTRE) == np.inf
+
+
+def test_pair_subset_answers_as_its_pairs_one_by_one() -> None:
+    """``pairs_collide`` over a subset of pairs agrees with checking them one at a time."""
+    import pinocchio as pin
+
+    from dexplan.collision import pose_to_se3
+    from dexplan.planning.context import build_context
+    from dexplan.scenario import load_scenario
+
+    ctx = build_context(load_scenario("dexplan/data/scenarios/allegro_sphere.toml"), seed=1)
+    world, hand = ctx.world, ctx.hand
+    gm = world.geom_model
+    rng = np.random.default_rng(2)
+    pairs = [k for k in range(len(gm.collisionPairs)) if k % 3 == 0]
+    gd = world.pairs_data(pairs)
+    pose = ctx.scenario.start.object_pose_xyzquat
+    M = pose_to_se3(pose)
+    seen = set()
+    for _ in range(200):
+        q = rng.uniform(hand.lower, hand.upper)
+        ref = world.geom_data
+        pin.updateGeometryPlacements(hand.model, hand.data, gm, ref, q)
+        ref.oMg[world.object_geom] = M
+        expected = any(pin.computeCollision(gm, ref, k) for k in pairs)
+        assert world.pairs_collide(gd, q, M) == expected
+        seen.add(expected)
+    assert seen == {True, False}

@@ -167,6 +167,8 @@ class GraspSampler:
             per_finger = any(len(idx) > 3 for idx in hand.finger_q_index)
         self.per_finger = bool(per_finger)
         self._finger_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
+        world = validity.world
+        self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
         self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
         # ranked combinations left at the last random pose that gave a valid grasp
         self._pending: list[FloatArray] = []
@@ -450,7 +452,6 @@ class GraspSampler:
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         world = self.validity.world
-        gm, gd = world.geom_model, world.geom_data
         pts, n_out = self.gsn.obj.sample_surface(s.pool_candidates, rng)
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
@@ -474,9 +475,7 @@ class GraspSampler:
             options = options[np.argsort(-clearance[row, options], kind="stable")]
             for opt in options[: s.solutions_per_contact]:
                 q[idx] = q_sol[row, opt]
-                pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
-                gd.oMg[world.object_geom] = M_obj  # the update reset it
-                if any(pin.computeCollision(gm, gd, k) for k in self._finger_pairs[i]):
+                if world.pairs_collide(self._finger_data[i], q, M_obj):
                     self.stats.finger_rejections += 1
                     continue
                 keep_c.append(cand[row])

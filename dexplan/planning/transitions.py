@@ -206,6 +206,7 @@ class Transitions(Landings):
             self._finger_of_joint[idx] = i
         self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
         self._own_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
+        self._own_data: list[pin.GeometryData | None] = [None] * hand.n_fingers
         self._moving_pairs = [self._pairs_moving(i) for i in range(hand.n_fingers)]
         # landing postures found by track_score, keyed by (finger, fingertip centre)
         self._postures: dict[tuple[int, bytes], FloatArray] = {}
@@ -299,11 +300,10 @@ class Transitions(Landings):
 
     def _finger_free(self, finger: int, q: FloatArray, M_obj: pin.SE3) -> bool:
         """``finger``'s links at ``q: (nq,)`` clear of palm, object (pose ``M_obj``), obstacles."""
-        world, hand = self.world, self.hand
-        gm, gd = world.geom_model, world.geom_data
-        pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
-        gd.oMg[world.object_geom] = M_obj
-        return not any(pin.computeCollision(gm, gd, k) for k in self._own_pairs[finger])
+        gd = self._own_data[finger]
+        if gd is None:
+            gd = self._own_data[finger] = self.world.pairs_data(self._own_pairs[finger])
+        return not self.world.pairs_collide(gd, q, M_obj)
 
     # ------------------------------------------------------------------ helpers
     def tip_targets(self, pose: FloatArray, grasp: GraspContacts) -> FloatArray:
