@@ -1,39 +1,43 @@
 """GSn in the paper's own coordinates: object pose and one contact direction per finger.
 
 The ompl 2.0.1 wheel cannot give a tree planner (RRT, RRTConnect, the KPIECE
-family, FMT, BITstar...) a Python state sampler (no
-``StateSpace.setStateSamplerAllocator`` binding; Python overrides of
-``allocDefaultStateSampler``, on the constrained space or on its ambient space,
-are ignored: measured). Those planners draw uniform ambient states of
-``(object pose, hand joints)`` and project them onto GSn, and on a box that
-projection mostly fails. This module gives them a space in which every ambient
-sample projects at once: the **contact chart**
+family, FMT, BITstar...) a Python state sampler: ``StateSpace.setStateSamplerAllocator``
+is not bound, and Python overrides of ``allocDefaultStateSampler`` are ignored,
+on the constrained space and on its ambient ``RealVectorStateSpace`` alike
+(measured: the override is never called). Those planners drew uniform ambient
+states of ``(object pose, hand joints)`` and projected them onto GSn, which on
+a box mostly fails. This module gives them coordinates in which every uniform
+sample already is a GSn configuration: the **contact chart**
 
-    y = [x, y, z, qx, qy, qz, qw, d_1 (3), ..., d_k (3), q_free...]
+    y = [x, y, z, qx, qy, qz, qw, d_1 (3), ..., d_k (3), q_free..., 0]
 
-object position and quaternion, then for each contact finger a unit direction
-``d_i`` in the object frame, then the joints of the fingers not in contact
-(none on GSn). The constraint rows are ``|quat|^2 - 1`` and ``|d_i|^2 - 1``:
-a product of spheres, onto which OMPL's Newton projection converges from any
-point not at the origin, and along which OMPL's discrete geodesics stay close
-to straight lines in ``y``.
+object position and quaternion, then for each contact finger a direction
+``d_i`` in the world (palm) frame, then the joints of the fingers not in
+contact (none on GSn), then a pinned coordinate. Quaternion and directions
+are normalised by the map, so any point of the box bounds is a chart state;
+the one constraint row is the pinned coordinate, whose bounds (+-1e-12) lie
+inside the projection tolerance: OMPL's constrained spaces (which need a
+constraint) accept every sample without a Newton step, informed samplers
+that treat the space as R^n (BITstar, InformedRRTstar, SORRTstar) included,
+and discrete geodesics are straight lines in ``y`` (symmetric: a -> b is
+valid exactly when b -> a is).
 
 A chart state maps to an ambient GSn state (:meth:`ContactChart.to_ambient`):
-the fingertip-sphere centre of finger i is where the ray from the object-frame
+the fingertip-sphere centre of finger i is where the ray from the object's
 origin along ``d_i`` meets the offset surface ``{p : sdf(p) = r}`` (r the tip
 radius), found by safeguarded Newton steps from outside (monotone on convex
-objects: the signed distance is convex along the ray); the finger's joints are
-its IK solution nearest the hand's neutral posture. The offset surface of a box
-has rounded edges of radius r, so a chart motion may roll a fingertip over an
-edge: the map is continuous there. The ambient state then goes to the usual
-validity checker (bounds, joint limits, collisions, force closure). Hence the
-tree planners sample the paper's coordinates natively, interpolation keeps
-every state exactly on GSn (no projection of hand joints), and motions are
-symmetric (a -> b valid iff b -> a).
+objects: the signed distance is convex along a ray); the finger's joints are
+its IK solution nearest the hand's neutral posture. The offset surface of a
+box has rounded edges of radius r, so the map is continuous across edges
+(the fingertip rolls over the edge). Directions are in the world frame, so a
+pure rotation of the object keeps the fingertips near where they are (the
+contacts slide), as reorientation needs. The ambient state then goes to the
+usual validity checker (bounds, joint limits, collisions, force closure).
 
 The inverse (:meth:`ContactChart.to_chart`) reads the pose and each fingertip
-centre's direction from the origin. It is exact for star-shaped offset
-surfaces seen from the origin (every primitive, convex meshes); a caller checks
+centre's direction from the object's origin. It is exact for offset surfaces
+star-shaped from the origin (every primitive, convex meshes) whose states use
+the nearest-neutral IK branch; a caller checks
 :meth:`ContactChart.round_trip_error` on its start state and falls back to the
 ambient space when the chart cannot represent it.
 """
@@ -47,6 +51,7 @@ from typing import Any
 
 import numpy as np
 
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.ompl import (
     ConstraintSpec,
@@ -76,6 +81,9 @@ _CACHE_MAX = 200_000
 _PIN_BOUND = 1e-12
 """Bound of the pinned coordinate: every ambient sample is within tolerance of f = 0."""
 
+_SPHERE_BOUND = 1.05
+"""Bound of a unit-vector coordinate when the chart constrains it (+-1 is reached)."""
+
 _MIN_NORM = 1e-3
 """Quaternions and directions shorter than this do not map (no direction)."""
 
@@ -88,14 +96,20 @@ class ContactChart:
         is_valid: ``is_valid(x) -> bool``, the ambient validity checker.
 
     Raises:
-        ValueError: the object-frame origin is not inside the object (rays
+        InvalidInputError: the object-frame origin is not inside the object (rays
             from it would not cross the surface once); use :meth:`applies`
             first.
     """
 
-    def __init__(self, gsn: GraspSubspace, is_valid: Callable[[FloatArray], Any]) -> None:
+    def __init__(
+        self,
+        gsn: GraspSubspace,
+        is_valid: Callable[[FloatArray], Any],
+        *,
+        spheres: bool = True,
+    ) -> None:
         if not self.applies(gsn):
-            raise ValueError("the object-frame origin is not inside the object")
+            raise InvalidInputError("the object-frame origin is not inside the object")
         self.gsn = gsn
         self.is_valid = is_valid
         hand = gsn.hand
@@ -105,6 +119,8 @@ class ContactChart:
             [j for i in self.free_ids for j in hand.finger_q_index[i]], dtype=np.int64
         )
         self.k = len(self.contact_ids)
+        self.spheres = bool(spheres)
+        self.co_dim = 2 + self.k if self.spheres else 1
         self.dim = POSE_DIM + 3 * self.k + len(self._free_q) + 1
         self._radius = float(hand.fingertip_radius)
         self._t_max = float(gsn.obj.bounding_radius) + self._radius + 1e-3
@@ -121,20 +137,34 @@ class ContactChart:
     def bounds(self) -> tuple[FloatArray, FloatArray]:
         """``(lower, upper)`` of chart states: the GSn bounds of the pose and free joints."""
         g, hand = self.gsn, self.gsn.hand
-        ones = np.ones(3 * self.k)
+        ones = np.full(3 * self.k, _SPHERE_BOUND if self.spheres else 1.0)
         lo = np.concatenate([g.lower[:POSE_DIM], -ones, hand.lower[self._free_q], [-_PIN_BOUND]])
         up = np.concatenate([g.upper[:POSE_DIM], ones, hand.upper[self._free_q], [_PIN_BOUND]])
+        if self.spheres:
+            lo[3:POSE_DIM], up[3:POSE_DIM] = -_SPHERE_BOUND, _SPHERE_BOUND
         return lo, up
 
-    @staticmethod
-    def function(y: FloatArray) -> FloatArray:
-        """The one constraint row: the pinned last coordinate."""
-        return y[-1:]
+    def function(self, y: FloatArray) -> FloatArray:
+        """Constraint rows: the pinned coordinate, then ``|quat|^2 - 1``, ``|d_i|^2 - 1``."""
+        if not self.spheres:
+            return y[-1:]
+        f = np.empty(self.co_dim)
+        f[0] = y[-1]
+        quat = y[3:POSE_DIM]
+        f[1] = quat @ quat - 1.0
+        d = y[POSE_DIM : POSE_DIM + 3 * self.k].reshape(self.k, 3)
+        f[2:] = np.einsum("ij,ij->i", d, d) - 1.0
+        return f
 
     def jacobian(self, y: FloatArray) -> FloatArray:
-        """Constraint Jacobian ``(1, dim)``."""
-        J = np.zeros((1, self.dim))
+        """Constraint Jacobian ``(co_dim, dim)`` (analytic)."""
+        J = np.zeros((self.co_dim, self.dim))
         J[0, -1] = 1.0
+        if self.spheres:
+            J[1, 3:POSE_DIM] = 2.0 * y[3:POSE_DIM]
+            for row in range(self.k):
+                c = POSE_DIM + 3 * row
+                J[2 + row, c : c + 3] = 2.0 * y[c : c + 3]
         return J
 
     def constraint_spec(
@@ -146,7 +176,7 @@ class ContactChart:
         scale[:3] = scale_position
         return ConstraintSpec(
             ambient_dim=self.dim,
-            co_dim=1,
+            co_dim=self.co_dim,
             function=self.function,
             jacobian=self.jacobian,
             lower=lo,
@@ -213,7 +243,7 @@ class ContactChart:
             return None
         quat = y[3:POSE_DIM] / qn
         R = quat_to_matrix(quat)
-        tips = self.tip_centres((d / dn[:, None]) @ R)  # world directions, object frame
+        tips = self.tip_centres(d / dn[:, None])
         if tips is None:
             return None
         world = tips @ R.T + y[:3]
@@ -231,7 +261,7 @@ class ContactChart:
     def to_chart(self, x: FloatArray) -> FloatArray:
         """The chart state of an ambient GSn state (pose, tip-centre directions, free joints)."""
         x = np.asarray(x, dtype=np.float64)
-        tips = self.gsn.hand.fingertip_positions(x[POSE_DIM:])[list(self.contact_ids)] - x[:3]
+        tips = self.gsn.fingertips_object_frame(x)[list(self.contact_ids)]
         dirs = tips / np.linalg.norm(tips, axis=1, keepdims=True)
         quat = x[3:POSE_DIM] / np.linalg.norm(x[3:POSE_DIM])
         free = x[POSE_DIM:][self._free_q]
@@ -279,6 +309,8 @@ class ChartProblem:
     def __init__(self, chart: ContactChart, problem: PlanningProblem) -> None:
         self.chart = chart
         self.problem = problem
+        self._start: FloatArray | None = None
+        self._checked: dict[bytes, bool] = {}
 
     @property
     def is_multi_query(self) -> bool:
@@ -314,6 +346,7 @@ class ChartProblem:
             pool.append(chart.to_chart(x))
             return pool[-1]
 
+        self._start = np.array(start, dtype=np.float64)
         self.problem.set_start(chart.to_chart(start))
         self.problem.set_goal(GoalSpec(chart_distance, threshold, sample=chart_sample))
 
@@ -332,6 +365,10 @@ class ChartProblem:
             return dataclasses.replace(
                 res, status="path_invalid", solved=False, path_valid=False, path=None
             )
+        if self._start is not None:  # the start itself, not its round trip (<= 1e-7 away)
+            path[0] = self._start
+            if waypoints is not None:
+                waypoints[0] = self._start
         return dataclasses.replace(res, path=path, waypoints=waypoints)
 
     def planner_data(self) -> RoadmapData:
@@ -339,27 +376,38 @@ class ChartProblem:
 
         OMPL's ``ConstrainedMotionValidator`` does not check a motion's end
         state, so a tree may hold states the chart cannot map (a finger out
-        of reach): those vertices and their edges are left out.
+        of reach) or invalid ones: those vertices and their edges are left
+        out (module 2 links from vertices, the roadmap keeps them).
         """
         data = self.problem.planner_data()
         dim = self.chart.gsn.ambient_dim
         mapped = [self.chart.to_ambient(y) for y in np.asarray(data.vertices, dtype=np.float64)]
-        keep = np.array([x is not None for x in mapped], dtype=bool)
+        keep = np.array([x is not None and self._valid(x) for x in mapped], dtype=bool)
         new_id = np.cumsum(keep) - 1
         edges = np.asarray(data.edges, dtype=np.int64).reshape(-1, 2)
         edges = new_id[edges[keep[edges].all(axis=1)]] if len(edges) else edges
-        vertices = np.array([x for x in mapped if x is not None]).reshape(-1, dim)
+        vertices = np.array([x for x, k in zip(mapped, keep, strict=True) if k]).reshape(-1, dim)
 
         def ids(a: Any) -> Any:
             a = np.asarray(a, dtype=np.int64)
             return new_id[a[keep[a]]]
 
+        starts = ids(data.start_ids)
+        if self._start is not None and len(starts):
+            vertices[starts] = self._start
         return RoadmapData(
             vertices=vertices,
             edges=edges.reshape(-1, 2),
-            start_ids=ids(data.start_ids),
+            start_ids=starts,
             goal_ids=ids(data.goal_ids),
         )
+
+    def _valid(self, x: FloatArray) -> bool:
+        """The validity of a vertex's ambient state, remembered (vertices recur each round)."""
+        key = x.tobytes()
+        if key not in self._checked:
+            self._checked[key] = bool(self.chart.is_valid(x))
+        return self._checked[key]
 
     def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
         """Re-check ambient waypoints in travel direction along chart motions.

@@ -562,6 +562,10 @@ ROUND_MILESTONES = 4
 CHART_RANGE = 0.5
 """Default ``range`` of tree planners on the contact chart (planning units)."""
 
+R_N_SAMPLERS = frozenset({"BITstar", "InformedRRTstar", "SORRTstar"})
+"""Planners whose informed samplers treat the space as R^n (no projection): they
+get the chart without unit-sphere rows, where every point of the bounds is a state."""
+
 
 def pose_distance(a: FloatArray, b: FloatArray, length: float = 0.05) -> float:
     """Object-pose distance of two states: translation / length + rotation angle."""
@@ -781,7 +785,7 @@ def chart_problem(
     """
     if not ContactChart.applies(ctx.gsn):
         return None
-    chart = ContactChart(ctx.gsn, ctx.validity.is_valid)
+    chart = ContactChart(ctx.gsn, ctx.validity.is_valid, spheres=planner not in R_N_SAMPLERS)
     if chart.round_trip_error(start) > 1e-7:
         return None
     problem = PlanningProblem(

@@ -1,0 +1,159 @@
+"""The contact chart: GSn in object-pose + contact-direction coordinates for tree planners."""
+
+import time
+
+import numpy as np
+import pytest
+
+from dexplan.exceptions import InvalidInputError
+from dexplan.planning.chart import ChartProblem, ContactChart
+from dexplan.planning.context import build_context
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.ompl import RoadmapData
+from dexplan.planning.planner import goal_reached, start_state
+from dexplan.planning.roadmap import GsnQuery, chart_problem, explore_gsn
+from dexplan.scenario import builtin_scenario_path, load_scenario
+
+
+@pytest.fixture(scope="module")
+def cube():
+    ctx = build_context(load_scenario(builtin_scenario_path("cube_obstacle")), seed=3)
+    return ctx, ContactChart(ctx.gsn, ctx.validity.is_valid)
+
+
+def _random_chart_states(chart: ContactChart, n: int, seed: int) -> np.ndarray:
+    lo, up = chart.bounds()
+    return np.random.default_rng(seed).uniform(lo, up, size=(n, chart.dim))
+
+
+def test_tip_centres_lie_on_the_offset_surface(cube) -> None:
+    ctx, chart = cube
+    rng = np.random.default_rng(0)
+    dirs = rng.normal(size=(200, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    tips = np.concatenate([chart.tip_centres(dirs[i : i + 4]) for i in range(0, 200, 4)])
+    r = ctx.hand.fingertip_radius
+    np.testing.assert_allclose(ctx.obj.signed_distance(tips), r, atol=1e-9)
+    # on the ray: parallel to its direction
+    unit = tips / np.linalg.norm(tips, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", unit, dirs), 1.0, atol=1e-12)
+    # straight through a face centre: half the side plus the tip radius
+    half = float(ctx.obj.signed_distance(np.zeros(3))) * -1.0
+    face = chart.tip_centres(np.array([[1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(face, [[half + r, 0.0, 0.0]], atol=1e-9)
+
+
+def test_every_mapped_state_is_on_gsn_and_round_trips(cube) -> None:
+    ctx, chart = cube
+    mapped = 0
+    for y in _random_chart_states(chart, 600, 1):
+        x = chart.to_ambient(y)
+        if x is None:
+            continue
+        mapped += 1
+        assert ctx.gsn.residual(x) < 1e-8
+        assert ctx.hand.within_limits(x[POSE_DIM:])
+        back = chart.to_chart(x)
+        np.testing.assert_allclose(chart.to_ambient(back), x, atol=1e-9)
+    assert mapped >= 5
+
+
+def test_sampler_states_round_trip(cube) -> None:
+    ctx, chart = cube
+    errors = []
+    for _ in range(200):
+        x = ctx.sampler.sample()
+        if x is not None:
+            errors.append(chart.round_trip_error(x))
+        if len(errors) == 10:
+            break
+    assert len(errors) == 10
+    assert max(errors) < 1e-7
+
+
+def test_chart_needs_the_origin_inside_the_object(cube) -> None:
+    ctx, _ = cube
+
+    class Shifted:
+        def signed_distance(self, p):
+            return 1.0
+
+    class Gsn:
+        obj = Shifted()
+
+    assert not ContactChart.applies(Gsn())  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="origin"):
+        ContactChart(Gsn(), ctx.validity.is_valid)  # type: ignore[arg-type]
+
+
+def test_chart_motions_are_symmetric(cube) -> None:
+    ctx, chart = cube
+    x0 = start_state(ctx)
+    assert x0 is not None
+    charted = chart_problem(ctx, "RRTConnect", None, "projected", 1, x0)
+    assert charted is not None
+    y0 = chart.to_chart(x0)
+    rng = np.random.default_rng(2)
+    valid = 0
+    for _ in range(30):
+        y = y0 + rng.normal(0.0, 0.1, size=len(y0)) * np.r_[np.full(3, 0.02), np.ones(len(y0) - 3)]
+        y[-1] = 0.0
+        y[3:POSE_DIM] /= np.linalg.norm(y[3:POSE_DIM])
+        d = y[POSE_DIM:-1].reshape(-1, 3)
+        y[POSE_DIM:-1] = (d / np.linalg.norm(d, axis=1, keepdims=True)).reshape(-1)
+        if not chart.is_valid_chart(y):
+            continue
+        valid += 1
+        forward = charted.problem.check_motion(y0, y)
+        assert forward == charted.problem.check_motion(y, y0)
+    assert valid >= 5
+
+
+def test_planner_data_leaves_out_states_the_chart_cannot_map(cube) -> None:
+    ctx, chart = cube
+    x0 = start_state(ctx)
+    assert x0 is not None
+    y0 = chart.to_chart(x0)
+    bad = y0.copy()
+    bad[POSE_DIM : POSE_DIM + 3] = 0.0  # no direction
+    other = chart.to_chart(x0)
+    other[0] += 1e-4
+
+    class Fake:
+        def planner_data(self) -> RoadmapData:
+            return RoadmapData(
+                vertices=np.stack([y0, bad, other]),
+                edges=np.array([[0, 1], [1, 2], [0, 2]]),
+                start_ids=np.array([0]),
+                goal_ids=np.array([2, 1]),
+            )
+
+    data = ChartProblem(chart, Fake()).planner_data()  # type: ignore[arg-type]
+    assert data.vertices.shape == (2, ctx.gsn.ambient_dim)
+    np.testing.assert_array_equal(data.edges, [[0, 1]])
+    np.testing.assert_array_equal(data.start_ids, [0])
+    np.testing.assert_array_equal(data.goal_ids, [1])
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("planner", ["RRTConnect", "BITstar"])
+def test_tree_planners_search_the_chart_and_return_valid_gsn_paths(planner: str) -> None:
+    """A sphere turned 90 degrees (scaled down from the paper's 180 for speed)."""
+    scenario = load_scenario(builtin_scenario_path("paper_sphere"))
+    ctx = build_context(scenario, seed=2)
+    x0 = start_state(ctx)
+    assert x0 is not None
+    assert chart_problem(ctx, planner, None, "projected", 2, x0) is not None
+    query = GsnQuery(
+        x0,
+        lambda x: goal_reached(scenario, x[:POSE_DIM]),
+        lambda: ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat),
+    )
+    res = explore_gsn(ctx, query, planner, seed=2, deadline=time.perf_counter() + 60.0)
+    assert res.path is not None, res.message
+    np.testing.assert_array_equal(res.path[0], x0)
+    assert goal_reached(scenario, res.path[-1][:POSE_DIM])[0]
+    for x in res.path[:: max(1, len(res.path) // 40)]:
+        assert ctx.gsn.residual(x) < 1e-6
+        assert ctx.validity.check(x).valid
+    assert np.all(np.isfinite(res.roadmap.vertices))
