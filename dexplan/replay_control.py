@@ -29,6 +29,7 @@ the measured object against the plan.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -36,7 +37,14 @@ import pinocchio as pin
 
 from dexplan.typing import FloatArray
 
-__all__ = ["CONTROL_PERIOD", "FORCE_EVERY", "LIFT_BLEND", "ObjectFeedback", "pose_se3"]
+__all__ = [
+    "CONTROL_PERIOD",
+    "FORCE_EVERY",
+    "LIFT_BLEND",
+    "ObjectFeedback",
+    "planned_tip_slip",
+    "pose_se3",
+]
 
 #: Feedback update period (s); the grip forces are recomputed every FORCE_EVERY updates.
 CONTROL_PERIOD = 0.005
@@ -177,3 +185,54 @@ class ObjectFeedback:
         except GripForceError:
             return planned
         return np.asarray(g.joint_torques, dtype=float)
+
+
+def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
+    """The sliding each transfer of a plan asks of the rigid fingertips (the open-loop gap).
+
+    Along a transfer the plan keeps each contact fixed on the object while the
+    fingertip sphere turns with its link; the tip's material point at the
+    contact then slides on the object by ``r (w_object - w_link) x n``. This
+    sums its length over each transfer's waypoint steps, with the relative
+    rotation of each step taken in the object frame and ``n`` the outward
+    normal of the plan's object at the contact.
+
+    Args:
+        doc: a validated plan.
+        hand: its :class:`~dexplan.hand.Hand`.
+
+    Returns:
+        (transfers, n) slip length (m) per transfer segment and finger (0 for a
+        finger not in contact).
+    """
+    from pathlib import Path
+
+    from dexplan.plan_file import shape_of
+
+    obj = shape_of(doc["object"], Path("."), "object")
+    r = float(hand.fingertip_radius)
+    rows = []
+    for seg in doc["segments"]:
+        if seg["kind"] != "transfer":
+            continue
+        slip = np.zeros(hand.n_fingers)
+        wps = seg["waypoints"]
+        for a, b in itertools.pairwise(wps):
+            Ta, Tb = _tip_rotations(hand, a["q"]), _tip_rotations(hand, b["q"])
+            Ra = pose_se3(np.asarray(a["object_pose_xyzquat"], dtype=float)).rotation
+            Rb = pose_se3(np.asarray(b["object_pose_xyzquat"], dtype=float)).rotation
+            for f in range(hand.n_fingers):
+                c = a["contacts"][f]
+                if c is None or b["contacts"][f] is None:
+                    continue
+                rel = pin.log3((Rb.T @ Tb[f]) @ (Ra.T @ Ta[f]).T)
+                _, n_out = obj.closest_point(np.asarray(c, dtype=float))
+                slip[f] += r * float(np.linalg.norm(np.cross(rel, np.reshape(n_out, 3))))
+        rows.append(slip)
+    return np.array(rows).reshape(-1, hand.n_fingers)
+
+
+def _tip_rotations(hand: Any, q: Any) -> list[FloatArray]:
+    """World rotation of each fingertip frame (it turns with its link) at ``q``."""
+    pin.framesForwardKinematics(hand.model, hand.data, np.asarray(q, dtype=float))
+    return [hand.data.oMf[fid].rotation.copy() for fid in hand.tip_frame_ids]

@@ -97,3 +97,17 @@ def test_missing_mujoco_is_a_dependency_error(monkeypatch, capfd, planned) -> No
     folder, _, _ = planned
     code, _, err = run_cli(capfd, "replay", folder / "plan.json")
     assert_bad_input(code, err, names=["pip install"])
+
+
+def test_first_transfer_tracks_only_with_feedback(planned, capfd) -> None:
+    """Open loop the rolling tips turn the object less than planned; the feedback corrects it."""
+    folder, doc, hand = planned
+    first = next(i for i, s in enumerate(doc["segments"]) if s["kind"] == "transfer")
+    short = _short(doc, first)
+    r = replay_plan(short, gravity=False, hand=hand)
+    assert r.tracked and r.at_goal, r.summary()
+    assert r.waypoint_angle_error < 0.02
+    path = folder / "transfer.json"
+    write_plan(path, short)
+    code, out, _ = run_cli(capfd, "replay", path, "--no-gravity", "--open-loop")
+    assert code == 1 and "LOST TRACK" in out, out

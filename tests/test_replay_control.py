@@ -1,0 +1,66 @@
+"""Object-pose feedback of the replay (dexplan.replay_control): targets and the plan's tip slip."""
+
+import copy
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dexplan.export import build_trajectory
+from dexplan.plan_file import hand_from_plan, read_plan
+from dexplan.replay_control import ObjectFeedback, planned_tip_slip, pose_se3
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory, paper_plan):
+    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("control")))
+    return doc, hand_from_plan(doc["hand"])
+
+
+def _first_transfer(doc):
+    d = copy.deepcopy(doc)
+    d["segments"] = [next(s for s in d["segments"] if s["kind"] == "transfer")]
+    return d
+
+
+def test_pose_se3_is_xyzw() -> None:
+    M = pose_se3(np.array([0.1, 0.2, 0.3, 0.0, 0.0, np.sin(0.25), np.cos(0.25)]))
+    assert np.allclose(M.translation, [0.1, 0.2, 0.3])
+    assert np.allclose(pin.log3(M.rotation), [0.0, 0.0, 0.5])
+
+
+def test_on_plan_the_targets_are_the_plan(planned) -> None:
+    doc, hand = planned
+    traj = build_trajectory(_first_transfer(doc), hand=hand)
+    fb = ObjectFeedback(hand, traj)
+    k = traj.t.size // 2
+    out = fb.targets(k, traj.q[k], traj.q[k], traj.object_pose[k], traj.object_pose[k])
+    assert np.allclose(out, traj.q[k], atol=1e-9)
+
+
+def test_a_lagging_object_moves_the_holding_tips_ahead(planned) -> None:
+    """The object measured 2 mm behind the plan: every holding tip is aimed 2 mm ahead."""
+    doc, hand = planned
+    traj = build_trajectory(_first_transfer(doc), hand=hand)
+    fb = ObjectFeedback(hand, traj)
+    k = traj.t.size // 2
+    lag = traj.object_pose[k].copy()
+    lag[0] -= 0.002
+    out = fb.targets(k, traj.q[k], traj.q[k], traj.object_pose[k], lag)
+    shift = hand.fingertip_positions(out) - hand.fingertip_positions(traj.q[k])
+    assert fb.holding[k].all()
+    assert np.allclose(shift, [0.002, 0.0, 0.0], atol=3e-4)
+
+
+def test_transfers_ask_the_rigid_tips_to_slide(planned) -> None:
+    """The open-loop gap: turning the object with contacts fixed slides the tips by mm."""
+    doc, hand = planned
+    slip = planned_tip_slip(doc, hand)
+    n_transfers = sum(s["kind"] == "transfer" for s in doc["segments"])
+    assert slip.shape == (n_transfers, hand.n_fingers)
+    assert (slip >= 0).all() and slip.max() > 0.003
+    still = copy.deepcopy(_first_transfer(doc))
+    w0 = still["segments"][0]["waypoints"][0]
+    for w in still["segments"][0]["waypoints"]:
+        w["q"], w["object_pose_xyzquat"] = list(w0["q"]), list(w0["object_pose_xyzquat"])
+    assert np.allclose(planned_tip_slip(still, hand), 0.0)
