@@ -107,6 +107,7 @@ class ContactChart:
         is_valid: Callable[[FloatArray], Any],
         *,
         spheres: bool = True,
+        world_directions: bool = True,
     ) -> None:
         if not self.applies(gsn):
             raise InvalidInputError("the object-frame origin is not inside the object")
@@ -120,6 +121,7 @@ class ContactChart:
         )
         self.k = len(self.contact_ids)
         self.spheres = bool(spheres)
+        self.world_directions = bool(world_directions)
         self.co_dim = 2 + self.k if self.spheres else 1
         self.dim = POSE_DIM + 3 * self.k + len(self._free_q) + 1
         self._radius = float(hand.fingertip_radius)
@@ -243,7 +245,8 @@ class ContactChart:
             return None
         quat = y[3:POSE_DIM] / qn
         R = quat_to_matrix(quat)
-        tips = self.tip_centres(d / dn[:, None])
+        dirs = d / dn[:, None]
+        tips = self.tip_centres(dirs @ R if self.world_directions else dirs)
         if tips is None:
             return None
         world = tips @ R.T + y[:3]
@@ -261,7 +264,10 @@ class ContactChart:
     def to_chart(self, x: FloatArray) -> FloatArray:
         """The chart state of an ambient GSn state (pose, tip-centre directions, free joints)."""
         x = np.asarray(x, dtype=np.float64)
-        tips = self.gsn.fingertips_object_frame(x)[list(self.contact_ids)]
+        if self.world_directions:
+            tips = self.gsn.hand.fingertip_positions(x[POSE_DIM:])[list(self.contact_ids)] - x[:3]
+        else:
+            tips = self.gsn.fingertips_object_frame(x)[list(self.contact_ids)]
         dirs = tips / np.linalg.norm(tips, axis=1, keepdims=True)
         quat = x[3:POSE_DIM] / np.linalg.norm(x[3:POSE_DIM])
         free = x[POSE_DIM:][self._free_q]
