@@ -92,7 +92,7 @@ class SamplerSettings:
     combinations: int = 40
     combination_draws: int = 4000
     joint_margin: float = 0.03
-    grasps_per_pose: int = 8
+    grasps_per_pose: int = 24
 
 
 @dataclass
