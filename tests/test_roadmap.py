@@ -146,3 +146,19 @@ def test_roadmap_key_depends_on_the_contact_model():
     point = default_scenario()
     soft = dataclasses.replace(point, contact_model="soft", torsion=0.005)
     assert scenario_key(build_context(point)) != scenario_key(build_context(soft))
+
+
+def test_module2_pass_only_brings_the_shared_deadline_forward() -> None:
+    """A module-2 pass cuts the query's shared deadline for its duration, never extends it."""
+    from dexplan.planning.deadline import Deadline
+    from dexplan.planning.roadmap import _cut
+
+    shared = Deadline(100.0)
+    with _cut(shared, 50.0):
+        assert shared.at == 50.0
+    assert shared.at == 100.0
+    with _cut(shared, 200.0):
+        assert shared.at == 100.0
+    with pytest.raises(RuntimeError), _cut(shared, 10.0):
+        raise RuntimeError("a failing link attempt")
+    assert shared.at == 100.0

@@ -18,6 +18,7 @@ A roadmap can be saved (``.npz``) and loaded to answer later queries
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import json
@@ -25,7 +26,7 @@ import math
 import time
 import zipfile
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,6 +41,7 @@ from dexplan.files import atomic_output
 from dexplan.objects.factory import field_key
 from dexplan.planning.chart import ChartProblem, ContactChart
 from dexplan.planning.context import PlanningContext
+from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import (
     MULTI_QUERY_PLANNERS,
@@ -56,6 +58,8 @@ from dexplan.scenario import scenario_description
 from dexplan.typing import FloatArray
 
 ROADMAP_FORMAT = "dexplan-roadmap/1"
+#: Share of the time left that one module-2 pass of a single query may use.
+MODULE2_SHARE = 0.3
 
 
 def connected_components(n: int, edges: object) -> tuple[np.ndarray, np.ndarray]:
@@ -707,9 +711,21 @@ def explore_gsn(
             continue
         # module 2: a few links from the start's component towards the goal region
         start = starts[0] if starts else roadmap.add_vertex(query.start)
-        linked = link_query(
-            ctx, roadmap, query, start, deadline, stats, max_attempts=4, geodesic=_geodesic(problem)
-        )
+        # a share of the time left, so that module 1 grows its roadmap again
+        # when the links fail (a many-DOF hand's link attempt may take seconds)
+        t_now = time.perf_counter()
+        link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)
+        with _cut(ctx.transitions.deadline, link_by):
+            linked = link_query(
+                ctx,
+                roadmap,
+                query,
+                start,
+                link_by,
+                stats,
+                max_attempts=4,
+                geodesic=_geodesic(problem),
+            )
         stats["gsn_time_s"] = time.perf_counter() - t0
         report(
             "module2",
@@ -717,6 +733,17 @@ def explore_gsn(
         )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
+
+
+@contextlib.contextmanager
+def _cut(shared: Deadline, at: float) -> Iterator[None]:
+    """Bring a shared deadline forward to ``at`` for a while (never later than it was)."""
+    before = shared.at
+    shared.at = min(before, at)
+    try:
+        yield
+    finally:
+        shared.at = before
 
 
 def gsn_problem(
@@ -883,7 +910,7 @@ def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:
     s = tr.settings
     dense = densify_poses(np.array([a[:POSE_DIM], b_pose]), s.max_step_m, s.max_step_rad)
     grasp = grasp_from_state(tr, a[:POSE_DIM], a[POSE_DIM:])
-    red = reduce_object_path(tr, dense, a[POSE_DIM:], grasp, ReductionSettings(max_regrasps=40))
+    red = reduce_object_path(tr, dense, a[POSE_DIM:], grasp, ReductionSettings())
     return red.success
 
 
