@@ -286,14 +286,21 @@ class SplitFingerIK:
         off = np.stack(
             [np.einsum("ij,ij->i", x - o, n) for x in (origins[:, i1], origins[:, i2], tip)]
         )
+        L1, L2 = j2 - j1, t - j2
+        l1s, l2s = np.einsum("ij,ij->i", L1, L1), np.einsum("ij,ij->i", L2, L2)
         return {
             "o": o,
             "a": a,
             "n": n,
             "b": b,
             "j1": j1,
-            "L1": j2 - j1,
-            "L2": t - j2,
+            "L1": L1,
+            "L2": L2,
+            # per free value constants of the solve (computed once, not per call)
+            "l1s": l1s,
+            "l2s": l2s,
+            "l12": 2.0 * np.sqrt(l1s * l2s),
+            "dphi": np.arctan2(L2[:, 1], L2[:, 0]) - np.arctan2(L1[:, 1], L1[:, 0]),
             "s2": np.sign(np.einsum("ij,ij->i", axes[:, i2], n)),
             "off": np.abs(off).max(axis=0),
             "dot": np.abs(np.einsum("ij,ij->i", a, n)),
@@ -354,15 +361,13 @@ class SplitFingerIK:
         rho = np.sqrt(pb * pb + pn * pn)
         # axes: (N, K, abduction branch, elbow); link data broadcast over (K, 1, 1)
         L1, L2, j1 = (g[key][:, None, None, :] for key in ("L1", "L2", "j1"))
-        l1s = L1[..., 0] ** 2 + L1[..., 1] ** 2
-        l2s = L2[..., 0] ** 2 + L2[..., 1] ** 2
-        dphi = np.arctan2(L2[..., 1], L2[..., 0]) - np.arctan2(L1[..., 1], L1[..., 0])
+        l1s, l2s, l12, dphi = (g[key][:, None, None] for key in ("l1s", "l2s", "l12", "dphi"))
         sgn = _BRANCH[:, None]  # abduction branch: plane coordinate w = +-rho
         esg = _BRANCH[None, :]  # elbow branch
         th0 = np.arctan2(sgn * pn, sgn * pb)
         du = u - j1[..., 0]
         dw = sgn * rho - j1[..., 1]
-        c = (du * du + dw * dw - l1s - l2s) / (2.0 * np.sqrt(l1s * l2s))
+        c = (du * du + dw * dw - l1s - l2s) / l12
         reach = np.abs(c) <= 1.0
         al2 = esg * np.arccos(np.clip(c, -1.0, 1.0)) - dphi
         ca, sa = np.cos(al2), np.sin(al2)
