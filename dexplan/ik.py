@@ -505,8 +505,8 @@ def planar_branches(solver, targets: FloatArray) -> tuple[FloatArray, np.ndarray
     ``solver`` is the hand's closed-form 3-joint solver (``dexplan.hand``'s
     ``_PlanarFingerIK``: geometry ``o0, a0, e, b, k, l1, l2, s``, limits
     ``lo, hi``). Branch order and arithmetic are those of its ``solve`` (the
-    scalar parts with the same operations, the rest element-wise), so that
-    :func:`nearest_branch` picks bit for bit the solution ``solve`` returns.
+    same scalar operations), so that :func:`nearest_branch` picks bit for bit
+    the solution ``solve`` returns.
 
     Args:
         solver: the closed-form solver.
@@ -517,32 +517,30 @@ def planar_branches(solver, targets: FloatArray) -> tuple[FloatArray, np.ndarray
         within the limits (1e-12 tolerance), and ``q_clipped: (N, 4, 3)``.
     """
     n = len(targets)
-    u = np.empty(n)
-    pe = np.empty(n)
-    pb = np.empty(n)
-    r = np.empty(n)
-    base = np.empty(n)
-    for i in range(n):
-        p = targets[i] - solver.o0
-        u[i] = float(p @ solver.a0) * solver.s
-        pe[i], pb[i] = float(p @ solver.e), float(p @ solver.b)
-        r[i] = math.hypot(pe[i], pb[i])
-        base[i] = math.atan2(pb[i], pe[i])
-    l1, l2 = solver.l1, solver.l2
     q = np.zeros((n, 4, 3))
     ok = np.zeros((n, 4), dtype=bool)
     lo, hi = solver.lo - 1e-12, solver.hi + 1e-12
-    flipped = base - np.copysign(math.pi, base)
-    for a, (th0, w) in enumerate(((base, r - solver.k), (flipped, -r - solver.k))):
-        c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-        valid = np.abs(c2) <= 1.0
-        acos = np.arccos(np.clip(c2, -1.0, 1.0))
-        for sgn, th2 in enumerate((acos, -acos)):
-            th1 = np.arctan2(u, w) - np.arctan2(l2 * np.sin(th2), l1 + l2 * np.cos(th2))
-            th1 = (th1 + math.pi) % (2 * math.pi) - math.pi
-            col = 2 * a + sgn
-            q[:, col, 0], q[:, col, 1], q[:, col, 2] = th0, th1, th2
-            ok[:, col] = valid & np.all((q[:, col] >= lo) & (q[:, col] <= hi), axis=1)
+    l1, l2 = solver.l1, solver.l2
+    # scalar math, as the solver's own: NumPy's vectorised transcendental
+    # functions may differ from libm's in the last bit (numpy 2.4 SIMD loops)
+    for i in range(n):
+        p = targets[i] - solver.o0
+        u = float(p @ solver.a0) * solver.s
+        pe, pb = float(p @ solver.e), float(p @ solver.b)
+        r = math.hypot(pe, pb)
+        base = math.atan2(pb, pe)
+        for a, (th0, w) in enumerate(
+            ((base, r - solver.k), (base - math.copysign(math.pi, base), -r - solver.k))
+        ):
+            c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+            valid = abs(c2) <= 1.0
+            acos = math.acos(min(1.0, max(-1.0, c2)))
+            for sgn, th2 in enumerate((acos, -acos)):
+                th1 = math.atan2(u, w) - math.atan2(l2 * math.sin(th2), l1 + l2 * math.cos(th2))
+                th1 = (th1 + math.pi) % (2 * math.pi) - math.pi
+                col = 2 * a + sgn
+                q[i, col] = (th0, th1, th2)
+                ok[i, col] = valid and bool(np.all((q[i, col] >= lo) & (q[i, col] <= hi)))
     return q, ok, np.clip(q, solver.lo, solver.hi)
 
 
