@@ -15,14 +15,17 @@ same, every :data:`CONTROL_PERIOD`:
   the transform from the measured to the planned object pose: the finger keeps
   the contact where it actually is on the object (wherever rolling moved it)
   and carries it to where the plan wants the object now;
-- a *free* finger (a regrasp's moving finger) follows its planned joints,
-  moved by the inverse transform (it lands on the planned contact of the
-  object where the object actually is), plus the offset it had when it let go
-  (the contact had rolled away from the planned one), fading out over
-  :data:`RELEASE_BLEND`.
+- a *free* finger (a regrasp's moving finger) aims at its planned tip moved
+  by the inverse transform (it lands on the planned contact of the object
+  where the object actually is), plus the offset it had when it let go (the
+  contact had rolled away from the planned one), fading out as the plan lifts
+  the tip :data:`LIFT_BLEND` away.
 
-Each tip displacement goes to the finger's joints through one damped least
-squares step on its position Jacobian (the loop closes every period). The
+A tip displacement goes to the finger's joints through one damped least
+squares step on its position Jacobian, from the measured joints (the loop
+closes every period; at most :data:`MAX_JOINT_STEP`), or, for a free finger
+once its offset has faded, from the planned joints (no tracking lag: a
+lagging tip cuts the corner of a regrasp's path and lands early). The
 grip-force feed-forward ``J^T f`` is kept; the errors reported stay those of
 the measured object against the plan.
 """
@@ -51,6 +54,10 @@ CONTROL_PERIOD = 0.005
 FORCE_EVERY = 10
 #: A released finger's offset from the plan fades out as the plan lifts its tip this far (m).
 LIFT_BLEND = 0.01
+#: A free finger's tip kept this far off the object (m) until LAND_TIME (s) before it lands
+#: (planned regrasp paths may graze the object: paper_sphere seed 6 passes 0.04 mm from it).
+CLEARANCE = 0.002
+LAND_TIME = 0.4
 #: Pull of a redundant finger's null space toward the planned joints (per update).
 NULL_GAIN = 0.1
 #: Largest tip correction (m) and joint step (rad) per update; the damping of the
@@ -104,6 +111,7 @@ class ObjectFeedback:
         self.release_tip = np.zeros((n, 3))
         self.lifted = np.zeros(n)
         self.was_holding = holding[0].copy()
+        self.landing = _next_hold_times(traj.t, holding)
 
     def targets(
         self,
@@ -125,7 +133,7 @@ class ObjectFeedback:
         Xp, Xm = pose_se3(planned_pose), pose_se3(sim_pose)
         T = Xp * Xm.inverse()
         p_sim, J_sim = self.hand.fingertip_jacobians(q_sim)
-        p_plan = self.hand.fingertip_positions(q_plan)
+        p_plan, J_plan = self.hand.fingertip_jacobians(q_plan)
         out = np.array(q_plan, dtype=float)
         for f, ix in enumerate(self.idx):
             hold = bool(self.holding[i, f])
@@ -135,6 +143,7 @@ class ObjectFeedback:
                 self.release_tip[f] = plan_tip
                 self.lifted[f] = 0.0
             self.was_holding[f] = hold
+            keep = 1.0
             if hold:
                 goal = T.act(p_sim[f])
             else:
@@ -142,12 +151,33 @@ class ObjectFeedback:
                 self.lifted[f] = max(self.lifted[f], lift)
                 keep = max(0.0, 1.0 - self.lifted[f] / LIFT_BLEND)
                 goal = Xm.act(plan_tip + keep * self.offset[f])
+            if keep == 0.0:  # lifted off: the planned joints corrected to first order (no lag)
+                goal = Xm.act(self._clear(plan_tip, float(self.landing[i, f] - self.traj.t[i])))
+                out[ix] = q_plan[ix] + _dls(J_plan[f], _clip(goal - p_plan[f]))
+                continue
             J = J_sim[f]
             out[ix] = q_sim[ix] + _dls(J, _clip(goal - p_sim[f]))
             if len(ix) > 3:  # a redundant finger: its null space toward the plan
                 null = np.eye(len(ix)) - np.linalg.pinv(J) @ J
                 out[ix] += NULL_GAIN * null @ (q_plan[ix] - q_sim[ix])
         return np.clip(out, self.lower, self.upper)
+
+    def _clear(self, tip: FloatArray, to_landing: float) -> FloatArray:
+        """A free tip centre (object frame) kept :data:`CLEARANCE` off the object until it lands.
+
+        The push along the outward normal fades out between :data:`LAND_TIME`
+        and a quarter of it before the landing.
+        """
+        if self.solver is None:
+            return tip
+        fade = min(1.0, max(0.0, (to_landing - LAND_TIME / 4) / (0.75 * LAND_TIME)))
+        if fade == 0.0:
+            return tip
+        c, n_out = (np.reshape(v, 3) for v in self.solver.obj.closest_point(tip))
+        gap = float(np.dot(tip - c, n_out)) - self.hand.fingertip_radius
+        if gap >= CLEARANCE:
+            return tip
+        return tip + fade * (CLEARANCE - gap) * n_out
 
     def feed_forward(
         self, i: int, q_sim: FloatArray, sim_pose: FloatArray, planned: FloatArray
@@ -236,3 +266,13 @@ def _tip_rotations(hand: Any, q: Any) -> list[FloatArray]:
     """World rotation of each fingertip frame (it turns with its link) at ``q``."""
     pin.framesForwardKinematics(hand.model, hand.data, np.asarray(q, dtype=float))
     return [hand.data.oMf[fid].rotation.copy() for fid in hand.tip_frame_ids]
+
+
+def _next_hold_times(t: FloatArray, holding: np.ndarray) -> FloatArray:
+    """(m, n) the time each finger is next in contact in the plan (inf: never again)."""
+    out = np.full(holding.shape, np.inf)
+    nxt = np.full(holding.shape[1], np.inf)
+    for k in range(t.size - 1, -1, -1):
+        nxt = np.where(holding[k], t[k], nxt)
+        out[k] = nxt
+    return out
