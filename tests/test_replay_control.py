@@ -64,3 +64,28 @@ def test_transfers_ask_the_rigid_tips_to_slide(planned) -> None:
     for w in still["segments"][0]["waypoints"]:
         w["q"], w["object_pose_xyzquat"] = list(w0["q"]), list(w0["object_pose_xyzquat"])
     assert np.allclose(planned_tip_slip(still, hand), 0.0)
+
+
+def test_a_free_tip_is_kept_off_the_object_until_it_lands(planned) -> None:
+    from dexplan.forces import ForceSettings, solver_from_plan
+    from dexplan.replay_control import CLEARANCE, LAND_TIME
+
+    doc, hand = planned
+    traj = build_trajectory(_first_transfer(doc), hand=hand)
+    fb = ObjectFeedback(hand, traj, solver_from_plan(doc, ForceSettings(), hand))
+    radius = float(doc["object"]["radius"]) + hand.fingertip_radius
+    grazing = np.array([radius + 0.0001, 0.0, 0.0])
+    assert np.allclose(fb._clear(grazing, 10.0), [radius + CLEARANCE, 0.0, 0.0])
+    assert np.allclose(fb._clear(grazing, LAND_TIME / 8), grazing)
+    far = np.array([0.0, radius + 0.01, 0.0])
+    assert np.allclose(fb._clear(far, 10.0), far)
+
+
+def test_next_hold_times() -> None:
+    from dexplan.replay_control import _next_hold_times
+
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    holding = np.array([[True, False], [False, False], [False, True], [True, False]])
+    out = _next_hold_times(t, holding)
+    assert np.array_equal(out[:, 0], [0.0, 3.0, 3.0, 3.0])
+    assert np.array_equal(out[:, 1], [2.0, 2.0, 2.0, np.inf])
