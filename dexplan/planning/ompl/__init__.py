@@ -29,6 +29,10 @@ each written down in the module it concerns:
 - no binding releases the GIL: PRM's checker thread must never enter Python, so
   the PRM family gets one C++ goal state and a C++ time limit
   (:mod:`~dexplan.planning.ompl.callbacks`);
+- no state-sampler hook: ``StateSpace.setStateSamplerAllocator`` is not bound
+  and a Python ``allocDefaultStateSampler`` override is never called, on a
+  constrained space or on the ambient space inside it; only
+  ``setValidStateSamplerAllocator`` (the PRM family) takes a Python sampler;
 - ``Planner.params()`` is not bound, ``AORRTC`` is not registered
   (:mod:`~dexplan.planning.ompl.registry`);
 - ``RNG.setSeed`` reseeds the global seed generator even after use

@@ -2,8 +2,11 @@
 
 - ``is_valid(x) -> bool`` becomes the state validity checker (:func:`make_validity`);
 - an optional ``valid_sampler() -> x | None`` becomes an ``ob.ValidStateSampler``
-  (:func:`make_sampler_allocator`; used by the PRM family, tree planners sample
-  the ambient space and project);
+  (:func:`make_sampler_allocator`; used by the PRM family only: tree planners
+  draw from the space's own sampler, uniform ambient states then projected,
+  and the wheel offers no hook to replace it, see
+  :mod:`dexplan.planning.chart` for how dexplan's tree planners get GSn
+  states anyway);
 - a :class:`GoalSpec` (distance, threshold, optional sampler) becomes a goal region
   (:func:`make_goal_region`), or a single goal state given to
   :meth:`~dexplan.planning.ompl.problem.PlanningProblem.set_goal_state`;

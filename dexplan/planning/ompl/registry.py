@@ -92,9 +92,10 @@ PLANNER_NOTES: dict[str, str] = {
     "RRTstar": "optimizing: uses the whole time limit",
     "PRMstar": "optimizing: uses the whole time limit; multi-query roadmap",
     "PRM": "multi-query roadmap; uses the custom valid state sampler",
+    "FMT": "batch of num_samples states drawn uniformly up front; timed out on the "
+    "tangent-bundle space",
     "LBKPIECE1": "lazy: OMPL's ConstrainedMotionValidator does not check a motion's end "
     "state, so it can return invalid waypoints; the re-check reports them as path_invalid",
-    "FMT": "batch of num_samples states; timed out on the tangent-bundle space",
     "BFMT": "batch of num_samples states; timed out on the tangent-bundle space",
 }
 """Caveats per registered planner (informational)."""
