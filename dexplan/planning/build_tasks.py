@@ -175,10 +175,16 @@ class RayRunner:
         self._ray = ray
         self._own = not ray.is_initialized()
         if self._own:
-            if address == "local":
-                ray.init(num_cpus=jobs or 2, include_dashboard=False, log_to_driver=False)
-            else:
-                ray.init(address=address, log_to_driver=False)
+            try:
+                if address == "local":
+                    ray.init(num_cpus=jobs or 2, include_dashboard=False, log_to_driver=False)
+                else:
+                    ray.init(address=address, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                msg = " ".join(str(exc).split())[:160]
+                raise InvalidInputError(
+                    f"--ray {address}: cannot join the cluster ({msg})"
+                ) from exc
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = max(1, jobs or cpus)
         actor = ray.remote(num_cpus=1)(TaskWorker)
