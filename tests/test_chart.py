@@ -171,3 +171,13 @@ def test_tree_planners_search_the_chart_and_return_valid_gsn_paths(planner: str)
         assert ctx.gsn.residual(x) < 1e-6
         assert ctx.validity.check(x).valid
     assert np.all(np.isfinite(res.roadmap.vertices))
+
+
+def test_a_start_the_chart_cannot_represent_falls_back_to_the_ambient_space(cube) -> None:
+    ctx, _ = cube
+    x0 = start_state(ctx)
+    assert x0 is not None
+    assert chart_problem(ctx, "RRTConnect", None, "projected", 1, x0) is not None
+    off = x0.copy()
+    off[POSE_DIM] += 0.05  # a fingertip off the offset surface: not a chart state
+    assert chart_problem(ctx, "RRTConnect", None, "projected", 1, off) is None
