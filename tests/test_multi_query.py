@@ -14,7 +14,7 @@ import dexplan
 from dexplan.api import RoadmapPlanner
 from dexplan.goals import load_goals, parse_goals, random_goals
 from dexplan.planning.learning import BuildSettings
-from dexplan.planning.roadmap import read_roadmap_arrays
+from dexplan.planning.roadmap_file import read_roadmap_arrays
 from dexplan.scenario import GoalSpec, load_scenario
 from tests.cli_contract import assert_bad_input, run_cli
 

@@ -19,10 +19,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dexplan.exceptions import PlanFileError, RoadmapFileError
-from dexplan.planning.roadmap import (
+from dexplan.planning.roadmap import Roadmap
+from dexplan.planning.roadmap_file import (
     MAX_ROADMAP_VERTICES,
     ROADMAP_FORMAT,
-    Roadmap,
     read_roadmap_arrays,
 )
 
