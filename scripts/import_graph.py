@@ -33,7 +33,7 @@ LAYERS: dict[str, int] = {
     "plan_file": 2, "plan_schema": 2, "plan_verify": 2,
     "planning": 3,
     "api": 4, "timing": 4, "forces": 4, "replay": 4, "viz": 4, "bench": 4, "cli": 4,
-    "export": 4, "trajectory": 4, "cli_roadmap": 4,
+    "export": 4, "trajectory": 4, "cli_roadmap": 4, "replay_control": 4,
 }  # fmt: skip
 NAMES = ["foundations", "models", "plan file", "planning", "callers"]
 
