@@ -158,3 +158,31 @@ def test_fingertips_on_box_edges_are_verified_contacts() -> None:
     c[2] += 0.004  # move the stated contact 4 mm
     rules = {v.rule for v in verify_plan(bad).violations}
     assert "contact_matches_fingertip" in rules
+
+
+@pytest.mark.parametrize("retries", [0, 2])
+def test_failed_regrasp_search_is_retried_before_giving_up(
+    scenario, start_and_goal, monkeypatch, retries: int
+) -> None:
+    """A regrasp search that finds nothing runs again ``regrasp_retries`` times, then stops."""
+    from dexplan.planning import reduction
+    from dexplan.planning.transitions import densify_poses
+
+    x0, xg = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    calls: list[int] = []
+
+    def nothing(*args, **kwargs):
+        calls.append(1)
+        return None
+
+    monkeypatch.setattr(reduction, "_regrasp_one", nothing)
+    s = ctx.transitions.settings
+    dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
+    grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
+    red = reduction.reduce_object_path(
+        ctx.transitions, dense, x0[POSE_DIM:], grasp, ReductionSettings(regrasp_retries=retries)
+    )
+    assert not red.success
+    assert red.reason is not None and red.reason.startswith("no feasible regrasp")
+    assert len(calls) == 1 + retries
