@@ -1,0 +1,75 @@
+"""Valid GSn samples per second on meshes of 5k to 330k triangles (issue 13's ratio figure).
+
+Builds the paper_sphere task with the ball replaced by an icosphere mesh of the
+same radius (5,120, 81,920 or 327,680 triangles, written to a temporary
+folder), and runs the planner's own RLG sampler (``GraspSampler.sample()``,
+random poses) for ``--seconds`` of sampling time on each, alternating the
+meshes ``--rounds`` times in one process; prints a Markdown table (median
+valid/s of each mesh and its ratio to the 5k mesh) and each run's figures.
+
+    python scripts/bench_mesh_sampler.py --seconds 10 --rounds 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+from pathlib import Path
+
+import trimesh
+
+from dexplan.planning.context import build_context
+from dexplan.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+PAPER = ROOT / "dexplan" / "data" / "scenarios" / "paper_sphere.toml"
+#: Icosphere subdivisions: 4 -> 5,120 triangles, 6 -> 81,920, 7 -> 327,680.
+COUNTS = {"5k": 4, "82k": 6, "328k": 7}
+
+
+def mesh_scenario(folder: Path, count: int) -> Path:
+    """paper_sphere.toml with its 4 cm ball as an icosphere of ``count`` subdivisions."""
+    mesh = trimesh.creation.icosphere(subdivisions=count, radius=0.04)
+    obj = folder / f"ball_{count}.obj"
+    mesh.export(obj)
+    text = PAPER.read_text().replace(
+        'shape = "sphere"\nradius = 0.04', f'shape = "mesh"\npath = "{obj.as_posix()}"'
+    )
+    out = folder / f"paper_mesh_{count}.toml"
+    out.write_text(text)
+    return out
+
+
+def rate(path: Path, seconds: float, seed: int) -> tuple[float, int]:
+    """Valid samples per second of sampling time, and the mesh's triangle count."""
+    ctx = build_context(load_scenario(path), seed)
+    sampler = ctx.sampler
+    while sampler.stats.time_s < seconds:
+        sampler.sample()
+    return sampler.stats.samples_per_second, len(ctx.obj.faces)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=1)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = {k: mesh_scenario(Path(tmp), c) for k, c in COUNTS.items()}
+        runs: dict[str, list[float]] = {k: [] for k in COUNTS}
+        faces: dict[str, int] = {}
+        for r in range(args.rounds):
+            for k in COUNTS:
+                v, faces[k] = rate(paths[k], args.seconds, args.seed + r)
+                runs[k].append(v)
+                print(f"round {r + 1} {k} ({faces[k]} triangles): {v:.1f} valid/s", flush=True)
+    med = {k: statistics.median(v) for k, v in runs.items()}
+    print("\n| mesh | triangles | valid samples/s (median) | 5k / this |\n|---|---|---|---|")
+    for k in COUNTS:
+        print(f"| {k} | {faces[k]} | {med[k]:.1f} | {med['5k'] / med[k]:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
