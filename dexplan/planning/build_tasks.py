@@ -148,9 +148,10 @@ class ProcessRunner:
 
         method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         self.workers = jobs
-        self._pool = mp.get_context(method).Pool(
-            jobs, initializer=_init_process, initargs=(scenario, space)
-        )
+        context = mp.get_context(method)
+        if method == "forkserver":  # the server imports the models once; workers fork from it
+            context.set_forkserver_preload(["dexplan.planning.build_tasks"])
+        self._pool = context.Pool(jobs, initializer=_init_process, initargs=(scenario, space))
 
     def map(self, tasks: Sequence[tuple[Any, ...]]) -> list[Any]:
         """The tasks' answers, in task order."""
