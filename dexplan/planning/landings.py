@@ -33,6 +33,8 @@ if TYPE_CHECKING:
 
 #: Poses whose closed-form IK branches a track solves at once.
 _TRACK_BATCH = 16
+#: Landing candidates whose reachability is solved at a time.
+_REACH_CHUNK = 192
 #: Poses (after the follow stride) scored at a time by ``follow_scores``.
 _FOLLOW_CHUNK = 4
 
@@ -430,12 +432,10 @@ class Landings:
         keep = keep[~cannot_be_force_closure(normals, self.validity.mu)]
         if len(keep) == 0:
             return None
-        # reachable now (one IK batch), then at most landing_reachable of them
-        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
-        idx = self.hand.finger_q_index[finger]
-        q_now, ok_now = self.hand.finger_ik_batch(finger, tip_obj[keep] @ R.T + pose[:3])
-        ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
-        keep = keep[ok_now][: s.landing_reachable + (hint is not None)]
+        # the first landing_reachable of them (in sampling order) reachable now
+        keep = self._first_reachable(
+            finger, pose, tip_obj, keep, s.landing_reachable + (hint is not None)
+        )
         if len(keep) == 0:
             return None
         scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
@@ -444,11 +444,36 @@ class Landings:
         if s.landing_alignment is not None and len(keep):
             # the distal link must be able to point into the surface there,
             # or the finger's side touches the object (redundant fingers)
+            R = self._frames(pose)[0]
             aligned = self._alignment(finger, tip_obj[keep] @ R.T + pose[:3], -nrm[keep] @ R.T)
             good = aligned >= s.landing_alignment
             keep, scores = keep[good], scores[good]
         order = np.lexsort((self.rng.random(len(keep)), -scores))
         return pts, nrm, keep[order], scores[order]
+
+    def _first_reachable(
+        self, finger: int, pose: FloatArray, tip_obj: FloatArray, keep: np.ndarray, most: int
+    ) -> np.ndarray:
+        """The first ``most`` of candidates ``keep`` whose fingertip centre the finger reaches.
+
+        ``tip_obj: (S, 3)`` fingertip centres (object frame) indexed by
+        ``keep``; reached: IK within the joint margin at ``pose``. Solved a
+        chunk at a time, stopping once ``most`` are found (the same
+        candidates as one batch over all of them, for less IK).
+        """
+        R = self._frames(pose)[0]
+        idx = self.hand.finger_q_index[finger]
+        found: list[np.ndarray] = []
+        count = 0
+        for lo in range(0, len(keep), _REACH_CHUNK):
+            chunk = keep[lo : lo + _REACH_CHUNK]
+            q_now, ok_now = self.hand.finger_ik_batch(finger, tip_obj[chunk] @ R.T + pose[:3])
+            ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
+            found.append(chunk[ok_now])
+            count += int(ok_now.sum())
+            if count >= most:
+                break
+        return np.concatenate(found)[:most] if found else keep[:0]
 
     def _track_best(
         self,
