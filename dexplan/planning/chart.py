@@ -14,17 +14,20 @@ sample already is a GSn configuration: the **contact chart**
 object position and quaternion, then for each contact finger a direction
 ``d_i`` in the world (palm) frame, then the joints of the fingers not in
 contact (none on GSn), then a pinned coordinate. Quaternion and directions
-are normalised by the map, so any point of the box bounds is a chart state;
-the one constraint row is the pinned coordinate, whose bounds (+-1e-12) lie
-inside the projection tolerance: OMPL's constrained spaces (which need a
-constraint) accept every sample without a Newton step, informed samplers
-that treat the space as R^n (BITstar, InformedRRTstar, SORRTstar) included,
-and discrete geodesics are straight lines in ``y`` (symmetric: a -> b is
-valid exactly when b -> a is).
+are normalised by the map, so any point of the box bounds is a chart state.
+The constraint rows (``spheres=True``, the default) are the pinned
+coordinate, ``|quat|^2 - 1`` and ``|d_i|^2 - 1``: a product of spheres, onto
+which OMPL's Newton projection converges from any point but the origin, so
+every projected sample is a chart state. With ``spheres=False`` the pinned
+coordinate is the only row; its bounds (+-1e-12) lie inside the projection
+tolerance, so even samples that are never projected (the informed samplers
+of BITstar, InformedRRTstar and SORRTstar treat the space as R^n) are chart
+states. Motions are OMPL's discrete geodesics between chart states,
+symmetric here (a -> b is valid exactly when b -> a is).
 
 A chart state maps to an ambient GSn state (:meth:`ContactChart.to_ambient`):
 the fingertip-sphere centre of finger i is where the ray from the object's
-origin along ``d_i`` meets the offset surface ``{p : sdf(p) = r}`` (r the tip
+origin along ``d_i`` (taken to the object frame) meets the offset surface ``{p : sdf(p) = r}`` (r the tip
 radius), found by safeguarded Newton steps from outside (monotone on convex
 objects: the signed distance is convex along a ray); the finger's joints are
 its IK solution nearest the hand's neutral posture. The offset surface of a
@@ -94,6 +97,13 @@ class ContactChart:
     Args:
         gsn: the grasp subspace (its hand, object, contact fingers and bounds).
         is_valid: ``is_valid(x) -> bool``, the ambient validity checker.
+        spheres: constrain quaternion and directions to unit length (for
+            planners that project their samples); False leaves only the
+            pinned row (for samplers that treat the space as R^n).
+        world_directions: directions in the world (palm) frame, so that a
+            fixed direction under an object rotation slides the contact and
+            keeps the finger in place; False: in the object frame (a fixed
+            direction is a rigid transfer).
 
     Raises:
         InvalidInputError: the object-frame origin is not inside the object (rays
