@@ -27,14 +27,15 @@ symmetric here (a -> b is valid exactly when b -> a is).
 
 A chart state maps to an ambient GSn state (:meth:`ContactChart.to_ambient`):
 the fingertip-sphere centre of finger i is where the ray from the object's
-origin along ``d_i`` (taken to the object frame) meets the offset surface ``{p : sdf(p) = r}`` (r the tip
-radius), found by safeguarded Newton steps from outside (monotone on convex
-objects: the signed distance is convex along a ray); the finger's joints are
-its IK solution nearest the hand's neutral posture. The offset surface of a
-box has rounded edges of radius r, so the map is continuous across edges
-(the fingertip rolls over the edge). Directions are in the world frame, so a
-pure rotation of the object keeps the fingertips near where they are (the
-contacts slide), as reorientation needs. The ambient state then goes to the
+origin along ``d_i`` (taken to the object frame) meets the offset surface
+``{p : sdf(p) = r}`` (r the tip radius), found by safeguarded Newton steps
+from outside (monotone on convex objects: the signed distance is convex
+along a ray); the finger's joints are its IK solution nearest the hand's
+neutral posture. The offset surface of a box has rounded edges of radius
+r, so the map is continuous across edges (the fingertip rolls over the
+edge). Directions are in the world frame by default, so a pure rotation of
+the object keeps the fingertips near where they are (the contacts slide),
+as reorientation needs. The ambient state then goes to the
 usual validity checker (bounds, joint limits, collisions, force closure).
 
 The inverse (:meth:`ContactChart.to_chart`) reads the pose and each fingertip
