@@ -145,11 +145,9 @@ def reduce_object_path(
                 final=tr.reason == "object_collision",
             )
         hint_row = None if hints is None else hints[min(idx, len(hints) - 1)]
-        found = None
-        for _ in range(1 + settings.regrasp_retries):
-            found = _regrasp_one(trans, poses, idx, q, grasp, tr.blocking, hint_row)
-            if found is not None or trans.deadline.expired():
-                break
+        found = _regrasp_retrying(
+            trans, poses, idx, q, grasp, tr.blocking, hint_row, settings.regrasp_retries
+        )
         if found is None:
             return ReductionResult(
                 False,
@@ -172,6 +170,28 @@ def reduce_object_path(
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
                 _stats(trans, regrasps),
             )
+
+
+def _regrasp_retrying(
+    trans: Transitions,
+    poses: FloatArray,
+    idx: int,
+    q: FloatArray,
+    grasp: GraspContacts,
+    blocking: int,
+    hint_row: FloatArray | None,
+    retries: int,
+) -> tuple[Segment, GraspContacts] | None:
+    """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
+
+    The landing candidates are random samples: a fresh set often holds a
+    feasible regrasp. Stops at the deadline.
+    """
+    for _ in range(1 + retries):
+        found = _regrasp_one(trans, poses, idx, q, grasp, blocking, hint_row)
+        if found is not None or trans.deadline.expired():
+            return found
+    return None
 
 
 def _regrasp_one(

@@ -436,23 +436,8 @@ def explore_gsn(
             if time.perf_counter() >= deadline - 0.05:
                 return GsnResult(None, roadmap, stats, "no GSn path within the time limit")
             continue
-        # module 2: a few links from the start's component towards the goal region
         start = starts[0] if starts else roadmap.add_vertex(query.start)
-        # a share of the time left, so that module 1 grows its roadmap again
-        # when the links fail (a many-DOF hand's link attempt may take seconds)
-        t_now = time.perf_counter()
-        link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)
-        with _cut(ctx.transitions.deadline, link_by):
-            linked = link_query(
-                ctx,
-                roadmap,
-                query,
-                start,
-                link_by,
-                stats,
-                max_attempts=4,
-                geodesic=_geodesic(problem),
-            )
+        linked = _module2_pass(ctx, roadmap, query, start, deadline, stats, _geodesic(problem))
         stats["gsn_time_s"] = time.perf_counter() - t0
         report(
             "module2",
@@ -460,6 +445,29 @@ def explore_gsn(
         )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
             return linked
+
+
+def _module2_pass(
+    ctx: PlanningContext,
+    roadmap: Roadmap,
+    query: GsnQuery,
+    start: int,
+    deadline: float,
+    stats: dict[str, Any],
+    geodesic: Geodesic,
+) -> GsnResult:
+    """Module 2 of a single query: a few links from the start's component towards the goal.
+
+    It gets :data:`MODULE2_SHARE` of the time left (the shared deadline is
+    brought forward meanwhile), so that module 1 grows its roadmap again when
+    the links fail: a many-DOF hand's link attempt may take seconds.
+    """
+    t_now = time.perf_counter()
+    link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)
+    with _cut(ctx.transitions.deadline, link_by):
+        return link_query(
+            ctx, roadmap, query, start, link_by, stats, max_attempts=4, geodesic=geodesic
+        )
 
 
 @contextlib.contextmanager
