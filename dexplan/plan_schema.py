@@ -190,6 +190,10 @@ def _vector(value: Any, path: str, n: int, what: str) -> None:
     if not isinstance(value, list | tuple) or len(value) != n:
         given = f" ({len(value)} given)" if isinstance(value, list | tuple) else ""
         _fail(path, f"must be {what}{given}", value)
+    # the common case, plain floats in range, in one pass (NaN fails the
+    # comparison); anything else is judged number by number
+    if all(type(x) is float and -MAX_ABS_VALUE <= x <= MAX_ABS_VALUE for x in value):
+        return
     for i, x in enumerate(value):
         if not _is_number(x) or not _finite(x):
             _fail(f"{path}[{i}]", f"must be a finite number (|x| <= {MAX_ABS_VALUE:g})", x)
