@@ -87,7 +87,9 @@ def test_tampered_plan_loses_track_without_gravity(planned) -> None:
     _, doc, hand = planned
     r = replay_plan(_tampered(doc), gravity=False, hand=hand)
     assert not r.tracked
-    assert r.contact_losses and r.unbalanced_samples > 0
+    # whether the two fingers left can squeeze in balance (unbalanced_samples) depends on
+    # the plan's grasp; losing the tampered finger's contact and the track does not
+    assert r.contact_losses
 
 
 def test_missing_mujoco_is_a_dependency_error(monkeypatch, capfd, planned) -> None:
