@@ -277,6 +277,42 @@ class CollisionWorld:
         """True when :meth:`check` finds no collision (stops at the first one)."""
         return self.check(q_hand, object_pose_xyzquat, contact_fingers).free
 
+    def finger_pairs(self, finger: int) -> list[int]:
+        """Collision pairs of a finger's links against the palm, the object and the obstacles.
+
+        The fingertip-object pair (the contact) and pairs with other fingers
+        are left out: those move with the other fingers. What a finger placed
+        alone (the sampler's pools, landing tracks) must keep clear of.
+        """
+        mine = set(self.finger_geoms[finger])
+        on_fingers = {g for geoms in self.finger_geoms for g in geoms}
+        tip = self.tip_geoms[finger]
+        out = []
+        for k, cp in enumerate(self.geom_model.collisionPairs):
+            for g, other in ((cp.first, cp.second), (cp.second, cp.first)):
+                if g not in mine or other in on_fingers:
+                    continue
+                if other == self.object_geom and g == tip:
+                    continue
+                out.append(k)
+        return out
+
+    def free_finger_pairs(self, finger: int) -> list[int]:
+        """The collision pairs a move of ``finger`` alone can change, while it is free.
+
+        Every pair with a geometry on the finger (its fingertip-object pair
+        included, as a free finger's is checked), except the other fingers'
+        fingertip-object pairs, which a contact mask with only ``finger`` free
+        switches off.
+        """
+        mine = set(self.finger_geoms[finger])
+        off = {k for j, k in enumerate(self._tip_object_pairs) if j != finger}
+        return [
+            k
+            for k, cp in enumerate(self.geom_model.collisionPairs)
+            if (cp.first in mine or cp.second in mine) and k not in off
+        ]
+
     def pairs_data(self, pairs: Sequence[int]) -> pin.GeometryData:
         """Geometry data of this world with only the collision pairs ``pairs`` active.
 

@@ -166,8 +166,8 @@ class GraspSampler:
         if per_finger is None:
             per_finger = any(len(idx) > 3 for idx in hand.finger_q_index)
         self.per_finger = bool(per_finger)
-        self._finger_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
         world = validity.world
+        self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
         self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
         # ranked combinations left at the last random pose that gave a valid grasp
@@ -209,29 +209,6 @@ class GraspSampler:
         inside = np.all((ijk >= 0) & (ijk < np.array(grid.shape)), axis=1)
         out = np.zeros(len(tips), dtype=bool)
         out[inside] = grid[tuple(ijk[inside].T)]
-        return out
-
-    def _pairs_of_finger(self, finger: int) -> list[int]:
-        """Collision pairs of a finger's links against the palm, object and obstacles.
-
-        The palm is every hand geometry on no finger; the fingertip-object
-        pair is left out (that is the contact).
-        """
-        world = self.validity.world
-        mine = set(world.finger_geoms[finger])
-        on_fingers = {g for geoms in world.finger_geoms for g in geoms}
-        n_hand = len(self.gsn.hand.geom_model.geometryObjects)
-        tip = world.tip_geoms[finger]
-        out = []
-        for k, cp in enumerate(world.geom_model.collisionPairs):
-            a, b = cp.first, cp.second
-            for g, other in ((a, b), (b, a)):
-                if g not in mine:
-                    continue
-                if other == world.object_geom and g == tip:
-                    continue
-                if other >= n_hand or other not in on_fingers:
-                    out.append(k)
         return out
 
     def _reach_shell(self, finger: int) -> tuple[FloatArray, float, float]:

@@ -205,9 +205,11 @@ class Transitions(Landings):
         for i, idx in enumerate(hand.finger_q_index):
             self._finger_of_joint[idx] = i
         self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
-        self._own_pairs = [self._pairs_of_finger(i) for i in range(hand.n_fingers)]
-        self._own_data: list[pin.GeometryData | None] = [None] * hand.n_fingers
-        self._moving_pairs = [self._pairs_moving(i) for i in range(hand.n_fingers)]
+        # per finger, its pairs as one geometry data each (checked in one C++ call):
+        # the links alone (tracks, landings), and a free finger's moves
+        n_f = range(hand.n_fingers)
+        self._own_data = [world.pairs_data(world.finger_pairs(i)) for i in n_f]
+        self._move_data = [world.pairs_data(world.free_finger_pairs(i)) for i in n_f]
         # landing postures found by track_score, keyed by (finger, fingertip centre)
         self._postures: dict[tuple[int, bytes], FloatArray] = {}
         # finger tracks by (finger, contact, joints of no finger): poses followed,
@@ -219,45 +221,6 @@ class Transitions(Landings):
         n = hand.n_fingers
         self._free_masks = [tuple(j != i for j in range(n)) for i in range(n)]
         self._rest_q = [np.setdiff1d(np.arange(hand.nq), idx) for idx in hand.finger_q_index]
-        self._move_gd: dict[int, pin.GeometryData] = {}
-
-    def _pairs_of_finger(self, finger: int) -> list[int]:
-        """Collision pairs of a finger's links against the palm, object and obstacles.
-
-        The fingertip-object pair (the contact) and pairs with other fingers
-        are left out: those move with the other fingers.
-        """
-        world = self.world
-        mine = set(world.finger_geoms[finger])
-        on_fingers = {g for geoms in world.finger_geoms for g in geoms}
-        tip = world.tip_geoms[finger]
-        out = []
-        for k, cp in enumerate(world.geom_model.collisionPairs):
-            for g, other in ((cp.first, cp.second), (cp.second, cp.first)):
-                if g not in mine or other in mine:
-                    continue
-                if other == world.object_geom and g == tip:
-                    continue
-                if other not in on_fingers:
-                    out.append(k)
-        return out
-
-    def _pairs_moving(self, finger: int) -> list[int]:
-        """The collision pairs a move of ``finger`` alone can change, while it is free.
-
-        Every pair with a geometry on the finger (its fingertip-object pair
-        included, as a free finger's is checked), except the other fingers'
-        fingertip-object pairs, which a contact mask with only ``finger`` free
-        switches off.
-        """
-        world = self.world
-        mine = set(world.finger_geoms[finger])
-        off = {k for j, k in enumerate(world._tip_object_pairs) if j != finger}
-        return [
-            k
-            for k, cp in enumerate(world.geom_model.collisionPairs)
-            if (cp.first in mine or cp.second in mine) and k not in off
-        ]
 
     def _moved_free(
         self, finger: int, q: FloatArray, ref: FloatArray, pose: FloatArray, mask: tuple[bool, ...]
@@ -267,43 +230,18 @@ class Transitions(Landings):
         ``q`` must differ from ``ref`` in ``finger``'s joints only, with only
         ``finger`` free in ``mask``: every other pair, and the contact fingers'
         penetration, are then as they were at ``ref`` (free), so only the
-        finger's own pairs (:meth:`_pairs_moving`) are checked. The answer is
-        the full check's; anything else gets the full check.
+        finger's own pairs (:meth:`CollisionWorld.free_finger_pairs`) are
+        checked. The answer is the full check's; anything else gets the full
+        check.
         """
-        world, hand = self.world, self.hand
         rest = self._rest_q[finger]
         if mask != self._free_masks[finger] or not np.array_equal(q[rest], ref[rest]):
-            return world.is_free(q, pose, mask)
-        gm, gd = world.geom_model, self._move_data(finger)
-        pin.updateGeometryPlacements(hand.model, hand.data, gm, gd, q)
-        gd.oMg[world.object_geom] = self._frames(pose)[1]
-        return not pin.computeCollisions(gm, gd, True)
-
-    def _move_data(self, finger: int) -> pin.GeometryData:
-        """Geometry data of the world with only ``finger``'s moving pairs active (made once).
-
-        One C++ call then checks them (a Python loop over the pairs cost 3x more).
-        Collision requests are set as the world's own (contacts on).
-        """
-        gd = self._move_gd.get(finger)
-        if gd is None:
-            gd = pin.GeometryData(self.world.geom_model)
-            for req, own in zip(
-                gd.collisionRequests, self.world.geom_data.collisionRequests, strict=True
-            ):
-                req.enable_contact = own.enable_contact
-            gd.deactivateAllCollisionPairs()
-            for k in self._moving_pairs[finger]:
-                gd.activateCollisionPair(k)
-            self._move_gd[finger] = gd
-        return gd
+            return self.world.is_free(q, pose, mask)
+        return not self.world.pairs_collide(self._move_data[finger], q, self._frames(pose)[1])
 
     def _finger_free(self, finger: int, q: FloatArray, M_obj: pin.SE3) -> bool:
         """``finger``'s links at ``q: (nq,)`` clear of palm, object (pose ``M_obj``), obstacles."""
-        gd = self._own_data[finger]
-        if gd is None:
-            gd = self._own_data[finger] = self.world.pairs_data(self._own_pairs[finger])
-        return not self.world.pairs_collide(gd, q, M_obj)
+        return not self.world.pairs_collide(self._own_data[finger], q, M_obj)
 
     # ------------------------------------------------------------------ helpers
     def tip_targets(self, pose: FloatArray, grasp: GraspContacts) -> FloatArray:
