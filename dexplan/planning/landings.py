@@ -151,9 +151,7 @@ class Landings:
         C, P = len(tips_obj), len(poses)
         Rs = [self._frames(pose)[0] for pose in poses]
         targets = np.stack([tips_obj @ R.T + pose[:3] for R, pose in zip(Rs, poses, strict=True)])
-        q, ok = self.hand.finger_ik_batch(finger, targets.reshape(-1, 3))
-        idx = self.hand.finger_q_index[finger]
-        ok &= np.all(q >= self._lo[idx], axis=1) & np.all(q <= self._hi[idx], axis=1)
+        q, ok = self._ik_in_margin(finger, targets.reshape(-1, 3))
         split = self.hand._split_ik[finger]
         limit = self.settings.landing_alignment
         if normals_obj is not None and split is not None and limit is not None and ok.any():
@@ -462,18 +460,26 @@ class Landings:
         candidates as one batch over all of them, for less IK).
         """
         R = self._frames(pose)[0]
-        idx = self.hand.finger_q_index[finger]
         found: list[np.ndarray] = []
         count = 0
         for lo in range(0, len(keep), _REACH_CHUNK):
             chunk = keep[lo : lo + _REACH_CHUNK]
-            q_now, ok_now = self.hand.finger_ik_batch(finger, tip_obj[chunk] @ R.T + pose[:3])
-            ok_now &= np.all((q_now >= self._lo[idx]) & (q_now <= self._hi[idx]), axis=1)
+            ok_now = self._ik_in_margin(finger, tip_obj[chunk] @ R.T + pose[:3])[1]
             found.append(chunk[ok_now])
             count += int(ok_now.sum())
             if count >= most:
                 break
         return np.concatenate(found)[:most] if found else keep[:0]
+
+    def _ik_in_margin(self, finger: int, tips: FloatArray) -> tuple[FloatArray, np.ndarray]:
+        """IK of ``finger`` to fingertip centres ``tips: (N, 3)`` (world frame), off the limits.
+
+        Returns ``q: (N, m)`` and ``ok: (N,)``: solved and within the joint margin.
+        """
+        q, ok = self.hand.finger_ik_batch(finger, tips)
+        idx = self.hand.finger_q_index[finger]
+        ok &= np.all((q >= self._lo[idx]) & (q <= self._hi[idx]), axis=1)
+        return q, ok
 
     def _track_best(
         self,
