@@ -225,6 +225,27 @@ def build_roadmap(
         t = time.perf_counter()
         attempts += link_components(ctx, roadmap, settings, deadline, say)
         t_m2 += time.perf_counter() - t
+    stats = _finish(roadmap, settings, t0, gsn_components, grower.rounds, attempts, t_m1, t_m2)
+    return roadmap, stats
+
+
+def _finish(
+    roadmap: Roadmap,
+    settings: BuildSettings,
+    t0: float,
+    gsn_components: int,
+    rounds: int,
+    link_attempts: int,
+    module1_time_s: float,
+    module2_time_s: float,
+    *,
+    workers: int = 1,
+    tasks: int = 0,
+) -> BuildStats:
+    """The build's :class:`BuildStats` (times rounded to 1 us), also kept in ``roadmap.build``.
+
+    ``t0`` is the ``time.perf_counter()`` the build started at.
+    """
     stats = BuildStats(
         planner=settings.planner,
         seed=settings.seed,
@@ -233,16 +254,18 @@ def build_roadmap(
         links=len(roadmap.links),
         gsn_components=gsn_components,
         components=roadmap.components()[0],
-        rounds=grower.rounds,
-        link_attempts=attempts,
-        module1_time_s=round(t_m1, 6),
-        module2_time_s=round(t_m2, 6),
+        rounds=rounds,
+        link_attempts=link_attempts,
+        module1_time_s=round(module1_time_s, 6),
+        module2_time_s=round(module2_time_s, 6),
         time_s=round(time.perf_counter() - t0, 6),
         time_limit=settings.time_limit,
         target_nodes=settings.nodes,
+        workers=workers,
+        tasks=tasks,
     )
     roadmap.build = stats.as_dict()
-    return roadmap, stats
+    return stats
 
 
 class _Module1:
@@ -479,25 +502,18 @@ def _build_in_tasks(
         runner.close()
     roadmap = bt.st_roadmap(st, settings.planner, scenario_key(ctx))
     t_m1 = st.module1_time_s
-    stats = BuildStats(
-        planner=settings.planner,
-        seed=settings.seed,
-        nodes=roadmap.n_vertices,
-        edges=len(roadmap.edges),
-        links=len(roadmap.links),
-        gsn_components=roadmap.components(with_links=False)[0],
-        components=roadmap.components()[0],
-        rounds=st.rounds,
-        link_attempts=st.link_attempts,
-        module1_time_s=round(t_m1, 6),
-        module2_time_s=round(time.perf_counter() - t0 - t_m1, 6),
-        time_s=round(time.perf_counter() - t0, 6),
-        time_limit=settings.time_limit,
-        target_nodes=settings.nodes,
+    stats = _finish(
+        roadmap,
+        settings,
+        t0,
+        roadmap.components(with_links=False)[0],
+        st.rounds,
+        st.link_attempts,
+        t_m1,
+        time.perf_counter() - t0 - t_m1,
         workers=runner.workers,
         tasks=st.sample_tasks + st.edge_tasks + st.link_attempts,
     )
-    roadmap.build = stats.as_dict()
     return roadmap, stats
 
 
