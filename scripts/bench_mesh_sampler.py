@@ -33,9 +33,11 @@ def mesh_scenario(folder: Path, count: int) -> Path:
     mesh = trimesh.creation.icosphere(subdivisions=count, radius=0.04)
     obj = folder / f"ball_{count}.obj"
     mesh.export(obj)
-    text = PAPER.read_text().replace(
-        'shape = "sphere"\nradius = 0.04', f'shape = "mesh"\npath = "{obj.as_posix()}"'
-    )
+    ball = 'shape = "sphere"\nradius = 0.04'
+    base = PAPER.read_text()
+    if ball not in base:  # else the benchmark would quietly sample the sphere
+        raise SystemExit(f"{PAPER}: no {ball!r} to replace with the mesh")
+    text = base.replace(ball, f'shape = "mesh"\npath = "{obj.as_posix()}"')
     out = folder / f"paper_mesh_{count}.toml"
     out.write_text(text)
     return out
