@@ -69,8 +69,19 @@ class FingerChain:
         self.axes = axes
         self.tip = tip
         self.m = len(placements)
-        self._K = [_skew(a) for a in axes]
-        self._K2 = [k @ k for k in self._K]
+        # joint j's local transform at angle q, Rodrigues folded into its
+        # placement: [R_j + sin q (R_j K_j) + (1 - cos q) (R_j K_j^2), t_j],
+        # as (m, 3, 9) coefficients of (1, sin q, 1 - cos q) and a 4x4 template
+        terms = []
+        for (Rj, _), a in zip(placements, axes, strict=True):
+            K = _skew(a)
+            terms.append(np.stack([Rj, Rj @ K, Rj @ K @ K]).reshape(3, 9))
+        self._rodrigues = np.array(terms)
+        self._template = np.zeros((self.m, 4, 4))
+        for j, (_, tj) in enumerate(placements):
+            self._template[j, :3, 3] = tj
+            self._template[j, 3, 3] = 1.0
+        self._tip_h = np.append(np.asarray(tip, dtype=float), 1.0)
 
     @classmethod
     def from_model(cls, model: pin.Model, tip_frame_id: int) -> FingerChain | None:
@@ -107,20 +118,23 @@ class FingerChain:
             ``tip: (N, 3)`` fingertip centres, ``origins: (N, m, 3)`` joint
             origins and ``axes: (N, m, 3)`` unit joint axes, world frame.
         """
+        q = np.asarray(q, dtype=float)
         n = len(q)
-        R = np.broadcast_to(np.eye(3), (n, 3, 3))
-        p = np.zeros((n, 3))
-        origins = np.empty((n, self.m, 3))
-        axes = np.empty((n, self.m, 3))
-        for j, (Rj, tj) in enumerate(self.placements):
-            p = p + R @ tj
-            R = R @ Rj
-            origins[:, j] = p
-            axes[:, j] = R @ self.axes[j]
-            s, c = np.sin(q[:, j]), np.cos(q[:, j])
-            rot = np.eye(3) + s[:, None, None] * self._K[j] + (1.0 - c)[:, None, None] * self._K2[j]
-            R = R @ rot
-        return p + R @ self.tip, origins, axes
+        # every joint's local 4x4 transform at once, then the chain products
+        coef = np.empty((n, self.m, 3))
+        coef[..., 0] = 1.0
+        coef[..., 1] = np.sin(q)
+        coef[..., 2] = 1.0 - np.cos(q)
+        A = np.repeat(self._template[None], n, axis=0)
+        A[..., :3, :3] = (coef[:, :, None, :] @ self._rodrigues).reshape(n, self.m, 3, 3)
+        T = np.empty((n, self.m, 4, 4))
+        T[:, 0] = A[:, 0]
+        for j in range(1, self.m):
+            T[:, j] = T[:, j - 1] @ A[:, j]
+        # joint j's origin is T_j's translation; its axis is fixed by its own rotation
+        origins = T[..., :3, 3]
+        axes = (T[..., :3, :3] @ self.axes[:, :, None])[..., 0]
+        return T[:, -1, :3, :] @ self._tip_h, origins, axes
 
     def tips(self, q: FloatArray) -> FloatArray:
         """Fingertip centres ``(N, 3)`` of configurations ``q: (N, m)``."""
@@ -227,6 +241,7 @@ class SplitFingerIK:
         self.free = free
         self.m = chain.m
         self.rest = 0.5 * (self.lo + self.hi)
+        self._lo_tol, self._hi_tol = self.lo - 1e-12, self.hi + 1e-12
         if free is None:
             self.grid = np.zeros(1)
             self.table = np.zeros(1)
@@ -239,6 +254,7 @@ class SplitFingerIK:
             # grid values inside the range: a solution at a limit cannot move
             self.grid = self.table[per:-per:per]
         self._table_geometry = self.geometry(self.table)
+        self._near_cache: dict[int, tuple[dict[str, FloatArray], FloatArray]] = {}
         self._grid_geometry = self.geometry(self.grid)
 
     # ------------------------------------------------------------ structure
@@ -301,6 +317,8 @@ class SplitFingerIK:
             "l2s": l2s,
             "l12": 2.0 * np.sqrt(l1s * l2s),
             "dphi": np.arctan2(L2[:, 1], L2[:, 0]) - np.arctan2(L1[:, 1], L1[:, 0]),
+            "abn": np.stack([a, b, n], axis=1),
+            "l1l2s": l1s + l2s,
             "s2": np.sign(np.einsum("ij,ij->i", axes[:, i2], n)),
             "off": np.abs(off).max(axis=0),
             "dot": np.abs(np.einsum("ij,ij->i", a, n)),
@@ -355,37 +373,35 @@ class SplitFingerIK:
         t = np.asarray(targets, dtype=float).reshape(-1, 3)
         N, K = len(t), len(v)
         p = t[:, None, :] - g["o"][None]  # (N, K, 3)
-        u = np.einsum("nkj,kj->nk", p, g["a"])[:, :, None, None]
-        pb = np.einsum("nkj,kj->nk", p, g["b"])[:, :, None, None]
-        pn = np.einsum("nkj,kj->nk", p, g["n"])[:, :, None, None]
-        rho = np.sqrt(pb * pb + pn * pn)
-        # axes: (N, K, abduction branch, elbow); link data broadcast over (K, 1, 1)
-        L1, L2, j1 = (g[key][:, None, None, :] for key in ("L1", "L2", "j1"))
-        l1s, l2s, l12, dphi = (g[key][:, None, None] for key in ("l1s", "l2s", "l12", "dphi"))
-        sgn = _BRANCH[:, None]  # abduction branch: plane coordinate w = +-rho
-        esg = _BRANCH[None, :]  # elbow branch
-        th0 = np.arctan2(sgn * pn, sgn * pb)
-        du = u - j1[..., 0]
-        dw = sgn * rho - j1[..., 1]
-        c = (du * du + dw * dw - l1s - l2s) / l12
+        # coordinates along a, b and n in one matrix product: (N, K, 3)
+        proj = (g["abn"][None] @ p[..., None])[..., 0]
+        u, pb, pn = proj[..., 0, None], proj[..., 1], proj[..., 2]
+        # abduction branches (axis 2): in-plane coordinate w = +-rho along +-b
+        th0 = np.empty((N, K, 2))
+        th0[..., 0] = np.arctan2(pn, pb)
+        th0[..., 1] = np.arctan2(-pn, -pb)
+        rho = np.sqrt(pb * pb + pn * pn)[..., None]
+        du = u - g["j1"][:, 0, None]
+        dw = rho * _BRANCH - g["j1"][:, 1, None]
+        c = (du * du + dw * dw - g["l1l2s"][:, None]) / g["l12"][:, None]
         reach = np.abs(c) <= 1.0
-        al2 = esg * np.arccos(np.clip(c, -1.0, 1.0)) - dphi
+        # elbow branches (axis 3): (N, K, 2, 2)
+        al2 = np.arccos(np.clip(c, -1.0, 1.0))[..., None] * _BRANCH - g["dphi"][:, None, None]
         ca, sa = np.cos(al2), np.sin(al2)
+        L1, L2 = g["L1"][:, None, None, :], g["L2"][:, None, None, :]
         vu = L1[..., 0] + ca * L2[..., 0] - sa * L2[..., 1]
         vw = L1[..., 1] + sa * L2[..., 0] + ca * L2[..., 1]
-        al1 = np.arctan2(dw, du) - np.arctan2(vw, vu)
         ia, i1, i2 = self.sub
-        q = np.zeros((N, K, 2, 2, self.m))
-        q[..., ia] = th0
-        q[..., i1] = al1
-        q[..., i2] = g["s2"][:, None, None] * al2
-        q = _wrap(q)
+        q = np.empty((N, K, 2, 2, self.m))
+        q[..., ia] = _wrap(th0)[..., None]
+        q[..., i1] = _wrap(np.arctan2(dw, du)[..., None] - np.arctan2(vw, vu))
+        q[..., i2] = _wrap(g["s2"][:, None, None] * al2)
         if self.free is not None:
             q[..., self.free] = v[:, None, None]
-        inside = np.all((q >= self.lo - 1e-12) & (q <= self.hi + 1e-12), axis=-1)
-        ok = reach & inside
-        q = np.clip(q, self.lo, self.hi)
-        return q.reshape(N, 4 * K, self.m), ok.reshape(N, 4 * K)
+        inside = np.all((q >= self._lo_tol) & (q <= self._hi_tol), axis=-1)
+        ok = (reach[..., None] & inside).reshape(N, 4 * K)
+        np.clip(q, self.lo, self.hi, out=q)
+        return q.reshape(N, 4 * K, self.m), ok
 
     def solve(
         self,
@@ -454,8 +470,13 @@ class SplitFingerIK:
         if self.free is None:
             return self._table_geometry, self.table
         k0 = int(np.argmin(np.abs(self.table - q_prev[self.free])))
-        ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
-        return {key: val[ks] for key, val in self._table_geometry.items()}, self.table[ks]
+        near = self._near_cache.get(k0)
+        if near is None:
+            # a finger follows a contact through the same few table entries
+            ks = np.clip(k0 + np.asarray(TRACK_DELTAS), 0, len(self.table) - 1)
+            geometry = {key: val[ks] for key, val in self._table_geometry.items()}
+            near = self._near_cache[k0] = (geometry, self.table[ks])
+        return near
 
     def options_near(
         self, target: FloatArray, q_prev: FloatArray, approach: FloatArray

@@ -125,6 +125,7 @@ The exact sets (the round Coulomb cone, the elliptic soft-finger set
 :func:`exact_force_closure` between dense inscribed and circumscribed polytopes.
 """
 
+from dexplan.grasp.batch import min_subgrasp_quality_batch
 from dexplan.grasp.cones import (
     CONTACT_MODELS,
     ELLIPSOID_GRID,
@@ -179,6 +180,7 @@ __all__ = [
     "is_force_closure",
     "min_contacts",
     "min_subgrasp_quality",
+    "min_subgrasp_quality_batch",
     "soft_finger_facets",
     "tangent_basis",
 ]
