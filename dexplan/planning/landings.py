@@ -37,6 +37,8 @@ _TRACK_BATCH = 16
 _REACH_CHUNK = 192
 #: Poses (after the follow stride) scored at a time by ``follow_scores``.
 _FOLLOW_CHUNK = 4
+#: Ranked landing candidates whose force closure is evaluated in one batch.
+_FC_CHUNK = 8
 
 
 @dataclass
@@ -373,19 +375,22 @@ class Landings:
             return
         pts, nrm, keep, scores = ranked
         self._postures.clear()
+        fc = _LandingForceClosure(self, finger, grasp, pts, nrm, keep)
         tracked: list[tuple[int, int]] = []
         pos = 0
         if self.tracked_count(finger) > 0:
-            tracked, pos = self._track_best(finger, q, grasp, future_poses, ranked)
+            tracked, pos = self._track_best(finger, q, future_poses, ranked, fc)
         found = 0
         for count, c in tracked:
             yield pts[c], nrm[c], count
             found += 1
             if found >= limit:
                 return
-        for c, score in zip(keep[pos:], scores[pos:], strict=True):
-            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+        for i in range(pos, len(keep)):
+            c = keep[i]
+            if not fc.holds(i):
                 continue
+            score = scores[i]
             yield pts[c], nrm[c], int(score)
             found += 1
             if found >= limit:
@@ -485,9 +490,9 @@ class Landings:
         self,
         finger: int,
         q: FloatArray,
-        grasp: GraspContacts,
         future_poses: FloatArray,
         ranked: tuple[FloatArray, FloatArray, np.ndarray, np.ndarray],
+        fc: _LandingForceClosure,
     ) -> tuple[list[tuple[int, int]], int]:
         """Track the best-ranked landings that keep force closure, links checked.
 
@@ -508,7 +513,7 @@ class Landings:
         while pos < len(keep) and len(tracked) < most and scores[pos] > best:
             c = keep[pos]
             pos += 1
-            if not self._landing_fc(finger, grasp, pts[c], nrm[c]):
+            if not fc.holds(pos - 1):
                 continue
             horizon = int(scores[pos - 1]) + max(1, s.follow_stride)
             tip = pts[c] + r * nrm[c]
@@ -520,16 +525,6 @@ class Landings:
             best = max(best, count)
         tracked.sort(key=lambda t: -t[0])
         return tracked, pos
-
-    def _landing_fc(
-        self, finger: int, grasp: GraspContacts, point: FloatArray, normal: FloatArray
-    ) -> bool:
-        """Every (n-1) subgrasp stays force closure with ``finger`` moved there (certified)."""
-        if self.deadline.expired():
-            return False
-        self.stats["landing_checks"] += 1
-        new = grasp.replace(finger, point, normal)
-        return self.grasp_quality(new) > self.validity.fc_margin
 
     def _alignment(self, finger: int, tips: FloatArray, inward: FloatArray) -> FloatArray:
         """Best cosine ``(C,)`` between the last link and ``inward: (C, 3)`` over IK solutions.
@@ -550,3 +545,47 @@ class Landings:
         cos = np.einsum("caj,cj->ca", d, inward) / np.linalg.norm(d, axis=2)
         cos[~ok] = -np.inf
         return cos.max(axis=1)
+
+
+class _LandingForceClosure:
+    """Whether each ranked landing keeps every (n-1) subgrasp force closure (certified).
+
+    Evaluated lazily, :data:`_FC_CHUNK` ranked candidates at a time in one
+    batch (``Transitions.landing_qualities``): the search usually stops within
+    the first few, and one batch costs about what two single checks do.
+    """
+
+    def __init__(
+        self,
+        landings: Landings,
+        finger: int,
+        grasp: GraspContacts,
+        points: FloatArray,
+        normals_out: FloatArray,
+        keep: np.ndarray,
+    ) -> None:
+        self.landings = landings
+        self.finger = finger
+        self.grasp = grasp
+        self.points = points
+        self.normals_out = normals_out
+        self.keep = keep
+        self.known = np.zeros(len(keep), dtype=bool)
+        self.ok = np.zeros(len(keep), dtype=bool)
+
+    def holds(self, i: int) -> bool:
+        """Force closure with the finger at ranked landing ``keep[i]`` (False past the deadline)."""
+        if not self.known[i]:
+            owner = self.landings
+            if owner.deadline.expired():
+                return False
+            rows = np.arange(i, min(i + _FC_CHUNK, len(self.keep)))
+            rows = rows[~self.known[rows]]
+            c = self.keep[rows]
+            owner.stats["landing_checks"] += len(rows)
+            quality = owner.landing_qualities(
+                self.grasp, self.finger, self.points[c], self.normals_out[c]
+            )
+            self.ok[rows] = quality > owner.validity.fc_margin
+            self.known[rows] = True
+        return bool(self.ok[i])

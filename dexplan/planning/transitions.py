@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import CollisionWorld
-from dexplan.grasp import min_subgrasp_quality
+from dexplan.grasp import min_subgrasp_quality, min_subgrasp_quality_batch
 from dexplan.hand import Hand
 from dexplan.objects import Shape
 from dexplan.planning.deadline import Deadline
@@ -270,6 +270,38 @@ class Transitions(Landings):
                 contact_model=v.contact_model,  # type: ignore[arg-type]
                 torsion=v.torsion,
             )
+        )
+
+    def landing_qualities(
+        self, grasp: GraspContacts, finger: int, points: FloatArray, normals_out: FloatArray
+    ) -> FloatArray:
+        """:meth:`grasp_quality` (``exact=False``) of ``grasp`` with ``finger`` moved, per landing.
+
+        Args:
+            grasp: the current contacts.
+            finger: the finger that moves.
+            points: (C, 3) landing points, object frame.
+            normals_out: (C, 3) outward unit normals there, object frame.
+
+        Returns:
+            (C,) the value :meth:`grasp_quality` gives ``grasp.replace(finger, p, n)``
+            for each landing, all evaluated in one batch.
+        """
+        v = self.validity
+        C = len(points)
+        p = np.repeat(grasp.points[None], C, axis=0)
+        n = np.repeat(-grasp.normals_out[None], C, axis=0)
+        p[:, finger], n[:, finger] = points, -normals_out
+        return min_subgrasp_quality_batch(
+            p,
+            n,
+            v.mu,
+            edges=v.friction_edges,
+            torque_scale=self.obj.characteristic_length,
+            margin=v.fc_margin,
+            solve=False,
+            contact_model=v.contact_model,  # type: ignore[arg-type]
+            torsion=v.torsion,
         )
 
     def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):
