@@ -171,7 +171,8 @@ class GraspSampler:
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
         self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
         # ranked combinations left at the last random pose that gave a valid grasp
-        self._pending: list[FloatArray] = []
+        # the rest of a pose's combinations, with their force-closure qualities
+        self._pending: list[tuple[FloatArray, float]] = []
         self._pending_left = 0
 
     def _reach_voxels(self, finger: int) -> tuple[FloatArray, float, np.ndarray]:
@@ -337,10 +338,10 @@ class GraspSampler:
             budget = s.max_attempts
             if pose is None:
                 while self._pending and self._pending_left > 0 and budget > 0:
-                    x = self._pending.pop(0)
+                    x, quality = self._pending.pop(0)
                     self.stats.attempts += 1
                     budget -= 1
-                    if self.validity.is_valid(x):
+                    if self.validity.check(x, quality).valid:
                         self._pending_left -= 1
                         self.stats.valid += 1
                         return x
@@ -363,15 +364,20 @@ class GraspSampler:
                     self.stats.attempts += 1
                     budget -= 1
                     continue
+                # force closure, the costliest check, decides most rejections:
+                # one batch for the pose's combinations
+                qualities = self.validity.grasp_qualities(combos).tolist()
                 for k, x in enumerate(combos[:budget]):
                     if self.deadline.expired():
                         return None
                     self.stats.attempts += 1
                     budget -= 1
-                    if self.validity.is_valid(x):
+                    if self.validity.check(x, qualities[k]).valid:
                         self.stats.valid += 1
                         if pose is None:
-                            self._pending = combos[k + 1 :]
+                            self._pending = list(
+                                zip(combos[k + 1 :], qualities[k + 1 :], strict=True)
+                            )
                             self._pending_left = s.grasps_per_pose - 1
                         return x
             return None

@@ -26,6 +26,7 @@ from dexplan.grasp import (
     force_closure_quality,
     min_contacts,
     min_subgrasp_quality,
+    min_subgrasp_quality_batch,
 )
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.typing import FloatArray, as_positive
@@ -221,18 +222,57 @@ class GraspValidity:
             torsion=s.torsion,
         )
 
-    def check(self, x: FloatArray) -> Verdict:
-        """Check ambient state ``x: (7 + nq,)``, cheapest test first."""
+    def grasp_qualities(self, xs: list[FloatArray]) -> FloatArray:
+        """:meth:`grasp_quality` of the contacts of many states, in one batch.
+
+        Args:
+            xs: ambient states ``(7 + nq,)`` of this subspace.
+
+        Returns:
+            ``(len(xs),)`` qualities, each what :meth:`check` computes for its
+            state (the same decision at the margin; values equal up to the pair
+            solver's tolerance), for :meth:`check`'s ``fc_quality``.
+        """
+        s = self.settings
+        contacts = [self.gsn.contacts(x) for x in xs]
+        if not s.subgrasps or not xs:
+            return np.array([self.grasp_quality(p, n) for p, n in contacts])
+        return min_subgrasp_quality_batch(
+            np.array([p for p, _ in contacts]),
+            np.array([n for _, n in contacts]),
+            s.mu,
+            edges=s.friction_edges,
+            torque_scale=self.torque_scale,
+            margin=s.fc_margin,
+            contact_model=s.contact_model,  # type: ignore[arg-type]
+            torsion=s.torsion,
+        )
+
+    def check(self, x: FloatArray, fc_quality: float | None = None) -> Verdict:
+        """Check ambient state ``x: (7 + nq,)``, cheapest test first.
+
+        Args:
+            x: the state.
+            fc_quality: its force-closure quality when already known (from
+                :meth:`grasp_qualities`): then free, so checked first.
+        """
         gsn = self.gsn
         self.stats.checked += 1
-        verdict = self._check(x, gsn)
+        if fc_quality is not None and fc_quality <= self.settings.fc_margin:
+            verdict = self._reject_force_closure(x, fc_quality)
+        else:
+            verdict = self._check(x, gsn, fc_quality)
         if verdict.valid:
             self.stats.valid += 1
         else:
             self.stats.rejected[verdict.reason] += 1  # type: ignore[index]
         return verdict
 
-    def _check(self, x: FloatArray, gsn: GraspSubspace) -> Verdict:
+    def _reject_force_closure(self, x: FloatArray, quality: float) -> Verdict:
+        self.stats.keep(x, "force_closure", f"quality {quality:.3g}")
+        return Verdict(False, "force_closure", quality)
+
+    def _check(self, x: FloatArray, gsn: GraspSubspace, quality: float | None = None) -> Verdict:
         pos = x[:3]
         if np.any(pos < gsn.lower[:3]) or np.any(pos > gsn.upper[:3]):
             return Verdict(False, "bounds")
@@ -249,11 +289,10 @@ class GraspValidity:
             self.stats.collision_pairs[tuple(sorted(pair))] += 1  # type: ignore[index]
             self.stats.keep(x, "collision", f"{pair[0]} / {pair[1]}")
             return Verdict(False, "collision")
-        p, n = gsn.contacts(x)
-        quality = self.grasp_quality(p, n)
+        if quality is None:
+            quality = self.grasp_quality(*gsn.contacts(x))
         if quality <= self.settings.fc_margin:
-            self.stats.keep(x, "force_closure", f"quality {quality:.3g}")
-            return Verdict(False, "force_closure", quality)
+            return self._reject_force_closure(x, quality)
         return Verdict(True, None, quality)
 
     def is_valid(self, x: FloatArray) -> bool:
