@@ -17,7 +17,7 @@ import coal
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.objects.shape import Shape, normalize_rows
+from dexplan.objects.shape import Shape, check_sample_args, normalize_rows
 from dexplan.typing import FloatArray, as_positive, as_vector
 
 #: Gradient chosen on the medial axis of capsules and cylinders (the z axis).
@@ -202,6 +202,60 @@ class Box(Shape):
         pts[rows, axis] = sign * self._half[axis]
         normals = np.zeros((n, 3))
         normals[rows, axis] = sign
+        return pts, normals
+
+    def sample_contacts(
+        self, n: int, rng: np.random.Generator, tip_radius: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """Fingertip contacts uniform over the rounded box the fingertip centre sweeps.
+
+        The centre of a fingertip of radius r touching the box lies on the
+        box's r-offset surface: the six faces moved out by r, a quarter
+        cylinder of radius r along each of the 12 edges and an eighth of a
+        sphere at each of the 8 corners. Sampling that surface by area gives
+        face contacts (the face normal), edge contacts (the edge point, with
+        a direction between the two faces' normals) and corner contacts (a
+        direction in the corner's octant): an edge or corner pushes the
+        fingertip along that direction, and opposed edges give the normal
+        spread that fingers curled the same way need (docs/hands.md: the
+        Allegro cube). The shares are the areas: faces ``8 (hx hy + hy hz +
+        hz hx)``, edges ``4 pi r (hx + hy + hz)``, corners ``4 pi r^2``.
+        """
+        r = as_positive(tip_radius, "tip_radius")
+        n = check_sample_args(n, rng)
+        h = self._half
+        area = np.array(
+            [
+                8.0 * (h[0] * h[1] + h[1] * h[2] + h[2] * h[0]),
+                4.0 * math.pi * r * float(h.sum()),
+                4.0 * math.pi * r * r,
+            ]
+        )
+        kind = np.searchsorted(np.cumsum(area), rng.random(n) * area.sum(), side="right")
+        kind = np.minimum(kind, 2)
+        pts, normals = self._sample(n, rng)  # faces
+        edge = np.flatnonzero(kind == 1)
+        if len(edge):
+            m = len(edge)
+            # edges along axis a: 4 of length 2 h_a, each of area pi r h_a
+            free = np.searchsorted(np.cumsum(h), rng.random(m) * h.sum(), side="right")
+            free = np.minimum(free, 2)
+            rows = np.arange(m)
+            b, c = (free + 1) % 3, (free + 2) % 3
+            sb, sc = rng.choice([-1.0, 1.0], size=(2, m))
+            t = rng.random(m) * (0.5 * math.pi)  # uniform on the quarter cylinder
+            p = np.zeros((m, 3))
+            p[rows, free] = (2.0 * rng.random(m) - 1.0) * h[free]
+            p[rows, b], p[rows, c] = sb * h[b], sc * h[c]
+            d = np.zeros((m, 3))
+            d[rows, b], d[rows, c] = sb * np.cos(t), sc * np.sin(t)
+            pts[edge], normals[edge] = p, d
+        corner = np.flatnonzero(kind == 2)
+        if len(corner):
+            sign = rng.choice([-1.0, 1.0], size=(len(corner), 3))
+            g = np.abs(rng.normal(size=(len(corner), 3))) + 1e-12  # uniform on the octant
+            pts[corner] = sign * h
+            normals[corner] = sign * g / np.linalg.norm(g, axis=1, keepdims=True)
         return pts, normals
 
     @property

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.typing import FloatArray, as_points
+from dexplan.typing import FloatArray, as_points, as_positive
 
 #: Up to this many points, queries loop over the scalar fast path (cheaper than
 #: the vectorized code's fixed cost); above it they run vectorized.
@@ -247,6 +247,35 @@ class Shape(ABC):
         """
         n = check_sample_args(n, rng)
         return self._sample(n, rng)
+
+    def sample_contacts(
+        self, n: int, rng: np.random.Generator, tip_radius: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """Sample contacts of a fingertip sphere of radius ``tip_radius``.
+
+        A fingertip touches the object wherever its centre lies on the
+        object's ``tip_radius`` offset surface, and pushes along the direction
+        from the contact to its centre. On a smooth surface that is the
+        surface normal, and the contacts are :meth:`sample_surface`'s. Shapes
+        with sharp edges (:class:`~dexplan.objects.primitives.Box`) override
+        this to sample their edges and corners too, where the fingertip can
+        push along any direction between the adjacent faces' normals.
+
+        Args:
+            n: number of samples (>= 0).
+            rng: random generator (the only source of randomness).
+            tip_radius: fingertip radius (m), > 0.
+
+        Returns:
+            ``(points, normals_out)``: (n, 3) contact points on the surface
+            and (n, 3) outward unit directions the fingertip centres lie along
+            (``points + tip_radius * normals_out``), object frame.
+
+        Raises:
+            InvalidInputError: bad ``n``, ``rng`` or ``tip_radius``.
+        """
+        as_positive(tip_radius, "tip_radius")
+        return self.sample_surface(n, rng)
 
     @property
     @abstractmethod

@@ -413,11 +413,11 @@ class Landings:
             None when none is kept.
         """
         s = self.settings
-        pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
+        r = self.hand.fingertip_radius
+        pts, nrm = self.obj.sample_contacts(s.landing_candidates, self.rng, r)
         if hint is not None:
             pts = np.vstack([hint[0][None], pts])
             nrm = np.vstack([hint[1][None], nrm])
-        r = self.hand.fingertip_radius
         tip_obj = pts + r * nrm
         others = [i for i in range(self.hand.n_fingers) if i != finger]
         other_tips = grasp.points[others] + r * grasp.normals_out[others]

@@ -287,7 +287,7 @@ class GraspSampler:
         order = list(gsn.contact_ids)
         rng.shuffle(order)
         for i in order:
-            pts, n_out = gsn.obj.sample_surface(s.candidates, rng)
+            pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, r)
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
             for other in placed:
@@ -435,7 +435,7 @@ class GraspSampler:
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         world = self.validity.world
-        pts, n_out = self.gsn.obj.sample_surface(s.pool_candidates, rng)
+        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, rng, hand.fingertip_radius)
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
