@@ -106,6 +106,31 @@ class Sphere(Shape):
         return {"shape": "sphere", "radius": self._radius}
 
 
+#: Edge and corner contacts of :meth:`Box.sample_contacts` keep the fingertip
+#: centre this far (m, along its arc) from where a face contact would put it.
+EDGE_CONTACT_MARGIN = 0.002
+
+
+def _octant_directions(n: int, rng: np.random.Generator, max_cos: float) -> FloatArray:
+    """(n, 3) unit directions uniform on the positive octant, away from its axes.
+
+    Each is more than ``acos(max_cos)`` from every axis (rejection; the
+    octant's diagonal after 20 rounds, which the margins used here never need).
+    """
+    out = np.empty((n, 3))
+    todo = np.arange(n)
+    for _ in range(20):
+        g = np.abs(rng.normal(size=(len(todo), 3))) + 1e-12
+        g /= np.linalg.norm(g, axis=1, keepdims=True)
+        good = g.max(axis=1) < max_cos
+        out[todo[good]] = g[good]
+        todo = todo[~good]
+        if not len(todo):
+            return out
+    out[todo] = 1.0 / math.sqrt(3.0)
+    return out
+
+
 class Box(Shape):
     """Axis-aligned box centred at the origin.
 
@@ -220,10 +245,21 @@ class Box(Shape):
         spread that fingers curled the same way need (docs/hands.md: the
         Allegro cube). The shares are the areas: faces ``8 (hx hy + hy hz +
         hz hx)``, edges ``4 pi r (hx + hy + hz)``, corners ``4 pi r^2``.
+
+        Edge and corner directions keep :data:`EDGE_CONTACT_MARGIN` (arc length
+        of the fingertip centre) away from the faces' normals: a fingertip
+        that close to its face placement is read as a face contact by the
+        plan verifier (the stated contact's own normal, within its 1 mm
+        tolerance), so such a contact would be judged with another normal than
+        the one it was planned with. Fingertips too small for that margin get
+        face contacts only.
         """
         r = as_positive(tip_radius, "tip_radius")
         n = check_sample_args(n, rng)
         h = self._half
+        delta = EDGE_CONTACT_MARGIN / r  # rad, away from each face normal
+        if delta >= 0.25 * math.pi:
+            return self._sample(n, rng)
         area = np.array(
             [
                 8.0 * (h[0] * h[1] + h[1] * h[2] + h[2] * h[0]),
@@ -243,7 +279,7 @@ class Box(Shape):
             rows = np.arange(m)
             b, c = (free + 1) % 3, (free + 2) % 3
             sb, sc = rng.choice([-1.0, 1.0], size=(2, m))
-            t = rng.random(m) * (0.5 * math.pi)  # uniform on the quarter cylinder
+            t = delta + rng.random(m) * (0.5 * math.pi - 2.0 * delta)  # uniform on the arc
             p = np.zeros((m, 3))
             p[rows, free] = (2.0 * rng.random(m) - 1.0) * h[free]
             p[rows, b], p[rows, c] = sb * h[b], sc * h[c]
@@ -253,9 +289,8 @@ class Box(Shape):
         corner = np.flatnonzero(kind == 2)
         if len(corner):
             sign = rng.choice([-1.0, 1.0], size=(len(corner), 3))
-            g = np.abs(rng.normal(size=(len(corner), 3))) + 1e-12  # uniform on the octant
             pts[corner] = sign * h
-            normals[corner] = sign * g / np.linalg.norm(g, axis=1, keepdims=True)
+            normals[corner] = sign * _octant_directions(len(corner), rng, math.cos(delta))
         return pts, normals
 
     @property

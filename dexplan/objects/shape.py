@@ -269,7 +269,9 @@ class Shape(ABC):
         Returns:
             ``(points, normals_out)``: (n, 3) contact points on the surface
             and (n, 3) outward unit directions the fingertip centres lie along
-            (``points + tip_radius * normals_out``), object frame.
+            (``points + tip_radius * normals_out``), object frame. In a
+            concavity tighter than the fingertip the sphere does not fit
+            there; the validity checker's collision test rejects those.
 
         Raises:
             InvalidInputError: bad ``n``, ``rng`` or ``tip_radius``.
