@@ -21,8 +21,10 @@ The solver joins mesh vertices only, so a path between two surface points
   geodesic from ``p`` to ``q`` (triangle inequality), i.e. within a few edge
   lengths of it: the error scales with the mesh resolution.
 
-One solver is built per mesh and cached (``surface_geodesics(mesh)``; tens of
-milliseconds for 5k triangles, then about a millisecond a path). The solver
+One solver is built per mesh and cached (``surface_geodesics(mesh)``; about
+15 ms for 5k triangles, then 1-15 ms a path, ``scripts/bench_geodesic.py``).
+Like the mesh's own queries, a solver must not be used from several threads
+at once. The solver
 restores its triangulation after every query, so a path depends on its two
 end points only, not on the queries made before it.
 
