@@ -28,6 +28,10 @@ class MeshError(DexplanError):
     """A mesh file is missing, unreadable, degenerate or not watertight."""
 
 
+class GeodesicError(MeshError):
+    """Geodesics cannot be computed on a mesh (non-manifold vertex, disconnected parts)."""
+
+
 class ScenarioError(DexplanError):
     """A scenario file is malformed; the message names the field and value."""
 

@@ -105,3 +105,45 @@ def test_half_space_screen_never_drops_a_force_closure_grasp() -> None:
     for n_out in normals[rejected][:300]:
         points = 0.06 * n_out  # sphere of radius 6 cm: outward normal = direction
         assert validity.grasp_quality(points, -n_out) <= validity.settings.fc_margin
+
+
+def test_mesh_contact_draws_are_area_weighted() -> None:
+    """The RLG sampler's contact candidates on a mesh hit triangles in proportion to area.
+
+    The bean's triangles differ 7.5x in area: triangles grouped by area rank
+    must be hit as often as their total area says (chi-square), and a draw
+    uniform over triangles (the mistake this guards against) is rejected.
+    """
+    from scipy import stats
+
+    ctx = build_context(load_scenario("dexplan/data/scenarios/suite/bean_yaw180.toml"), seed=5)
+    mesh = ctx.gsn.obj
+    draws: list[np.ndarray] = []
+    real = mesh.sample_surface
+
+    def spy(n, rng):
+        pts, nrm = real(n, rng)
+        draws.append(pts)
+        return pts, nrm
+
+    mesh.sample_surface = spy  # the instance attribute shadows the method
+    try:
+        pose = ctx.scenario.start.object_pose_xyzquat
+        while sum(len(d) for d in draws) < 30000:
+            ctx.sampler.grasp_at(pose)
+    finally:
+        del mesh.sample_surface
+    tri, _, _ = mesh.contact_params(np.vstack(draws))
+    areas = mesh.face_areas
+    groups = np.argsort(np.argsort(areas)) * 10 // len(areas)  # 10 bins by area rank
+    counts = np.bincount(groups[tri], minlength=10)
+    by_area = np.bincount(groups, weights=areas, minlength=10)
+    by_count = np.bincount(groups, minlength=10).astype(float)
+
+    def p_value(probs: np.ndarray) -> float:
+        expected = probs / probs.sum() * counts.sum()
+        chi2 = float(((counts - expected) ** 2 / expected).sum())
+        return float(stats.chi2.sf(chi2, len(counts) - 1))
+
+    assert p_value(by_area) > 1e-3
+    assert p_value(by_count) < 1e-12

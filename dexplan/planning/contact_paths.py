@@ -1,0 +1,89 @@
+"""Contact trajectories between two grasps along surface geodesics (paper, section VI).
+
+On a triangulated object the paper parameterises a path in GSn between two
+grasps by the contacts' trajectories on the surface, found by a geodesic
+computation: each contact moves along the surface geodesic from its first to
+its second position (a polyline: the surface is polyhedral), while the object
+pose interpolates. :class:`ContactPaths` gives those intermediate contacts for
+the planner's own interpolation of contacts (the edge-by-edge reduction's
+bisection, :mod:`dexplan.planning.reduction`).
+
+Only meshes get geodesics. For the primitives (closed-form surfaces) and for
+a mesh potpourri3d cannot handle (:class:`~dexplan.exceptions.GeodesicError`:
+a non-manifold vertex), :meth:`ContactPaths.between` returns None and the
+caller keeps its previous interpolation (projecting interpolated fingertip
+positions onto the surface); :attr:`ContactPaths.fallback` then says why.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dexplan.exceptions import GeodesicError
+from dexplan.objects import Mesh, Shape
+from dexplan.objects.geodesic import MeshGeodesics, surface_geodesics
+from dexplan.planning.transitions import GraspContacts
+
+__all__ = ["ContactPaths"]
+
+
+class ContactPaths:
+    """Geodesic contact interpolation for one object.
+
+    Args:
+        obj: the object shape (object frame).
+
+    Attributes:
+        fallback: why geodesics are not used (not a mesh, or the mesh's
+            :class:`GeodesicError` message), or None when they are.
+        calls: geodesic contact interpolations made (per grasp, not per finger).
+    """
+
+    def __init__(self, obj: Shape) -> None:
+        self._geo: MeshGeodesics | None = None
+        self.fallback: str | None = None
+        self.calls = 0
+        if not isinstance(obj, Mesh):
+            self.fallback = f"{obj.kind} is not a mesh"
+            return
+        try:
+            self._geo = surface_geodesics(obj)
+        except GeodesicError as exc:
+            self.fallback = str(exc)
+
+    @property
+    def active(self) -> bool:
+        """Whether contacts move along surface geodesics."""
+        return self._geo is not None
+
+    def between(self, ca: GraspContacts, cb: GraspContacts, t: float) -> GraspContacts | None:
+        """Contacts a fraction ``t`` of the way along each finger's surface geodesic.
+
+        Args:
+            ca: contacts at ``t = 0`` (object frame).
+            cb: contacts at ``t = 1`` (object frame), same fingers.
+            t: arc-length fraction in [0, 1] (clipped).
+
+        Returns:
+            The intermediate contacts, each on the surface with the outward
+            normal of its triangle (object frame; a finger whose two contacts
+            coincide keeps its own), or None when geodesics are not available
+            (see :attr:`fallback`) or a finger's two contacts have no geodesic
+            between them.
+        """
+        if self._geo is None:
+            return None
+        n = len(ca.points)
+        pts = np.empty((n, 3))
+        nrm = np.empty((n, 3))
+        try:
+            for f in range(n):
+                path = self._geo.path(ca.points[f], cb.points[f])
+                if path.length <= 0.0:  # a finger that stays put keeps its contact
+                    pts[f], nrm[f] = ca.points[f], ca.normals_out[f]
+                else:
+                    pts[f], _, nrm[f] = path.at(t)
+        except GeodesicError:
+            return None
+        self.calls += 1
+        return GraspContacts(pts, nrm)
