@@ -139,8 +139,9 @@ def test_same_seed_same_plan(solved) -> None:
 def test_same_seed_same_plan_with_an_obstacle(planner: str) -> None:
     """On the cube the plan follows the GSn path: module 1 must repeat too."""
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
-    a = plan(scenario, planner=planner, seed=4, time_limit=60.0)
-    b = plan(scenario, planner=planner, seed=4, time_limit=60.0)
+    seed = 4 if planner == "KPIECE1" else 1  # seeds both solve
+    a = plan(scenario, planner=planner, seed=seed, time_limit=60.0)
+    b = plan(scenario, planner=planner, seed=seed, time_limit=60.0)
     assert a.solved and b.solved, (a.message, b.message)
     np.testing.assert_array_equal(a.gsn_path, b.gsn_path)
     assert [s.kind for s in a.segments] == [s.kind for s in b.segments]

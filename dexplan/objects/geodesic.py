@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -277,6 +278,21 @@ def _mesh_name(mesh: Mesh) -> str:
 _SOLVERS: dict[int, tuple[weakref.ref[Mesh], MeshGeodesics | GeodesicError]] = {}
 
 
+def _forget_solver(key: int) -> Callable[[weakref.ref[Mesh]], None]:
+    """The weakref callback dropping ``key``'s solver when its mesh is collected.
+
+    Only its own entry: a new mesh may reuse the id before the callback runs.
+    At interpreter exit the module's globals may already be gone (None).
+    """
+
+    def forget(ref: weakref.ref[Mesh]) -> None:
+        solvers = _SOLVERS
+        if solvers is not None and key in solvers and solvers[key][0] is ref:
+            del solvers[key]
+
+    return forget
+
+
 def surface_geodesics(mesh: Mesh) -> MeshGeodesics:
     """The geodesic solver of ``mesh``, built on first use and cached while the mesh lives.
 
@@ -291,7 +307,7 @@ def surface_geodesics(mesh: Mesh) -> MeshGeodesics:
             value: MeshGeodesics | GeodesicError = MeshGeodesics(mesh)
         except GeodesicError as exc:
             value = exc
-        _SOLVERS[key] = (weakref.ref(mesh, lambda _ref, k=key: _SOLVERS.pop(k, None)), value)
+        _SOLVERS[key] = (weakref.ref(mesh, _forget_solver(key)), value)
         entry = _SOLVERS[key]
     value = entry[1]
     if isinstance(value, GeodesicError):
