@@ -263,12 +263,9 @@ class Transitions(Landings):
                 grasp.points,
                 -grasp.normals_out,
                 v.mu,
-                edges=v.friction_edges,
                 torque_scale=self.obj.characteristic_length,
-                margin=v.fc_margin,
                 solve=exact,
-                contact_model=v.contact_model,  # type: ignore[arg-type]
-                torsion=v.torsion,
+                **v.quality_args(),
             )
         )
 
@@ -293,15 +290,7 @@ class Transitions(Landings):
         n = np.repeat(-grasp.normals_out[None], C, axis=0)
         p[:, finger], n[:, finger] = points, -normals_out
         return min_subgrasp_quality_batch(
-            p,
-            n,
-            v.mu,
-            edges=v.friction_edges,
-            torque_scale=self.obj.characteristic_length,
-            margin=v.fc_margin,
-            solve=False,
-            contact_model=v.contact_model,  # type: ignore[arg-type]
-            torsion=v.torsion,
+            p, n, v.mu, torque_scale=self.obj.characteristic_length, solve=False, **v.quality_args()
         )
 
     def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):

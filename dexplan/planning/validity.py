@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -82,6 +83,19 @@ class ValiditySettings:
     object_clearance: float = 0.0005
     contact_model: str = "point"
     torsion: float = 0.0
+
+    def quality_args(self) -> dict[str, Any]:
+        """Keyword arguments of the ``dexplan.grasp`` quality functions under these settings.
+
+        Friction edges, the margin and the contact model; the friction ``mu``
+        and the torque scale are passed as arguments of their own.
+        """
+        return {
+            "edges": self.friction_edges,
+            "margin": self.fc_margin,
+            "contact_model": self.contact_model,
+            "torsion": self.torsion,
+        }
 
     def __post_init__(self) -> None:
         as_positive(self.mu, "contact.mu", allow_zero=True)
@@ -203,14 +217,7 @@ class GraspValidity:
         s = self.settings
         if s.subgrasps:
             return min_subgrasp_quality(
-                p_obj,
-                n_in_obj,
-                s.mu,
-                edges=s.friction_edges,
-                torque_scale=self.torque_scale,
-                margin=s.fc_margin,
-                contact_model=s.contact_model,  # type: ignore[arg-type]
-                torsion=s.torsion,
+                p_obj, n_in_obj, s.mu, torque_scale=self.torque_scale, **s.quality_args()
             )
         return force_closure_quality(
             p_obj,
@@ -241,11 +248,8 @@ class GraspValidity:
             np.array([p for p, _ in contacts]),
             np.array([n for _, n in contacts]),
             s.mu,
-            edges=s.friction_edges,
             torque_scale=self.torque_scale,
-            margin=s.fc_margin,
-            contact_model=s.contact_model,  # type: ignore[arg-type]
-            torsion=s.torsion,
+            **s.quality_args(),
         )
 
     def check(self, x: FloatArray, fc_quality: float | None = None) -> Verdict:
