@@ -15,7 +15,6 @@ that scores and yields landings; it uses the transfer machinery of that class
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -93,21 +92,6 @@ class Track:
 
 class Landings:
     """Scoring and choice of landing contacts (mixed into ``Transitions``)."""
-
-    @contextmanager
-    def keeping_postures(self) -> Iterator[None]:
-        """Run a nested landing search without losing the outer one's landing postures.
-
-        :meth:`landing_candidates` replaces the postures its regrasps land in
-        (``_postures``); a search started while another one's candidates are
-        still being tried (a lookahead) must leave them as they were.
-        """
-        saved = dict(self._postures)
-        try:
-            yield
-        finally:
-            self._postures.clear()
-            self._postures.update(saved)
 
     def follow_scores(
         self,

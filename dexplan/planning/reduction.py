@@ -99,11 +99,6 @@ class ReductionSettings:
             )
 
 
-#: Moves of other fingers tried, per blocked step, with the blocking finger's
-#: landing search after them (:func:`_regrasp_one`).
-CLEARING_LOOKAHEADS = 12
-
-
 @dataclass(frozen=True)
 class ReductionResult:
     """Outcome of :func:`reduce_object_path`.
@@ -188,11 +183,11 @@ def reduce_object_path(
                 f"{tr.blocking}: {tr.reason})",
                 _stats(trans, regrasps),
             )
-        for seg, _ in found:
-            segments.append(seg)
-            regrasps += 1
-            stall += 1
-        q, grasp = found[-1][0].end.q, found[-1][1]
+        seg, grasp = found
+        segments.append(seg)
+        q = seg.end.q
+        regrasps += 1
+        stall += 1
         if regrasps > settings.max_regrasps or stall > settings.max_stall:
             return ReductionResult(
                 False,
@@ -212,7 +207,7 @@ def _regrasp_retrying(
     blocking: int,
     hint_row: FloatArray | None,
     retries: int,
-) -> list[tuple[Segment, GraspContacts]] | None:
+) -> tuple[Segment, GraspContacts] | None:
     """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
 
     The landing candidates are random samples: a fresh set often holds a
@@ -233,70 +228,29 @@ def _regrasp_one(
     grasp: GraspContacts,
     blocking: int,
     hint_row: FloatArray | None,
-) -> list[tuple[Segment, GraspContacts]] | None:
-    """Regrasps that let the transfer blocked at ``poses[idx]`` go on, or None.
+) -> tuple[Segment, GraspContacts] | None:
+    """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
 
     The blocking finger first, then the others, least remaining follow first
     (the others' follows only when the blocking finger cannot move: it
     usually can, and tracking them costs more than the rest); see
-    :func:`_passes`. In the last pass, where another finger moves even to a
-    landing it follows less far from, the move is meant to clear the way for
-    the blocking finger: up to :data:`CLEARING_LOOKAHEADS` such moves are
-    tried with the blocking finger's landing search after them, and the first
-    that frees a regrasp of the blocking finger is returned with it (two
-    regrasps); failing that, the first feasible move alone, as before.
-    ``hint_row: (n, 6)`` the GSn path's contact point and outward normal per
-    finger there (object frame), offered as landings.
+    :func:`_passes`. ``hint_row: (n, 6)`` the GSn path's contact point and
+    outward normal per finger there (object frame), offered as landings.
 
     Returns:
-        ``[(regrasp segment, new grasp), ...]`` in order, one or two.
+        ``(regrasp segment, new grasp)``.
     """
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
     follow: dict[int, int] = {}
-    clearing: tuple[Segment, GraspContacts] | None = None
-    lookaheads = 0
     for f, must_gain in _passes(blocking, others, follow, trans, q, grasp, future):
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
         for point, normal, score in trans.landing_candidates(f, poses[idx], q, grasp, future, hint):
             if f != blocking and must_gain and score <= follow[f]:
                 break  # moving this finger would not help it follow further
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
-            if seg is None:
-                continue
-            moved = (seg, grasp.replace(f, point, normal))
-            if f == blocking or must_gain:
-                return [moved]
-            clearing = clearing or moved
-            if lookaheads >= CLEARING_LOOKAHEADS:
-                return [clearing]
-            lookaheads += 1
-            then = _regrasp_of(trans, poses, idx, seg.end.q, moved[1], blocking)
-            if then is not None:
-                return [moved, then]
-    return None if clearing is None else [clearing]
-
-
-def _regrasp_of(
-    trans: Transitions,
-    poses: FloatArray,
-    idx: int,
-    q: FloatArray,
-    grasp: GraspContacts,
-    finger: int,
-) -> tuple[Segment, GraspContacts] | None:
-    """The first feasible regrasp of ``finger`` at ``poses[idx]`` (best landing first), or None.
-
-    A search nested in another finger's: that search's landing postures are
-    kept (:meth:`~dexplan.planning.landings.Landings.keeping_postures`).
-    """
-    with trans.keeping_postures():
-        for point, normal, _ in trans.landing_candidates(
-            finger, poses[idx], q, grasp, poses[idx:], None
-        ):
-            seg = trans.regrasp(poses[idx], q, grasp, finger, point, normal)
             if seg is not None:
-                return seg, grasp.replace(finger, point, normal)
+                return seg, grasp.replace(f, point, normal)
     return None
 
 
