@@ -130,15 +130,10 @@ def test_mismatched_contacts_is_an_input_error(scenario, start_and_goal) -> None
         )
 
 
-def test_fingertips_on_box_edges_are_verified_contacts() -> None:
-    """GSn lets a fingertip roll over a box edge; such plans verify, a moved contact not."""
-    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
-    result = plan(scenario, planner="KPIECE1", seed=2, reduction="edges", time_limit=60.0)
-    assert result.solved, (result.status, result.message)
-    hand = build_hand(scenario)
-    ctx = build_context(scenario)
+def _contacts_off_the_fingertip(hand, ctx, result) -> list[tuple[int, int, int]]:
+    """(segment, waypoint, finger) where the stated contact is not under the fingertip."""
     r = hand.fingertip_radius
-    on_edge = []
+    out = []
     for si, seg in enumerate(result.segments):
         for wi, w in enumerate(seg.waypoints):
             tips = inverse_transform_points(w.object_pose_xyzquat, hand.fingertip_positions(w.q))
@@ -147,8 +142,28 @@ def test_fingertips_on_box_edges_are_verified_contacts() -> None:
                     continue
                 p, n = ctx.obj.closest_point(np.asarray(c))
                 if np.linalg.norm(np.asarray(p) + r * np.asarray(n) - tips[i]) > 1e-3:
-                    on_edge.append((si, wi, i))
-    assert on_edge, "expected a fingertip on a box edge in this plan"
+                    out.append((si, wi, i))
+    return out
+
+
+def test_fingertips_on_box_edges_are_verified_contacts() -> None:
+    """GSn lets a fingertip roll over a box edge; such plans verify, a moved contact not.
+
+    The first of seeds 1-5 whose edge-by-edge plan has a fingertip on a box
+    edge is checked (seeds 1, 5 and 7 have one with per-finger pools; 2-4
+    end in the resolution limit); none having one fails the test.
+    """
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    hand = build_hand(scenario)
+    ctx = build_context(scenario)
+    outcomes = []
+    for seed in range(1, 6):
+        result = plan(scenario, planner="KPIECE1", seed=seed, reduction="edges", time_limit=60.0)
+        on_edge = _contacts_off_the_fingertip(hand, ctx, result) if result.solved else []
+        outcomes.append((seed, result.status, len(on_edge)))
+        if on_edge:
+            break
+    assert on_edge, f"expected a solved plan with a fingertip on a box edge: {outcomes}"
     doc = build_plan_document(scenario, hand, result)
     report = verify_plan(doc)
     assert report.ok, [str(v) for v in report.violations[:5]]

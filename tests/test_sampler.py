@@ -18,13 +18,16 @@ def ctx():
     return build_context(load_scenario(ALLEGRO), seed=3)
 
 
-def test_per_finger_is_the_default_for_four_joint_fingers(ctx) -> None:
+def test_per_finger_is_the_default_for_every_hand(ctx) -> None:
     assert ctx.sampler.per_finger
-    assert not build_context(default_scenario(), seed=1).sampler.per_finger
-    paper = build_context(
-        default_scenario(), seed=1, sampler_settings=SamplerSettings(per_finger=True)
+    assert build_context(default_scenario(), seed=1).sampler.per_finger
+    rlg = build_context(
+        default_scenario(), seed=1, sampler_settings=SamplerSettings(per_finger=False)
     )
-    assert paper.sampler.per_finger
+    assert not rlg.sampler.per_finger
+    # the RLG steps stay usable when asked for: a valid grasp at the start pose
+    x = rlg.sampler.sample_at_pose(rlg.scenario.start.object_pose_xyzquat)
+    assert x is not None and rlg.validity.is_valid(x)
 
 
 def test_pools_hold_collision_free_in_limit_solutions_on_the_surface(ctx) -> None:

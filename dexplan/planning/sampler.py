@@ -12,9 +12,10 @@ surface (the contacts) close them. Here:
 3. the free fingers (GSk, k < n) get random joint values;
 4. check validity (limits, collisions, force closure of every subgrasp).
 
-**Per-finger pools** (:attr:`SamplerSettings.per_finger`; by default for
-hands with fingers of more than 3 joints, whose links mostly collide when
-the fingers are placed one after the other): step 2 becomes, at the object
+**Per-finger pools** (:attr:`SamplerSettings.per_finger`, the default for
+every hand: on the Allegro the links mostly collide when the fingers are
+placed one after the other, and on the paper hand the pools give 3x the
+valid grasps a second on a sphere and 14x on a box): step 2 becomes, at the object
 pose, per contact finger, candidate contacts, every IK solution to them
 (branches and, for redundant fingers, the free-joint grid), each checked for
 joint limits and for collisions of that finger's links against the palm, the
@@ -62,8 +63,8 @@ class SamplerSettings:
             the direction to the finger's base (links stay clear of the object).
         balance_pool: reachable candidates compared for normal balance.
         per_finger: sample per finger first (pools of collision-free
-            per-finger IK solutions, then combinations); None: when some
-            finger has more than 3 joints.
+            per-finger IK solutions, then combinations); False: the RLG
+            steps above, contacts placed finger after finger.
         pool_size: per-finger solutions kept in a pool.
         pool_candidates: surface points drawn per finger for a pool.
         solutions_per_contact: IK solutions (random among those within
@@ -85,7 +86,7 @@ class SamplerSettings:
     tip_clearance: float = 0.004
     min_facing: float = -0.3
     balance_pool: int = 6
-    per_finger: bool | None = None
+    per_finger: bool = True
     pool_size: int = 24
     pool_candidates: int = 256
     solutions_per_contact: int = 3
@@ -163,8 +164,6 @@ class GraspSampler:
         self._reach = [self._reach_shell(i) for i in range(gsn.hand.n_fingers)]
         hand = gsn.hand
         per_finger = self.settings.per_finger
-        if per_finger is None:
-            per_finger = any(len(idx) > 3 for idx in hand.finger_q_index)
         self.per_finger = bool(per_finger)
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
