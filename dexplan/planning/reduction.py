@@ -40,6 +40,9 @@ from dexplan.pose import interpolate_pose, inverse_transform_points
 from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
+#: Landings of another finger tried by the look-ahead (:func:`_passes`, ``"enable"``).
+_ENABLE_LANDINGS = 24
+
 
 @dataclass(frozen=True)
 class ReductionSettings:
@@ -217,14 +220,26 @@ def _regrasp_one(
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
     follow: dict[int, int] = {}
-    for f, must_gain in _passes(blocking, others, follow, trans, q, grasp, future):
+    pool: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    for f, mode in _passes(blocking, others, follow, trans, q, grasp, future):
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
-        for point, normal, score in trans.landing_candidates(f, poses[idx], q, grasp, future, hint):
-            if f != blocking and must_gain and score <= follow[f]:
+        limit = _ENABLE_LANDINGS if mode == "enable" else 8
+        for point, normal, score in trans.landing_candidates(
+            f, poses[idx], q, grasp, future, hint, limit
+        ):
+            if f != blocking and mode == "gain" and score <= follow[f]:
                 break  # moving this finger would not help it follow further
+            new = grasp.replace(f, point, normal)
+            if mode == "enable":
+                if pool is None:
+                    pool = trans.landing_pool(blocking, poses[idx], future)
+                if pool is None:
+                    break  # the blocking finger reaches nothing it could follow from
+                if not trans.can_land(blocking, q, new, pool, future):
+                    continue
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
             if seg is not None:
-                return seg, grasp.replace(f, point, normal)
+                return seg, new
     return None
 
 
@@ -237,20 +252,27 @@ def _passes(
     grasp: GraspContacts,
     future: FloatArray,
 ) -> Iterator[tuple[int, bool]]:
-    """Fingers to regrasp, in order, with whether the landing must gain follow.
+    """Fingers to regrasp, in order, with what their landing must do.
 
-    The blocking finger; then the others, least remaining follow first (the
-    follows are computed only here, into ``follow``); then, when nothing
-    works, the others again even onto a landing they follow less far from
-    (moving one out of the way may clear the blocker's).
+    ``"gain"``: follow further than the finger does now. The blocking finger;
+    then the others, least remaining follow first (the follows are computed
+    only here, into ``follow``). When nothing works, the others again even
+    onto a landing they follow less far from: first ``"enable"``, a landing
+    after which the blocking finger has one of its own
+    (:meth:`Transitions.can_land`: on a box held by two fingers on each of
+    two faces, most landings of the blocking finger break some subgrasp's
+    force closure, and moving a neighbour where it does not help led to
+    runs of 30 regrasps without progress); then ``"any"`` landing (moving
+    one out of the way may clear the blocker's path in other ways).
     """
-    yield blocking, True
+    yield blocking, "gain"
     follow.update({i: _current_follow(trans, i, q, grasp, future) for i in others})
     order = sorted(others, key=lambda i: follow[i])
     for f in order:
-        yield f, True
-    for f in order:
-        yield f, False
+        yield f, "gain"
+    for mode in ("enable", "any"):
+        for f in order:
+            yield f, mode
 
 
 def _current_follow(
