@@ -12,6 +12,7 @@ from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
+from dexplan.planning.transitions import densify_poses
 from dexplan.pose import inverse_transform_points, quat_angle
 from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
@@ -201,3 +202,49 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
     assert not red.success
     assert red.reason is not None and red.reason.startswith("no feasible regrasp")
     assert len(calls) == 1 + retries
+
+
+def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
+    monkeypatch,
+) -> None:
+    """The look-ahead: with no landing of its own, the blocking finger waits for a
+    neighbour's move after which it has one (``can_land``), before any move at all."""
+    from dexplan.planning import reduction
+
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    ctx = build_context(scenario, seed=1)
+    trans = ctx.transitions
+    x0 = start_state(ctx)
+    assert x0 is not None
+    pose0 = x0[:POSE_DIM]
+    grasp = grasp_from_state(trans, pose0, x0[POSE_DIM:])
+    goal = scenario.goal.object_pose_xyzquat
+    poses = densify_poses(np.stack([pose0, goal]), 0.008, 0.04)
+    blocking = 0
+    landings = trans.landing_candidates
+
+    def none_for_the_blocking_finger(finger, *args, **kwargs):
+        if finger == blocking:
+            return iter(())
+        return landings(finger, *args, **kwargs)
+
+    verdicts: list[tuple[bytes, bool]] = []
+    can_land = trans.can_land
+
+    def recorded(finger, q, g, pool, future, **kwargs):
+        ok = can_land(finger, q, g, pool, future, **kwargs)
+        verdicts.append((g.points.tobytes(), ok))
+        return ok
+
+    monkeypatch.setattr(trans, "landing_candidates", none_for_the_blocking_finger)
+    monkeypatch.setattr(trans, "can_land", recorded)
+    # no neighbour could follow further on another contact: only the look-ahead moves one
+    monkeypatch.setattr(reduction, "_current_follow", lambda *a: len(poses) + 10)
+    found = reduction._regrasp_one(trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None)
+    assert verdicts, "the look-ahead was not consulted"
+    assert found is not None
+    seg, new = found
+    assert seg.finger != blocking
+    approved = {key for key, ok in verdicts if ok}
+    # the moved neighbour is one the look-ahead approved (this start grasp has one)
+    assert new.points.tobytes() in approved, (len(verdicts), len(approved))

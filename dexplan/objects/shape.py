@@ -254,8 +254,9 @@ class Shape(ABC):
         A fingertip sphere on an edge pushes along any direction between the
         normals of the faces that meet there; such contacts are landings no
         face point offers (on a box held on two opposite faces, the way onto
-        a third one). Smooth shapes have no edges: empty arrays, and ``rng``
-        is left untouched.
+        a third one). Only :class:`~dexplan.objects.primitives.Box` samples
+        its edges so far (a cylinder's rims and a mesh's edges are not): the
+        others return empty arrays and leave ``rng`` untouched.
 
         Args:
             n: number of samples (>= 0).

@@ -394,10 +394,11 @@ class Landings:
     def _landing_samples(self) -> tuple[FloatArray, FloatArray]:
         """Landing candidates: ``(points, normals_out)`` (S, 3) each, object frame.
 
-        ``landing_candidates`` surface points and, on shapes with edges,
-        ``landing_edges`` edge points (normals inside the edge's cone),
-        shuffled together (the landing search takes the first reachable ones
-        in this order). Smooth shapes draw only the surface points.
+        ``landing_candidates`` surface points and, on shapes that sample
+        their edges (boxes), ``landing_edges`` edge points (normals inside
+        the edge's cone), shuffled together (the landing search takes the
+        first reachable ones in this order). Other shapes draw only the
+        surface points, as before.
         """
         s = self.settings
         pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
