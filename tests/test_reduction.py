@@ -243,8 +243,43 @@ def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
     found = reduction._regrasp_one(trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None)
     assert verdicts, "the look-ahead was not consulted"
     assert found is not None
-    seg, new = found
+    seg, new, mode = found
+    assert mode == "enable"
     assert seg.finger != blocking
     approved = {key for key, ok in verdicts if ok}
     # the moved neighbour is one the look-ahead approved (this start grasp has one)
     assert new.points.tobytes() in approved, (len(verdicts), len(approved))
+
+
+@pytest.mark.parametrize("mode", ["any", "gain"])
+def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
+    scenario, start_and_goal, monkeypatch, mode: str
+) -> None:
+    """``max_blind`` moves of other fingers without a landing for the blocking one
+    end the attempt (the planner retries afresh); other regrasps count towards
+    ``max_stall`` only."""
+    from dexplan.planning import reduction
+    from dexplan.segments import Segment, Waypoint
+
+    x0, xg = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    calls: list[int] = []
+
+    def idle(trans, poses, idx, q, grasp, *args):
+        # a regrasp that changes nothing: the transfer stays blocked where it was
+        calls.append(idx)
+        w = Waypoint(poses[idx].copy(), q.copy(), grasp.as_tuple())
+        return Segment("regrasp", 1, (w, w)), grasp, mode
+
+    monkeypatch.setattr(reduction, "_regrasp_retrying", idle)
+    s = ctx.transitions.settings
+    dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
+    grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
+    settings = ReductionSettings(max_blind=3, max_stall=7)
+    red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
+    assert not red.success and red.reason is not None
+    assert len(set(calls)) == 1  # all at the step the transfer was blocked at
+    if mode == "any":
+        assert red.reason.startswith("no landing for finger") and len(calls) == 4
+    else:
+        assert red.reason.startswith("no progress after") and len(calls) == 8

@@ -57,6 +57,12 @@ class ReductionSettings:
             sphere every pose is like the others, so carrying on beats
             starting the trajectory again (allegro_sphere seeds 1, 4: 8 stalls
             at 146 degrees on every attempt, 30 solves in 12 s).
+        max_blind: give up after this many regrasps since the last object
+            progress that moved a finger other than the blocking one without
+            giving the blocking one a landing (the look-ahead found none; see
+            :func:`_passes`). Each costs a look-ahead (about 1 s on a box), and
+            a run of them rarely ends in progress: box_tilt90 seed 4 spent 30 s
+            on 35 at one step, then a fresh attempt solved in 2 s.
         regrasp_retries: a regrasp search that finds no feasible regrasp is
             run again this many times (the landing candidates are random
             samples; a fresh set often holds one) before the reduction gives up.
@@ -70,6 +76,7 @@ class ReductionSettings:
 
     max_regrasps: int = 200
     max_stall: int = 30
+    max_blind: int = 10
     regrasp_retries: int = 2
     max_depth: int = 5
     same_contact_m: float = 1e-3
@@ -125,7 +132,7 @@ def reduce_object_path(
     settings = settings or ReductionSettings()
     segments: list[Segment] = []
     idx, q = 0, q_start.copy()
-    regrasps = stall = 0
+    regrasps = stall = blind = 0
     while True:
         if trans.deadline.expired():
             return ReductionResult(
@@ -134,7 +141,7 @@ def reduce_object_path(
         tr = trans.transfer(poses, idx, q, grasp)
         if len(tr.waypoints) > 1:
             segments.append(Segment("transfer", None, tr.waypoints))
-            stall = 0
+            stall = blind = 0
         idx, q = tr.reached, tr.waypoints[-1].q
         if tr.reason is None:
             return ReductionResult(True, tuple(segments), idx, None, _stats(trans, regrasps))
@@ -160,17 +167,27 @@ def reduce_object_path(
                 f"{tr.blocking}: {tr.reason})",
                 _stats(trans, regrasps),
             )
-        seg, grasp = found
+        seg, grasp, mode = found
         segments.append(seg)
         q = seg.end.q
         regrasps += 1
         stall += 1
+        blind += mode == "any"
         if regrasps > settings.max_regrasps or stall > settings.max_stall:
             return ReductionResult(
                 False,
                 tuple(segments),
                 idx,
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
+                _stats(trans, regrasps),
+            )
+        if blind > settings.max_blind:
+            return ReductionResult(
+                False,
+                tuple(segments),
+                idx,
+                f"no landing for finger {tr.blocking} at trajectory step {idx} after "
+                f"{blind} moves of other fingers",
                 _stats(trans, regrasps),
             )
 
@@ -184,7 +201,7 @@ def _regrasp_retrying(
     blocking: int,
     hint_row: FloatArray | None,
     retries: int,
-) -> tuple[Segment, GraspContacts] | None:
+) -> tuple[Segment, GraspContacts, str] | None:
     """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
 
     The landing candidates are random samples: a fresh set often holds a
@@ -205,7 +222,7 @@ def _regrasp_one(
     grasp: GraspContacts,
     blocking: int,
     hint_row: FloatArray | None,
-) -> tuple[Segment, GraspContacts] | None:
+) -> tuple[Segment, GraspContacts, str] | None:
     """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
 
     The blocking finger first, then the others, least remaining follow first
@@ -215,7 +232,7 @@ def _regrasp_one(
     outward normal per finger there (object frame), offered as landings.
 
     Returns:
-        ``(regrasp segment, new grasp)``.
+        ``(regrasp segment, new grasp, pass)``, the pass as :func:`_passes` names it.
     """
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
@@ -239,7 +256,7 @@ def _regrasp_one(
                     continue
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
             if seg is not None:
-                return seg, new
+                return seg, new, mode
     return None
 
 
