@@ -1,7 +1,9 @@
 """Landing choice for regrasps: where a finger lands, and how long it can follow from there.
 
 Whether finger gaits succeed is decided here (MEASURED.md): among sampled
-contacts that the finger reaches, that keep the fingertips apart and every
+contacts (surface points and, on a box, edge points whose normals lie between
+the two faces': held on two opposite faces, a finger reaches a third face only
+by way of an edge) that the finger reaches, that keep the fingertips apart and every
 (n-1) subgrasp force closure, the planner picks the one from which the finger
 can follow the rest of the object motion longest, its links checked against
 the palm, the object and obstacles (a :class:`Track` of the finger, resumed
@@ -444,7 +446,7 @@ class Landings:
         grasp: GraspContacts,
         pool: tuple[FloatArray, FloatArray, FloatArray],
         future_poses: FloatArray,
-        tries: int = 48,
+        tries: int = 16,
     ) -> bool:
         """Whether ``finger`` has a landing from ``pool`` (:meth:`landing_pool`) on ``grasp``.
 

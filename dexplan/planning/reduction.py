@@ -8,9 +8,11 @@ to look like a finger gait (see MEASURED.md):
 1. follow the object trajectory with one transfer on the current grasp for as
    long as it stays valid;
 2. regrasp the finger that blocks it (IK, joint limit, collision) onto the
-   landing from which it can follow the rest of the motion longest; when that
-   finger has no landing, move another finger first (fewest remaining steps
-   first), which may clear its way;
+   landing from which it can follow the rest of the motion longest (surface
+   points and, on a box, edge points); when that finger has no landing, move
+   another finger first (fewest remaining steps first): where that gains it
+   follow, else where the blocking finger then has a landing (the look-ahead),
+   else anywhere, which may clear its way;
 3. repeat until the object reaches the end of the trajectory.
 
 Only the object trajectory of the GSn path is followed; its contacts are
@@ -41,7 +43,7 @@ from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
 #: Landings of another finger tried by the look-ahead (:func:`_passes`, ``"enable"``).
-_ENABLE_LANDINGS = 24
+_ENABLE_LANDINGS = 12
 
 
 @dataclass(frozen=True)
