@@ -283,3 +283,22 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
         assert red.reason.startswith("no landing for finger") and len(calls) == 4
     else:
         assert red.reason.startswith("no progress after") and len(calls) == 8
+
+
+def test_reduction_schedule_retries_gaits_until_no_trajectory_is_left() -> None:
+    """After the fixed attempts, gaits again (fresh landings) while some
+    trajectory is not hopeless; the planner stops the schedule at its deadline."""
+    from dexplan.planning.planner import _reduction_schedule
+
+    assert list(_reduction_schedule("edges", set())) == [("edges", "gsn")]
+    hopeless: set[str] = set()
+    schedule = _reduction_schedule("auto", hopeless)
+    fixed = list(itertools.islice(schedule, 5))
+    assert fixed[4] == ("edges", "gsn")
+    assert {m for m, _ in fixed[:4]} == {"gaits"}
+    more = list(itertools.islice(schedule, 40))
+    assert len(more) == 40 and set(more) == {("gaits", "shortcut"), ("gaits", "raw")}
+    hopeless.add("raw")
+    assert next(schedule) in {("gaits", "shortcut"), ("gaits", "raw")}
+    hopeless.add("shortcut")
+    assert len(list(itertools.islice(schedule, 3))) <= 1  # ends with the pair under way
