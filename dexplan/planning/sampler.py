@@ -49,6 +49,10 @@ from dexplan.typing import FloatArray
 REACH_SAMPLES = 20000
 #: Reach voxel edge (m).
 REACH_VOXEL = 0.004
+#: Largest |sdf(tip centre) - r| (m) of a sampled contact: in a concave region
+#: of a mesh, ``point + r * normal`` can lie nearer than r to another part of
+#: the surface, off GSn (the planner's constraint tolerance is 1e-5 m).
+ON_OFFSET_TOL = 1e-7
 
 
 @dataclass(frozen=True)
@@ -288,6 +292,7 @@ class GraspSampler:
             pts, n_out = gsn.obj.sample_surface(s.candidates, rng)
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
+            ok[ok] = self._on_offset(pts[ok], n_out[ok])
             for other in placed:
                 ok &= np.linalg.norm(tips - other, axis=1) >= 2 * r + s.tip_clearance
             found = False
@@ -377,6 +382,18 @@ class GraspSampler:
         finally:
             self.stats.time_s += time.perf_counter() - t0
 
+    def _on_offset(self, pts: FloatArray, n_out: FloatArray) -> np.ndarray:
+        """(N,) True where the tip centre on ``pts`` (object frame) touches only there.
+
+        ``pts + r * n_out`` must lie at distance r from the whole surface
+        (within ``ON_OFFSET_TOL``), which fails only in concave regions.
+        """
+        if not len(pts):
+            return np.zeros(0, dtype=bool)
+        r = self.gsn.hand.fingertip_radius
+        d = np.asarray(self.gsn.obj.signed_distance(pts + r * n_out)).reshape(-1)
+        return np.abs(d - r) <= ON_OFFSET_TOL
+
     def _in_shell(self, finger: int, tips: FloatArray, normals_w: FloatArray) -> np.ndarray:
         """(N,) candidate fingertip centres ``tips: (N, 3)`` in the finger's reach shell.
 
@@ -433,6 +450,7 @@ class GraspSampler:
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
         ok[ok] = self._reachable(i, tips[ok])
+        ok[ok] = self._on_offset(pts[ok], n_out[ok])
         cand = np.flatnonzero(ok)
         if not len(cand):
             return None
