@@ -17,6 +17,8 @@ from dexplan.planning.validity import KEPT_PER_REASON, REASONS, ValidityStats
 
 ROOT = Path(__file__).resolve().parents[1]
 UNSOLVABLE = ROOT / "tests" / "data" / "unsolvable_lid.toml"
+#: The same with a box: the sampler's grasps of it are often rejected.
+UNSOLVABLE_BOX = ROOT / "tests" / "data" / "unsolvable_lid_box.toml"
 
 
 def test_rejections_name_the_dominant_reasons_largest_first():
@@ -74,7 +76,7 @@ def test_debug_rrd_records_the_rejected_samples_with_their_reasons(capfd, tmp_pa
     from test_viz import column, read_rrd
 
     rrd = tmp_path / "rejected.rrd"
-    args = ("plan", UNSOLVABLE, "--time-limit", "1", "-o", tmp_path / "p.json", "-q")
+    args = ("plan", UNSOLVABLE_BOX, "--time-limit", "1", "-o", tmp_path / "p.json", "-q")
     code, _, err = run_cli(capfd, *args, "--debug-rrd", rrd)
     assert code == 1 and "rejected samples recorded" in err
     chunks = read_rrd(rrd)

@@ -50,8 +50,11 @@ def test_limits_check_catches_violations(exported) -> None:
     doc = copy.deepcopy(exported)
     doc["points"][5]["velocities"][0] = 10.0 * doc["limits"]["joint_velocity"][0]
     f = next(p for p in doc["points"][10:] if p["grip_forces"][0] is not None)
-    f["grip_forces"][0] = [50.0 * x for x in f["contact_normals"][0]]
-    f["grip_forces"][0][0] += 100.0  # far outside the cone
+    n = np.asarray(f["contact_normals"][0])
+    t = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    # pushes (50 N along the normal) but far outside the cone (100 N across it)
+    f["grip_forces"][0] = (50.0 * n + 100.0 * t).tolist()
     seg = doc["segments"][1]
     doc["points"][seg["first_point"]]["velocities"][1] = 1e-3
     found = " ".join(check_trajectory(doc))

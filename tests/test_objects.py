@@ -809,3 +809,37 @@ def test_large_mesh_matches_brute_force_and_is_fast() -> None:
     for q in near:
         mesh.signed_distance_and_gradient(q)
     assert (time.perf_counter() - t0) / len(near) < 1e-3
+
+
+def test_box_edge_samples_lie_on_edges_with_normals_in_their_cone() -> None:
+    from dexplan.objects.primitives import EDGE_NORMAL_MIN
+    from dexplan.plan_verify import TIP_DISTANCE_TOL
+
+    box = Box([0.06, 0.04, 0.045])
+    pts, normals = box.sample_edges(3000, np.random.default_rng(4))
+    assert pts.shape == normals.shape == (3000, 3)
+    half = box.size / 2
+    # on an edge: exactly two coordinates at a face, the third inside
+    at_face = np.isclose(np.abs(pts), half, atol=1e-12)
+    assert np.all(at_face.sum(axis=1) == 2)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
+    # the normal lies between the two faces' normals, EDGE_NORMAL_MIN from each
+    assert np.all(normals[~at_face] == 0.0)
+    assert np.all(normals[at_face] * np.sign(pts[at_face]) >= math.sin(EDGE_NORMAL_MIN) - 1e-12)
+    # every edge of the 12 is sampled
+    assert len({tuple(np.sign(p) * f) for p, f in zip(pts, at_face, strict=True)}) == 12
+    # a fingertip centred on that normal touches the edge point, pushing along it,
+    # and lies farther than the verifier's tolerance from either face's reading
+    for r in (0.006, 0.012):
+        p, n = box.closest_point(pts + r * normals)
+        np.testing.assert_allclose(p, pts, atol=1e-12)
+        np.testing.assert_allclose(n, normals, atol=1e-12)
+        assert 2 * r * math.sin(EDGE_NORMAL_MIN / 2) > TIP_DISTANCE_TOL
+
+
+@pytest.mark.parametrize("shape", [Sphere(0.04), Capsule(0.02, 0.05), Cylinder(0.02, 0.05)])
+def test_other_shapes_give_no_edge_samples_and_leave_the_stream(shape: Shape) -> None:
+    rng = np.random.default_rng(7)
+    pts, normals = shape.sample_edges(100, rng)
+    assert pts.shape == normals.shape == (0, 3)
+    assert rng.random() == np.random.default_rng(7).random()

@@ -12,6 +12,7 @@ from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state
 from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
+from dexplan.planning.transitions import densify_poses
 from dexplan.pose import inverse_transform_points, quat_angle
 from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
@@ -130,15 +131,10 @@ def test_mismatched_contacts_is_an_input_error(scenario, start_and_goal) -> None
         )
 
 
-def test_fingertips_on_box_edges_are_verified_contacts() -> None:
-    """GSn lets a fingertip roll over a box edge; such plans verify, a moved contact not."""
-    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
-    result = plan(scenario, planner="KPIECE1", seed=2, reduction="edges", time_limit=60.0)
-    assert result.solved, (result.status, result.message)
-    hand = build_hand(scenario)
-    ctx = build_context(scenario)
+def _contacts_off_the_fingertip(hand, ctx, result) -> list[tuple[int, int, int]]:
+    """(segment, waypoint, finger) where the stated contact is not under the fingertip."""
     r = hand.fingertip_radius
-    on_edge = []
+    out = []
     for si, seg in enumerate(result.segments):
         for wi, w in enumerate(seg.waypoints):
             tips = inverse_transform_points(w.object_pose_xyzquat, hand.fingertip_positions(w.q))
@@ -147,8 +143,28 @@ def test_fingertips_on_box_edges_are_verified_contacts() -> None:
                     continue
                 p, n = ctx.obj.closest_point(np.asarray(c))
                 if np.linalg.norm(np.asarray(p) + r * np.asarray(n) - tips[i]) > 1e-3:
-                    on_edge.append((si, wi, i))
-    assert on_edge, "expected a fingertip on a box edge in this plan"
+                    out.append((si, wi, i))
+    return out
+
+
+def test_fingertips_on_box_edges_are_verified_contacts() -> None:
+    """GSn lets a fingertip roll over a box edge; such plans verify, a moved contact not.
+
+    The first of seeds 1-5 whose edge-by-edge plan has a fingertip on a box
+    edge is checked (seeds 1, 5 and 7 have one with per-finger pools; 2-4
+    end in the resolution limit); none having one fails the test.
+    """
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    hand = build_hand(scenario)
+    ctx = build_context(scenario)
+    outcomes = []
+    for seed in range(1, 6):
+        result = plan(scenario, planner="KPIECE1", seed=seed, reduction="edges", time_limit=60.0)
+        on_edge = _contacts_off_the_fingertip(hand, ctx, result) if result.solved else []
+        outcomes.append((seed, result.status, len(on_edge)))
+        if on_edge:
+            break
+    assert on_edge, f"expected a solved plan with a fingertip on a box edge: {outcomes}"
     doc = build_plan_document(scenario, hand, result)
     report = verify_plan(doc)
     assert report.ok, [str(v) for v in report.violations[:5]]
@@ -186,3 +202,103 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
     assert not red.success
     assert red.reason is not None and red.reason.startswith("no feasible regrasp")
     assert len(calls) == 1 + retries
+
+
+def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
+    monkeypatch,
+) -> None:
+    """The look-ahead: with no landing of its own, the blocking finger waits for a
+    neighbour's move after which it has one (``can_land``), before any move at all."""
+    from dexplan.planning import reduction
+
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    ctx = build_context(scenario, seed=1)
+    trans = ctx.transitions
+    x0 = start_state(ctx)
+    assert x0 is not None
+    pose0 = x0[:POSE_DIM]
+    grasp = grasp_from_state(trans, pose0, x0[POSE_DIM:])
+    goal = scenario.goal.object_pose_xyzquat
+    poses = densify_poses(np.stack([pose0, goal]), 0.008, 0.04)
+    blocking = 0
+    landings = trans.landing_candidates
+
+    def none_for_the_blocking_finger(finger, *args, **kwargs):
+        if finger == blocking:
+            return iter(())
+        return landings(finger, *args, **kwargs)
+
+    verdicts: list[tuple[bytes, bool]] = []
+    can_land = trans.can_land
+
+    def recorded(finger, q, g, pool, future, **kwargs):
+        ok = can_land(finger, q, g, pool, future, **kwargs)
+        verdicts.append((g.points.tobytes(), ok))
+        return ok
+
+    monkeypatch.setattr(trans, "landing_candidates", none_for_the_blocking_finger)
+    monkeypatch.setattr(trans, "can_land", recorded)
+    # no neighbour could follow further on another contact: only the look-ahead moves one
+    monkeypatch.setattr(reduction, "_current_follow", lambda *a: len(poses) + 10)
+    found = reduction._regrasp_one(trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None)
+    assert verdicts, "the look-ahead was not consulted"
+    assert found is not None
+    seg, new, mode = found
+    assert mode == "enable"
+    assert seg.finger != blocking
+    approved = {key for key, ok in verdicts if ok}
+    # the moved neighbour is one the look-ahead approved (this start grasp has one)
+    assert new.points.tobytes() in approved, (len(verdicts), len(approved))
+
+
+@pytest.mark.parametrize("mode", ["any", "gain"])
+def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
+    scenario, start_and_goal, monkeypatch, mode: str
+) -> None:
+    """``max_blind`` moves of other fingers without a landing for the blocking one
+    end the attempt (the planner retries afresh); other regrasps count towards
+    ``max_stall`` only."""
+    from dexplan.planning import reduction
+    from dexplan.segments import Segment, Waypoint
+
+    x0, xg = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    calls: list[int] = []
+
+    def idle(trans, poses, idx, q, grasp, *args):
+        # a regrasp that changes nothing: the transfer stays blocked where it was
+        calls.append(idx)
+        w = Waypoint(poses[idx].copy(), q.copy(), grasp.as_tuple())
+        return Segment("regrasp", 1, (w, w)), grasp, mode
+
+    monkeypatch.setattr(reduction, "_regrasp_retrying", idle)
+    s = ctx.transitions.settings
+    dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
+    grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
+    settings = ReductionSettings(max_blind=3, max_stall=7)
+    red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
+    assert not red.success and red.reason is not None
+    assert len(set(calls)) == 1  # all at the step the transfer was blocked at
+    if mode == "any":
+        assert red.reason.startswith("no landing for finger") and len(calls) == 4
+    else:
+        assert red.reason.startswith("no progress after") and len(calls) == 8
+
+
+def test_reduction_schedule_retries_gaits_until_no_trajectory_is_left() -> None:
+    """After the fixed attempts, gaits again (fresh landings) while some
+    trajectory is not hopeless; the planner stops the schedule at its deadline."""
+    from dexplan.planning.planner import _reduction_schedule
+
+    assert list(_reduction_schedule("edges", set())) == [("edges", "gsn")]
+    hopeless: set[str] = set()
+    schedule = _reduction_schedule("auto", hopeless)
+    fixed = list(itertools.islice(schedule, 5))
+    assert fixed[4] == ("edges", "gsn")
+    assert {m for m, _ in fixed[:4]} == {"gaits"}
+    more = list(itertools.islice(schedule, 40))
+    assert len(more) == 40 and set(more) == {("gaits", "shortcut"), ("gaits", "raw")}
+    hopeless.add("raw")
+    assert next(schedule) in {("gaits", "shortcut"), ("gaits", "raw")}
+    hopeless.add("shortcut")
+    assert len(list(itertools.islice(schedule, 3))) <= 1  # ends with the pair under way

@@ -29,6 +29,11 @@ def _sign(x: FloatArray) -> FloatArray:
     return np.where(x >= 0.0, 1.0, -1.0)
 
 
+#: Smallest angle (rad) between a sampled edge normal and either face normal
+#: (:meth:`Box.sample_edges`).
+EDGE_NORMAL_MIN = math.radians(15.0)
+
+
 class Sphere(Shape):
     """Sphere of radius ``radius`` centred at the origin.
 
@@ -291,6 +296,31 @@ class Box(Shape):
             sign = rng.choice([-1.0, 1.0], size=(len(corner), 3))
             pts[corner] = sign * h
             normals[corner] = sign * _octant_directions(len(corner), rng, math.cos(delta))
+        return pts, normals
+
+    def sample_edges(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points on the 12 edges (uniform in length), normals between the two faces'.
+
+        The normal makes an angle uniform in [EDGE_NORMAL_MIN, 90 deg -
+        EDGE_NORMAL_MIN] with either face normal: far enough from both that
+        the plan verifier reads the same normal from the fingertip (a contact
+        whose tip centre lies within 1 mm of a face's is read as on that face).
+        """
+        n = check_sample_args(n, rng)
+        along = rng.choice(3, size=n, p=self._size / self._size.sum())  # edge direction
+        rows = np.arange(n)
+        a = (along + 1) % 3
+        b = (along + 2) % 3
+        sa = np.where(rng.random(n) < 0.5, 1.0, -1.0)
+        sb = np.where(rng.random(n) < 0.5, 1.0, -1.0)
+        pts = np.zeros((n, 3))
+        pts[rows, along] = (rng.random(n) - 0.5) * self._size[along]
+        pts[rows, a] = sa * self._half[a]
+        pts[rows, b] = sb * self._half[b]
+        theta = rng.uniform(EDGE_NORMAL_MIN, 0.5 * math.pi - EDGE_NORMAL_MIN, n)
+        normals = np.zeros((n, 3))
+        normals[rows, a] = sa * np.cos(theta)
+        normals[rows, b] = sb * np.sin(theta)
         return pts, normals
 
     @property

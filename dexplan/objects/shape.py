@@ -279,6 +279,27 @@ class Shape(ABC):
         as_positive(tip_radius, "tip_radius")
         return self.sample_surface(n, rng)
 
+    def sample_edges(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points on the shape's edges, with outward normals inside their cones.
+
+        A fingertip sphere on an edge pushes along any direction between the
+        normals of the faces that meet there; such contacts are landings no
+        face point offers (on a box held on two opposite faces, the way onto
+        a third one). Only :class:`~dexplan.objects.primitives.Box` samples
+        its edges so far (a cylinder's rims and a mesh's edges are not): the
+        others return empty arrays and leave ``rng`` untouched.
+
+        Args:
+            n: number of samples (>= 0).
+            rng: random generator.
+
+        Returns:
+            ``(points, normals_out)``: (m, 3) each, object frame (m = n on
+            shapes with edges, else 0).
+        """
+        check_sample_args(n, rng)
+        return np.zeros((0, 3)), np.zeros((0, 3))
+
     @property
     @abstractmethod
     def bounding_radius(self) -> float:

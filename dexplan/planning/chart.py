@@ -22,8 +22,11 @@ every projected sample is a chart state. With ``spheres=False`` the pinned
 coordinate is the only row; its bounds (+-1e-12) lie inside the projection
 tolerance, so even samples that are never projected (the informed samplers
 of BITstar, InformedRRTstar and SORRTstar treat the space as R^n) are chart
-states. Motions are OMPL's discrete geodesics between chart states,
-symmetric here (a -> b is valid exactly when b -> a is).
+states. Motions are OMPL's discrete geodesics between chart states; a
+geodesic walks from its start, so a -> b and b -> a pass through different
+projected states and their validity may differ (near the force-closure
+boundary): :meth:`ChartProblem.check_path` travels a segment valid only the
+other way along the reversed reverse geodesic.
 
 A chart state maps to an ambient GSn state (:meth:`ContactChart.to_ambient`):
 the fingertip-sphere centre of finger i is where the ray from the object's

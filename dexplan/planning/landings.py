@@ -1,7 +1,9 @@
 """Landing choice for regrasps: where a finger lands, and how long it can follow from there.
 
 Whether finger gaits succeed is decided here (MEASURED.md): among sampled
-contacts that the finger reaches, that keep the fingertips apart and every
+contacts (surface points and, on a box, edge points whose normals lie between
+the two faces': held on two opposite faces, a finger reaches a third face only
+by way of an edge) that the finger reaches, that keep the fingertips apart and every
 (n-1) subgrasp force closure, the planner picks the one from which the finger
 can follow the rest of the object motion longest, its links checked against
 the palm, the object and obstacles (a :class:`Track` of the finger, resumed
@@ -396,6 +398,97 @@ class Landings:
             if found >= limit:
                 return
 
+    def _landing_samples(self) -> tuple[FloatArray, FloatArray]:
+        """Landing candidates: ``(points, normals_out)`` (S, 3) each, object frame.
+
+        ``landing_candidates`` surface points and, on shapes that sample
+        their edges (boxes), ``landing_edges`` edge points (normals inside
+        the edge's cone), shuffled together (the landing search takes the
+        first reachable ones in this order). Other shapes draw only the
+        surface points, as before.
+        """
+        s = self.settings
+        pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
+        e_pts, e_nrm = self.obj.sample_edges(s.landing_edges, self.rng)
+        if len(e_pts) == 0:
+            return pts, nrm
+        order = self.rng.permutation(len(pts) + len(e_pts))
+        return np.vstack([pts, e_pts])[order], np.vstack([nrm, e_nrm])[order]
+
+    def landing_pool(
+        self, finger: int, pose: FloatArray, future_poses: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """Contacts ``finger`` reaches now and can follow from, whatever the others hold.
+
+        The grasp-independent part of the landing search, for the look-ahead
+        of :meth:`can_land` (which applies the grasp-dependent filters):
+        sampled surface points reached now within the joint margin (twice
+        ``landing_reachable`` of them), IK-only follow score above 0.
+
+        Returns:
+            ``(points, normals_out, scores)`` object frame, best score first;
+            None when there is none.
+        """
+        s = self.settings
+        pts, nrm = self._landing_samples()
+        tip_obj = pts + self.hand.fingertip_radius * nrm
+        every = np.arange(len(pts))
+        keep = self._first_reachable(finger, pose, tip_obj, every, 2 * s.landing_reachable)
+        if len(keep) == 0:
+            return None
+        scores = self.follow_scores(finger, tip_obj[keep], future_poses, nrm[keep])
+        order = np.argsort(-scores, kind="stable")
+        keep, scores = keep[order], scores[order]
+        good = scores > 0
+        if not good.any():
+            return None
+        return pts[keep[good]], nrm[keep[good]], scores[good]
+
+    def can_land(
+        self,
+        finger: int,
+        q: FloatArray,
+        grasp: GraspContacts,
+        pool: tuple[FloatArray, FloatArray, FloatArray],
+        future_poses: FloatArray,
+        tries: int = 16,
+    ) -> bool:
+        """Whether ``finger`` has a landing from ``pool`` (:meth:`landing_pool`) on ``grasp``.
+
+        A landing: fingertips apart, moved, every (n-1) subgrasp force
+        closure (the first ``tries`` that pass the cheap filters are tested)
+        and a collision-free landing posture from which the finger follows at
+        least one pose (:meth:`track_score`). For the look-ahead of a
+        reduction whose blocking finger has no landing: another finger is
+        moved first only where it gives the blocking one some.
+        """
+        s = self.settings
+        pts, nrm, scores = pool
+        r = self.hand.fingertip_radius
+        tip_obj = pts + r * nrm
+        others = [i for i in range(self.hand.n_fingers) if i != finger]
+        other_tips = grasp.points[others] + r * grasp.normals_out[others]
+        apart = np.all(
+            np.linalg.norm(tip_obj[:, None, :] - other_tips[None], axis=2)
+            >= 2 * r + s.tip_clearance,
+            axis=1,
+        )
+        moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
+        cand = np.flatnonzero(apart & moved)
+        normals = np.repeat(grasp.normals_out[None], len(cand), axis=0)
+        normals[:, finger] = nrm[cand]
+        cand = cand[~cannot_be_force_closure(normals, self.validity.mu)][:tries]
+        if self.deadline.expired() or not len(cand):
+            return False
+        self.stats["landing_checks"] += len(cand)
+        quality = self.landing_qualities(grasp, finger, pts[cand], nrm[cand])
+        for c in cand[quality > self.validity.fc_margin]:
+            horizon = int(scores[c]) + max(1, s.follow_stride)
+            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
+            if q_land is not None and count > 0:
+                return True
+        return False
+
     def _ranked_landings(
         self,
         finger: int,
@@ -414,7 +507,7 @@ class Landings:
         """
         s = self.settings
         r = self.hand.fingertip_radius
-        pts, nrm = self.obj.sample_contacts(s.landing_candidates, self.rng, r)
+        pts, nrm = self._landing_samples()
         if hint is not None:
             pts = np.vstack([hint[0][None], pts])
             nrm = np.vstack([hint[1][None], nrm])

@@ -8,9 +8,11 @@ to look like a finger gait (see MEASURED.md):
 1. follow the object trajectory with one transfer on the current grasp for as
    long as it stays valid;
 2. regrasp the finger that blocks it (IK, joint limit, collision) onto the
-   landing from which it can follow the rest of the motion longest; when that
-   finger has no landing, move another finger first (fewest remaining steps
-   first), which may clear its way;
+   landing from which it can follow the rest of the motion longest (surface
+   points and, on a box, edge points); when that finger has no landing, move
+   another finger first (fewest remaining steps first): where that gains it
+   follow, else where the blocking finger then has a landing (the look-ahead),
+   else anywhere, which may clear its way;
 3. repeat until the object reaches the end of the trajectory.
 
 Only the object trajectory of the GSn path is followed; its contacts are
@@ -21,12 +23,9 @@ When that fails, :func:`reduce_gsn_path` applies the reduction property edge
 by edge: each GSn edge ``(pose_a, contacts_a) -> (pose_b, contacts_b)`` becomes
 a transfer on the current grasp, or regrasps onto ``contacts_b`` then a
 transfer, or regrasps onto ``contacts_a`` then a transfer; when none is valid
-the edge is bisected on GSn until every piece is, or a resolution limit is
-hit. The bisection's midpoint is the object pose slerp and contacts halfway:
-first the world fingertip centres averaged and projected onto the surface;
-on a mesh, an edge that fails so is reduced again with each contact halfway
-along its surface geodesic (the paper's section VI,
-:mod:`dexplan.planning.contact_paths`; :attr:`ReductionSettings.midpoints`).
+the edge is bisected on GSn (object pose slerp, fingertips averaged and
+projected onto the surface) until every piece is, or a resolution limit is
+hit.
 """
 
 from __future__ import annotations
@@ -38,14 +37,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
 from dexplan.pose import interpolate_pose, inverse_transform_points
 from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
-MIDPOINTS = ("chord", "geodesic")
-"""Contact interpolations of :attr:`ReductionSettings.midpoints`."""
+#: Landings of another finger tried by the look-ahead (:func:`_passes`, ``"enable"``).
+_ENABLE_LANDINGS = 12
 
 
 @dataclass(frozen=True)
@@ -61,6 +59,14 @@ class ReductionSettings:
             sphere every pose is like the others, so carrying on beats
             starting the trajectory again (allegro_sphere seeds 1, 4: 8 stalls
             at 146 degrees on every attempt, 30 solves in 12 s).
+        max_blind: give up after this many regrasps since the last object
+            progress that moved a finger other than the blocking one without
+            giving the blocking one a landing (the look-ahead found none; see
+            :func:`_passes`). Each costs a look-ahead (about 1 s on a box), and
+            a run of them rarely ends in progress: box_tilt90 seed 4 spent 30 s
+            on 35 at one step, then a fresh attempt solved in 2 s; module 2's
+            link tests run this reduction too. The four box scenarios, seeds
+            1-20: 80/80 with 4 (slowest 9.5 s), 80/80 with no limit (40 s).
         regrasp_retries: a regrasp search that finds no feasible regrasp is
             run again this many times (the landing candidates are random
             samples; a fresh set often holds one) before the reduction gives up.
@@ -70,33 +76,15 @@ class ReductionSettings:
             the same; no regrasp moves a finger by less.
         resync_m: in :func:`reduce_gsn_path`, a finger whose contact is farther
             than this (m) from the GSn path's is regrasped back onto it.
-        midpoints: how :func:`reduce_gsn_path` places the contacts of a
-            bisected edge's midpoint, tried in this order per GSn edge (an
-            edge that fails with one is reduced again, from the same state,
-            with the next): ``chord`` (the world fingertip centres averaged
-            and projected onto the surface, as OMPL's projected interpolation
-            moves them) and ``geodesic`` (on a mesh, each contact halfway
-            along its surface geodesic, the paper's section VI; skipped on
-            primitives and on meshes without geodesics). Measured on
-            egg_tilt90 (docs/meshes.md): ``chord`` first solves more edges
-            than ``geodesic`` first; the second only adds.
     """
 
     max_regrasps: int = 200
     max_stall: int = 30
+    max_blind: int = 4
     regrasp_retries: int = 2
     max_depth: int = 5
     same_contact_m: float = 1e-3
     resync_m: float = 0.01
-    midpoints: tuple[str, ...] = MIDPOINTS
-
-    def __post_init__(self) -> None:
-        bad = [m for m in self.midpoints if m not in MIDPOINTS]
-        if bad or not self.midpoints:
-            raise InvalidInputError(
-                f"midpoints must be a non-empty sequence of {', '.join(MIDPOINTS)}, "
-                f"got {self.midpoints!r}"
-            )
 
 
 @dataclass(frozen=True)
@@ -148,7 +136,7 @@ def reduce_object_path(
     settings = settings or ReductionSettings()
     segments: list[Segment] = []
     idx, q = 0, q_start.copy()
-    regrasps = stall = 0
+    regrasps = stall = blind = 0
     while True:
         if trans.deadline.expired():
             return ReductionResult(
@@ -157,7 +145,7 @@ def reduce_object_path(
         tr = trans.transfer(poses, idx, q, grasp)
         if len(tr.waypoints) > 1:
             segments.append(Segment("transfer", None, tr.waypoints))
-            stall = 0
+            stall = blind = 0
         idx, q = tr.reached, tr.waypoints[-1].q
         if tr.reason is None:
             return ReductionResult(True, tuple(segments), idx, None, _stats(trans, regrasps))
@@ -183,17 +171,27 @@ def reduce_object_path(
                 f"{tr.blocking}: {tr.reason})",
                 _stats(trans, regrasps),
             )
-        seg, grasp = found
+        seg, grasp, mode = found
         segments.append(seg)
         q = seg.end.q
         regrasps += 1
         stall += 1
+        blind += mode == "any"
         if regrasps > settings.max_regrasps or stall > settings.max_stall:
             return ReductionResult(
                 False,
                 tuple(segments),
                 idx,
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
+                _stats(trans, regrasps),
+            )
+        if blind > settings.max_blind:
+            return ReductionResult(
+                False,
+                tuple(segments),
+                idx,
+                f"no landing for finger {tr.blocking} at trajectory step {idx} after "
+                f"{blind} moves of other fingers",
                 _stats(trans, regrasps),
             )
 
@@ -207,7 +205,7 @@ def _regrasp_retrying(
     blocking: int,
     hint_row: FloatArray | None,
     retries: int,
-) -> tuple[Segment, GraspContacts] | None:
+) -> tuple[Segment, GraspContacts, str] | None:
     """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
 
     The landing candidates are random samples: a fresh set often holds a
@@ -228,7 +226,7 @@ def _regrasp_one(
     grasp: GraspContacts,
     blocking: int,
     hint_row: FloatArray | None,
-) -> tuple[Segment, GraspContacts] | None:
+) -> tuple[Segment, GraspContacts, str] | None:
     """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
 
     The blocking finger first, then the others, least remaining follow first
@@ -238,19 +236,31 @@ def _regrasp_one(
     outward normal per finger there (object frame), offered as landings.
 
     Returns:
-        ``(regrasp segment, new grasp)``.
+        ``(regrasp segment, new grasp, pass)``, the pass as :func:`_passes` names it.
     """
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
     follow: dict[int, int] = {}
-    for f, must_gain in _passes(blocking, others, follow, trans, q, grasp, future):
+    pool: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    for f, mode in _passes(blocking, others, follow, trans, q, grasp, future):
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
-        for point, normal, score in trans.landing_candidates(f, poses[idx], q, grasp, future, hint):
-            if f != blocking and must_gain and score <= follow[f]:
+        limit = _ENABLE_LANDINGS if mode == "enable" else 8
+        for point, normal, score in trans.landing_candidates(
+            f, poses[idx], q, grasp, future, hint, limit
+        ):
+            if f != blocking and mode == "gain" and score <= follow[f]:
                 break  # moving this finger would not help it follow further
+            new = grasp.replace(f, point, normal)
+            if mode == "enable":
+                if pool is None:
+                    pool = trans.landing_pool(blocking, poses[idx], future)
+                if pool is None:
+                    break  # the blocking finger reaches nothing it could follow from
+                if not trans.can_land(blocking, q, new, pool, future):
+                    continue
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
             if seg is not None:
-                return seg, grasp.replace(f, point, normal)
+                return seg, new, mode
     return None
 
 
@@ -263,20 +273,27 @@ def _passes(
     grasp: GraspContacts,
     future: FloatArray,
 ) -> Iterator[tuple[int, bool]]:
-    """Fingers to regrasp, in order, with whether the landing must gain follow.
+    """Fingers to regrasp, in order, with what their landing must do.
 
-    The blocking finger; then the others, least remaining follow first (the
-    follows are computed only here, into ``follow``); then, when nothing
-    works, the others again even onto a landing they follow less far from
-    (moving one out of the way may clear the blocker's).
+    ``"gain"``: follow further than the finger does now. The blocking finger;
+    then the others, least remaining follow first (the follows are computed
+    only here, into ``follow``). When nothing works, the others again even
+    onto a landing they follow less far from: first ``"enable"``, a landing
+    after which the blocking finger has one of its own
+    (:meth:`Transitions.can_land`: on a box held by two fingers on each of
+    two faces, most landings of the blocking finger break some subgrasp's
+    force closure, and moving a neighbour where it does not help led to
+    runs of 30 regrasps without progress); then ``"any"`` landing (moving
+    one out of the way may clear the blocker's path in other ways).
     """
-    yield blocking, True
+    yield blocking, "gain"
     follow.update({i: _current_follow(trans, i, q, grasp, future) for i in others})
     order = sorted(others, key=lambda i: follow[i])
     for f in order:
-        yield f, True
-    for f in order:
-        yield f, False
+        yield f, "gain"
+    for mode in ("enable", "any"):
+        for f in order:
+            yield f, mode
 
 
 def _current_follow(
@@ -348,7 +365,7 @@ def reduce_gsn_path(
         raise InvalidInputError(f"{len(poses)} poses but {len(grasps)} contact sets")
     reducer = _EdgeReducer(trans, settings or ReductionSettings(), deadline, q_start, grasps[0])
     for k in range(len(poses) - 1):
-        if not reducer.whole_edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1]):
+        if not reducer.edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1], 0):
             return ReductionResult(
                 False,
                 tuple(reducer.segments),
@@ -379,39 +396,11 @@ class _EdgeReducer:
         self.regrasps = 0
         self.bisections = 0
         self.failure = ""
-        self.contact_paths = ContactPaths(trans.obj)
-        self.midpoint = settings.midpoints[0]
-        self.geodesic_midpoints = 0
-        self.retries = 0
 
     def stats(self) -> dict[str, int]:
         out = _stats(self.trans, self.regrasps)
         out["reduction_bisections"] = self.bisections
-        out["reduction_geodesic_midpoints"] = self.geodesic_midpoints
-        out["reduction_midpoint_retries"] = self.retries
         return out
-
-    def whole_edge(
-        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
-    ) -> bool:
-        """Reduce one GSn edge, with each of the settings' midpoint interpolations in turn.
-
-        A failed attempt leaves nothing behind: segments, joints, grasp and
-        regrasp count are restored before the next.
-        """
-        kept = (len(self.segments), self.q, self.grasp, self.regrasps)
-        modes = [m for m in self.settings.midpoints if m != "geodesic" or self.contact_paths.active]
-        for k, mode in enumerate(modes):
-            if k:
-                self.retries += 1
-                del self.segments[kept[0] :]
-                self.q, self.grasp, self.regrasps = kept[1], kept[2], kept[3]
-            self.midpoint = mode
-            if self.edge(pa, ca, pb, cb, 0):
-                return True
-            if self.failure == "time limit reached":
-                break
-        return False
 
     def edge(
         self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts, depth: int
@@ -513,23 +502,15 @@ class _EdgeReducer:
     def _midpoint(
         self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
     ) -> tuple[FloatArray, GraspContacts]:
-        """GSn midpoint of an edge: the object pose slerp and the contacts halfway.
+        """GSn midpoint of an edge, as a projection of the ambient midpoint.
 
-        The contacts per the current midpoint interpolation
-        (:attr:`ReductionSettings.midpoints`): halfway along each contact's
-        surface geodesic (object frame, :class:`ContactPaths`), or as OMPL's
-        projected interpolation moves them (interpolating the hand joints
-        moves the fingertips roughly along the chord between their world
-        positions: the world fingertip centres are averaged and projected
-        onto the surface).
+        Interpolating the hand joints moves the fingertips roughly along the
+        chord between their world positions (as OMPL's projected interpolation
+        does), so: the object pose slerps, the world fingertip centres are
+        averaged, and each is projected onto the object's offset surface.
         """
         trans = self.trans
         pm = interpolate_pose(pa, pb, 0.5)
-        if self.midpoint == "geodesic":
-            halfway = self.contact_paths.between(ca, cb, 0.5)
-            if halfway is not None:
-                self.geodesic_midpoints += 1
-                return pm, halfway
         tips_world = 0.5 * (trans.tip_targets(pa, ca) + trans.tip_targets(pb, cb))
         pts, n_out = trans.obj.closest_point(inverse_transform_points(pm, tips_world))
         return pm, GraspContacts(np.asarray(pts).reshape(-1, 3), np.asarray(n_out).reshape(-1, 3))

@@ -56,6 +56,9 @@ class TransitionSettings:
         joint_margin: transfers stop this far (rad) from joint limits.
         lift_height: fingertip clearance above the surface before moving (m).
         landing_candidates: surface points sampled when choosing a landing.
+        landing_edges: edge points (normals inside the edge's cone) added to
+            them on shapes with edges (boxes): held on two opposite faces, a
+            finger gets onto a third face only by way of an edge.
         landing_reachable: of those, the ones the finger reaches now that
             are scored (the first ``landing_reachable``, in sampling order).
         via_points: random via points tried for a free-finger move.
@@ -91,6 +94,7 @@ class TransitionSettings:
     joint_margin: float = 0.02
     lift_height: float = 0.008
     landing_candidates: int = 1200
+    landing_edges: int = 300
     via_points: int = 96
     tip_clearance: float = 0.004
     follow_stride: int = 2
