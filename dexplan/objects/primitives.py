@@ -111,31 +111,6 @@ class Sphere(Shape):
         return {"shape": "sphere", "radius": self._radius}
 
 
-#: Edge and corner contacts of :meth:`Box.sample_contacts` keep the fingertip
-#: centre this far (m, along its arc) from where a face contact would put it.
-EDGE_CONTACT_MARGIN = 0.002
-
-
-def _octant_directions(n: int, rng: np.random.Generator, max_cos: float) -> FloatArray:
-    """(n, 3) unit directions uniform on the positive octant, away from its axes.
-
-    Each is more than ``acos(max_cos)`` from every axis (rejection; the
-    octant's diagonal after 20 rounds, which the margins used here never need).
-    """
-    out = np.empty((n, 3))
-    todo = np.arange(n)
-    for _ in range(20):
-        g = np.abs(rng.normal(size=(len(todo), 3))) + 1e-12
-        g /= np.linalg.norm(g, axis=1, keepdims=True)
-        good = g.max(axis=1) < max_cos
-        out[todo[good]] = g[good]
-        todo = todo[~good]
-        if not len(todo):
-            return out
-    out[todo] = 1.0 / math.sqrt(3.0)
-    return out
-
-
 class Box(Shape):
     """Axis-aligned box centred at the origin.
 
@@ -232,70 +207,6 @@ class Box(Shape):
         pts[rows, axis] = sign * self._half[axis]
         normals = np.zeros((n, 3))
         normals[rows, axis] = sign
-        return pts, normals
-
-    def sample_contacts(
-        self, n: int, rng: np.random.Generator, tip_radius: float
-    ) -> tuple[FloatArray, FloatArray]:
-        """Fingertip contacts uniform over the rounded box the fingertip centre sweeps.
-
-        The centre of a fingertip of radius r touching the box lies on the
-        box's r-offset surface: the six faces moved out by r, a quarter
-        cylinder of radius r along each of the 12 edges and an eighth of a
-        sphere at each of the 8 corners. Sampling that surface by area gives
-        face contacts (the face normal), edge contacts (the edge point, with
-        a direction between the two faces' normals) and corner contacts (a
-        direction in the corner's octant): an edge or corner pushes the
-        fingertip along that direction, and opposed edges give the normal
-        spread that fingers curled the same way need (docs/hands.md: the
-        Allegro cube). The shares are the areas: faces ``8 (hx hy + hy hz +
-        hz hx)``, edges ``4 pi r (hx + hy + hz)``, corners ``4 pi r^2``.
-
-        Edge and corner directions keep :data:`EDGE_CONTACT_MARGIN` (arc length
-        of the fingertip centre) away from the faces' normals: a fingertip
-        that close to its face placement is read as a face contact by the
-        plan verifier (the stated contact's own normal, within its 1 mm
-        tolerance), so such a contact would be judged with another normal than
-        the one it was planned with. Fingertips too small for that margin get
-        face contacts only.
-        """
-        r = as_positive(tip_radius, "tip_radius")
-        n = check_sample_args(n, rng)
-        h = self._half
-        delta = EDGE_CONTACT_MARGIN / r  # rad, away from each face normal
-        if delta >= 0.25 * math.pi:
-            return self._sample(n, rng)
-        area = np.array(
-            [
-                8.0 * (h[0] * h[1] + h[1] * h[2] + h[2] * h[0]),
-                4.0 * math.pi * r * float(h.sum()),
-                4.0 * math.pi * r * r,
-            ]
-        )
-        kind = np.searchsorted(np.cumsum(area), rng.random(n) * area.sum(), side="right")
-        kind = np.minimum(kind, 2)
-        pts, normals = self._sample(n, rng)  # faces
-        edge = np.flatnonzero(kind == 1)
-        if len(edge):
-            m = len(edge)
-            # edges along axis a: 4 of length 2 h_a, each of area pi r h_a
-            free = np.searchsorted(np.cumsum(h), rng.random(m) * h.sum(), side="right")
-            free = np.minimum(free, 2)
-            rows = np.arange(m)
-            b, c = (free + 1) % 3, (free + 2) % 3
-            sb, sc = rng.choice([-1.0, 1.0], size=(2, m))
-            t = delta + rng.random(m) * (0.5 * math.pi - 2.0 * delta)  # uniform on the arc
-            p = np.zeros((m, 3))
-            p[rows, free] = (2.0 * rng.random(m) - 1.0) * h[free]
-            p[rows, b], p[rows, c] = sb * h[b], sc * h[c]
-            d = np.zeros((m, 3))
-            d[rows, b], d[rows, c] = sb * np.cos(t), sc * np.sin(t)
-            pts[edge], normals[edge] = p, d
-        corner = np.flatnonzero(kind == 2)
-        if len(corner):
-            sign = rng.choice([-1.0, 1.0], size=(len(corner), 3))
-            pts[corner] = sign * h
-            normals[corner] = sign * _octant_directions(len(corner), rng, math.cos(delta))
         return pts, normals
 
     def sample_edges(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.typing import FloatArray, as_points, as_positive
+from dexplan.typing import FloatArray, as_points
 
 #: Up to this many points, queries loop over the scalar fast path (cheaper than
 #: the vectorized code's fixed cost); above it they run vectorized.
@@ -249,35 +249,35 @@ class Shape(ABC):
         return self._sample(n, rng)
 
     def sample_contacts(
-        self, n: int, rng: np.random.Generator, tip_radius: float
+        self, n: int, rng: np.random.Generator, edges: int = 0
     ) -> tuple[FloatArray, FloatArray]:
-        """Sample contacts of a fingertip sphere of radius ``tip_radius``.
+        """Fingertip contact candidates: surface points and, where the shape has them, edges.
 
-        A fingertip touches the object wherever its centre lies on the
-        object's ``tip_radius`` offset surface, and pushes along the direction
-        from the contact to its centre. On a smooth surface that is the
-        surface normal, and the contacts are :meth:`sample_surface`'s. Shapes
-        with sharp edges (:class:`~dexplan.objects.primitives.Box`) override
-        this to sample their edges and corners too, where the fingertip can
-        push along any direction between the adjacent faces' normals.
+        ``n`` points of :meth:`sample_surface` and ``edges`` of
+        :meth:`sample_edges` (none on shapes without edges), shuffled together:
+        callers that take the first candidates that work (the landing search,
+        the GSn sampler's per-finger pools) then see both kinds. A fingertip on
+        an edge pushes along any direction between the faces' normals, which
+        no face point offers.
 
         Args:
-            n: number of samples (>= 0).
+            n: surface points (>= 0).
             rng: random generator (the only source of randomness).
-            tip_radius: fingertip radius (m), > 0.
+            edges: edge points (>= 0).
 
         Returns:
-            ``(points, normals_out)``: (n, 3) contact points on the surface
-            and (n, 3) outward unit directions the fingertip centres lie along
-            (``points + tip_radius * normals_out``), object frame. In a
-            concavity tighter than the fingertip the sphere does not fit
-            there; the validity checker's collision test rejects those.
+            ``(points, normals_out)``: (m, 3) each, object frame; m = n + edges
+            on shapes with edges, else n.
 
         Raises:
-            InvalidInputError: bad ``n``, ``rng`` or ``tip_radius``.
+            InvalidInputError: bad ``n``, ``edges`` or ``rng``.
         """
-        as_positive(tip_radius, "tip_radius")
-        return self.sample_surface(n, rng)
+        pts, nrm = self.sample_surface(n, rng)
+        e_pts, e_nrm = self.sample_edges(edges, rng)
+        if len(e_pts) == 0:
+            return pts, nrm
+        order = rng.permutation(len(pts) + len(e_pts))
+        return np.vstack([pts, e_pts])[order], np.vstack([nrm, e_nrm])[order]
 
     def sample_edges(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
         """Points on the shape's edges, with outward normals inside their cones.

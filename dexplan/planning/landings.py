@@ -408,12 +408,7 @@ class Landings:
         surface points, as before.
         """
         s = self.settings
-        pts, nrm = self.obj.sample_surface(s.landing_candidates, self.rng)
-        e_pts, e_nrm = self.obj.sample_edges(s.landing_edges, self.rng)
-        if len(e_pts) == 0:
-            return pts, nrm
-        order = self.rng.permutation(len(pts) + len(e_pts))
-        return np.vstack([pts, e_pts])[order], np.vstack([nrm, e_nrm])[order]
+        return self.obj.sample_contacts(s.landing_candidates, self.rng, s.landing_edges)
 
     def landing_pool(
         self, finger: int, pose: FloatArray, future_poses: FloatArray

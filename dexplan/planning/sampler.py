@@ -61,6 +61,15 @@ class SamplerSettings:
 
     Attributes:
         candidates: surface points drawn per finger and attempt.
+        candidate_edges: edge points drawn with them when ``edge_contacts``
+            is on (shapes with edges).
+        edge_contacts: sample grasps with fingertips on the object's edges
+            too (a fingertip on an edge pushes between the faces' normals);
+            None: for hands with fingers of more than 3 joints. The Allegro
+            holds a cube only that way (its pads touch the faces it reaches
+            with parallel normals, docs/hands.md); the paper hand holds boxes
+            on their faces, and edge grasps there cost regrasps (box turns,
+            seeds 1-8: median 3.5-7.5 regrasps without, 7-8 with).
         max_attempts: attempts per :meth:`GraspSampler.sample` call before None.
         tip_clearance: minimum gap between two fingertip spheres (m).
         min_facing: minimum cosine between a candidate's outward normal and
@@ -71,6 +80,8 @@ class SamplerSettings:
             steps above, contacts placed finger after finger.
         pool_size: per-finger solutions kept in a pool.
         pool_candidates: surface points drawn per finger for a pool.
+        pool_edges: edge points (normals inside the edge's cone) drawn with
+            them when ``edge_contacts`` is on, on shapes that have edges (boxes).
         solutions_per_contact: IK solutions (random among those within
             limits) collision-checked per candidate contact.
         combinations: grasps combined from one set of pools and checked
@@ -86,6 +97,8 @@ class SamplerSettings:
     """
 
     candidates: int = 48
+    candidate_edges: int = 12
+    edge_contacts: bool | None = None
     max_attempts: int = 50
     tip_clearance: float = 0.004
     min_facing: float = -0.3
@@ -93,6 +106,7 @@ class SamplerSettings:
     per_finger: bool = True
     pool_size: int = 24
     pool_candidates: int = 256
+    pool_edges: int = 64
     solutions_per_contact: int = 3
     combinations: int = 40
     combination_draws: int = 4000
@@ -169,11 +183,14 @@ class GraspSampler:
         hand = gsn.hand
         per_finger = self.settings.per_finger
         self.per_finger = bool(per_finger)
+        edges = self.settings.edge_contacts
+        if edges is None:
+            edges = max(len(idx) for idx in hand.finger_q_index) > 3
+        self._edges = (self.settings.candidate_edges, self.settings.pool_edges) if edges else (0, 0)
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
         self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
-        # ranked combinations left at the last random pose that gave a valid grasp
         # the rest of a pose's combinations, with their force-closure qualities
         self._pending: list[tuple[FloatArray, float]] = []
         self._pending_left = 0
@@ -290,7 +307,7 @@ class GraspSampler:
         order = list(gsn.contact_ids)
         rng.shuffle(order)
         for i in order:
-            pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, r)
+            pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, self._edges[0])
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
             ok[ok] = self._on_offset(pts[ok], n_out[ok])
@@ -451,7 +468,7 @@ class GraspSampler:
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         world = self.validity.world
-        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, rng, hand.fingertip_radius)
+        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, rng, self._edges[1])
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
