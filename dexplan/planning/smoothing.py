@@ -102,15 +102,14 @@ def merge_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]
 
 
 def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | None:
-    from dexplan.planning.reduction import grasp_from_state
-
+    """One regrasp of ``a.finger`` from where ``a`` starts to where ``b`` ends, or None."""
     f = a.finger
     assert f is not None
     w0, w1 = a.start, b.end
-    grasp = grasp_from_state(trans, w0.object_pose_xyzquat, w0.q)
-    end = grasp_from_state(trans, w1.object_pose_xyzquat, w1.q)
-    if not isinstance(grasp, GraspContacts):
-        return None
+    # the stated contacts, not the fingertips' closest points: the holding
+    # fingers' contacts are copied into every interior waypoint
+    grasp = _stated_grasp(trans, w0)
+    end = _stated_grasp(trans, w1)
     seg = trans.regrasp(w0.object_pose_xyzquat, w0.q, grasp, f, end.points[f], end.normals_out[f])
     if seg is None or not np.allclose(seg.end.q, w1.q, atol=1e-6):
         return None
@@ -151,12 +150,27 @@ def drop_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]:
 
 
 def _stated_grasp(trans: Transitions, w: Waypoint) -> GraspContacts:
-    """The contacts a waypoint states (exactly), with the normals its fingertips touch."""
+    """The contacts a waypoint states (exactly), with the surface normals there.
+
+    The closest surface point to a fingertip centre is not always its stated
+    contact: in a concave region the fingertip sphere touches the surface near
+    two places, and the closest point may be the other one (mm away, on the
+    bean mesh's waist). Re-planned segments copy these contacts into their
+    waypoints, so they are the stated ones, with the normals the verifier
+    reads there (:func:`dexplan.plan_verify.fingertip_contact`). A free
+    finger (contact None) gets the point its fingertip is closest to.
+    """
     from dexplan.planning.reduction import grasp_from_state
 
     touched = grasp_from_state(trans, w.object_pose_xyzquat, w.q)
-    points = np.array([touched.points[i] if c is None else c for i, c in enumerate(w.contacts)])
-    return GraspContacts(points, touched.normals_out)
+    points, normals = touched.points.copy(), touched.normals_out.copy()
+    held = [i for i, c in enumerate(w.contacts) if c is not None]
+    if held:
+        stated = np.array([w.contacts[i] for i in held], dtype=float).reshape(-1, 3)
+        _, n_out = trans.obj.closest_point(stated)
+        points[held] = stated
+        normals[held] = np.asarray(n_out).reshape(-1, 3)
+    return GraspContacts(points, normals)
 
 
 def _transfer_on(trans: Transitions, start: Waypoint, t: Segment) -> Segment | None:
