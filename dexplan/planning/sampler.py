@@ -48,6 +48,12 @@ from dexplan.typing import FloatArray
 REACH_SAMPLES = 20000
 #: Reach voxel edge (m).
 REACH_VOXEL = 0.004
+#: Depth (m) a fingertip sphere on a candidate contact may dip into the object
+#: elsewhere: in a concavity tighter than the fingertip it does, and the state
+#: is off GSn by that much per finger. OMPL rejects a start state whose
+#: constraint norm exceeds 1e-5 (``constraint_spec`` in
+#: :mod:`dexplan.planning.roadmap`); five fingers at this depth stay below it.
+FIT_TOL = 2e-6
 
 
 @dataclass(frozen=True)
@@ -289,7 +295,7 @@ class GraspSampler:
         for i in order:
             pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, r)
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
-            ok = self._in_shell(i, tips, n_out @ R.T)
+            ok = self._in_shell(i, tips, n_out @ R.T) & self._fits(pts, n_out)
             for other in placed:
                 ok &= np.linalg.norm(tips - other, axis=1) >= 2 * r + s.tip_clearance
             found = False
@@ -384,6 +390,20 @@ class GraspSampler:
         finally:
             self.stats.time_s += time.perf_counter() - t0
 
+    def _fits(self, points: FloatArray, normals_out: FloatArray) -> np.ndarray:
+        """(N,) True where a fingertip sphere on the contact touches the object there only.
+
+        ``points, normals_out: (N, 3)`` candidate contacts and outward normals,
+        object frame. In a concavity tighter than the fingertip (the bean's
+        waist) the sphere centred at ``point + r * normal`` dips into the
+        object elsewhere; the state would be off GSn by that depth (the
+        collision check tolerates it, the constraint does not), so such
+        contacts are not offered (up to :data:`FIT_TOL`).
+        """
+        r = self.gsn.hand.fingertip_radius
+        d = np.atleast_1d(np.asarray(self.gsn.obj.signed_distance(points + r * normals_out)))
+        return d >= r - FIT_TOL
+
     def _in_shell(self, finger: int, tips: FloatArray, normals_w: FloatArray) -> np.ndarray:
         """(N,) candidate fingertip centres ``tips: (N, 3)`` in the finger's reach shell.
 
@@ -438,7 +458,7 @@ class GraspSampler:
         pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, rng, hand.fingertip_radius)
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
-        ok = self._in_shell(i, tips, n_w)
+        ok = self._in_shell(i, tips, n_w) & self._fits(pts, n_out)
         ok[ok] = self._reachable(i, tips[ok])
         cand = np.flatnonzero(ok)
         if not len(cand):
