@@ -161,7 +161,8 @@ def test_samples_on_a_non_convex_mesh_lie_on_gsn(per_finger: bool) -> None:
     ctx = build_context(scenario, seed=5, sampler_settings=SamplerSettings(per_finger=per_finger))
     states = [x for x in (ctx.sampler.sample() for _ in range(60)) if x is not None]
     assert len(states) >= 30
-    assert max(ctx.gsn.residual(x) for x in states) < 1e-6
+    # within OMPL's start tolerance (1e-5): each finger dips at most FIT_TOL
+    assert max(ctx.gsn.residual(x) for x in states) < 1e-5
 
 
 def test_allegro_holds_a_cube_on_its_edges() -> None:
@@ -184,3 +185,30 @@ def test_allegro_holds_a_cube_on_its_edges() -> None:
     half = np.asarray(scenario.object["size"]) / 2
     on_edge = np.isclose(np.abs(p), half, rtol=0.0, atol=1e-6).sum(axis=1) >= 2
     assert on_edge.sum() >= 1
+
+
+def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
+    """Sampled bean grasps are on GSn to well within OMPL's tolerance, waist included.
+
+    A fingertip sphere on a contact in a concavity tighter than itself dips
+    into the object elsewhere: the state is off GSn by that depth, which the
+    collision check tolerates (1 mm) but OMPL's start check does not (1e-5):
+    bean_yaw180 seed 7's start grasp was 1.33e-5 off and the query ended in
+    an error. Such candidate contacts are not offered.
+    """
+    from dexplan.planning.planner import start_state
+    from dexplan.planning.roadmap import constraint_spec
+    from dexplan.planning.sampler import FIT_TOL
+
+    ctx = build_context(load_scenario("dexplan/data/scenarios/suite/bean_yaw180.toml"), seed=7)
+    r = ctx.hand.fingertip_radius
+    pts, n_out = ctx.obj.sample_surface(4000, np.random.default_rng(0))
+    dip = r - np.asarray(ctx.obj.signed_distance(pts + r * n_out))
+    assert np.count_nonzero(dip > 1e-5) > 0  # the waist holds such contacts
+    np.testing.assert_array_equal(ctx.sampler._fits(pts, n_out), dip <= FIT_TOL)
+    states = [start_state(ctx)]
+    states += [ctx.sampler.sample_at_pose(ctx.scenario.goal.object_pose_xyzquat) for _ in range(4)]
+    assert all(x is not None for x in states)
+    tolerance = constraint_spec(ctx, "projected").tolerance  # what OMPL's start check allows
+    for x in states:
+        assert np.linalg.norm(ctx.gsn.function(x)) <= tolerance

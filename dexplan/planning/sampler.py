@@ -49,10 +49,12 @@ from dexplan.typing import FloatArray
 REACH_SAMPLES = 20000
 #: Reach voxel edge (m).
 REACH_VOXEL = 0.004
-#: Largest |sdf(tip centre) - r| (m) of a sampled contact: in a concave region
-#: of a mesh, ``point + r * normal`` can lie nearer than r to another part of
-#: the surface, off GSn (the planner's constraint tolerance is 1e-5 m).
-ON_OFFSET_TOL = 1e-7
+#: Depth (m) a fingertip sphere on a candidate contact may dip into the object
+#: elsewhere: in a concavity tighter than the fingertip it does, and the state
+#: is off GSn by that much per finger. OMPL rejects a start state whose
+#: constraint norm exceeds 1e-5 (``constraint_spec`` in
+#: :mod:`dexplan.planning.roadmap`); five fingers at this depth stay below it.
+FIT_TOL = 2e-6
 
 
 @dataclass(frozen=True)
@@ -310,7 +312,7 @@ class GraspSampler:
             pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, self._edges[0])
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
-            ok[ok] = self._on_offset(pts[ok], n_out[ok])
+            ok[ok] = self._fits(pts[ok], n_out[ok])
             for other in placed:
                 ok &= np.linalg.norm(tips - other, axis=1) >= 2 * r + s.tip_clearance
             found = False
@@ -405,17 +407,21 @@ class GraspSampler:
         finally:
             self.stats.time_s += time.perf_counter() - t0
 
-    def _on_offset(self, pts: FloatArray, n_out: FloatArray) -> np.ndarray:
-        """(N,) True where the tip centre on ``pts`` (object frame) touches only there.
+    def _fits(self, points: FloatArray, normals_out: FloatArray) -> np.ndarray:
+        """(N,) True where a fingertip sphere on the contact touches the object there only.
 
-        ``pts + r * n_out`` must lie at distance r from the whole surface
-        (within ``ON_OFFSET_TOL``), which fails only in concave regions.
+        ``points, normals_out: (N, 3)`` candidate contacts and outward normals,
+        object frame. In a concavity tighter than the fingertip (the bean's
+        waist) the sphere centred at ``point + r * normal`` dips into the
+        object elsewhere; the state would be off GSn by that depth (the
+        collision check tolerates it, the constraint does not), so such
+        contacts are not offered (up to :data:`FIT_TOL`).
         """
-        if not len(pts):
+        if not len(points):
             return np.zeros(0, dtype=bool)
         r = self.gsn.hand.fingertip_radius
-        d = np.asarray(self.gsn.obj.signed_distance(pts + r * n_out)).reshape(-1)
-        return np.abs(d - r) <= ON_OFFSET_TOL
+        d = np.atleast_1d(np.asarray(self.gsn.obj.signed_distance(points + r * normals_out)))
+        return d >= r - FIT_TOL
 
     def _in_shell(self, finger: int, tips: FloatArray, normals_w: FloatArray) -> np.ndarray:
         """(N,) candidate fingertip centres ``tips: (N, 3)`` in the finger's reach shell.
@@ -473,7 +479,7 @@ class GraspSampler:
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
         ok[ok] = self._reachable(i, tips[ok])
-        ok[ok] = self._on_offset(pts[ok], n_out[ok])
+        ok[ok] = self._fits(pts[ok], n_out[ok])
         cand = np.flatnonzero(ok)
         if not len(cand):
             return None

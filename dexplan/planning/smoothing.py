@@ -22,6 +22,7 @@ from collections.abc import Callable
 import numpy as np
 
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
+from dexplan.pose import inverse_transform_points
 from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
@@ -102,15 +103,14 @@ def merge_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]
 
 
 def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | None:
-    from dexplan.planning.reduction import grasp_from_state
-
+    """One regrasp of ``a.finger`` from where ``a`` starts to where ``b`` ends, or None."""
     f = a.finger
     assert f is not None
     w0, w1 = a.start, b.end
-    grasp = grasp_from_state(trans, w0.object_pose_xyzquat, w0.q)
-    end = grasp_from_state(trans, w1.object_pose_xyzquat, w1.q)
-    if not isinstance(grasp, GraspContacts):
-        return None
+    # the stated contacts, not the fingertips' closest points: the holding
+    # fingers' contacts are copied into every interior waypoint
+    grasp = _stated_grasp(trans, w0)
+    end = _stated_grasp(trans, w1)
     seg = trans.regrasp(w0.object_pose_xyzquat, w0.q, grasp, f, end.points[f], end.normals_out[f])
     if seg is None or not np.allclose(seg.end.q, w1.q, atol=1e-6):
         return None
@@ -151,12 +151,34 @@ def drop_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]:
 
 
 def _stated_grasp(trans: Transitions, w: Waypoint) -> GraspContacts:
-    """The contacts a waypoint states (exactly), with the normals its fingertips touch."""
-    from dexplan.planning.reduction import grasp_from_state
+    """The contacts a waypoint states (exactly), with the normals the fingertips push along.
 
-    touched = grasp_from_state(trans, w.object_pose_xyzquat, w.q)
-    points = np.array([touched.points[i] if c is None else c for i, c in enumerate(w.contacts)])
-    return GraspContacts(points, touched.normals_out)
+    The surface point closest to a fingertip centre is not always its stated
+    contact: in a concave region the fingertip sphere touches the surface near
+    two places, and the closest point may be the other one (3.4 mm away on the
+    bean mesh's waist). Re-planned segments copy these contacts into their
+    waypoints, so they are the stated ones. Per finger, the normal is the
+    surface normal at the stated contact or the one at the fingertip's closest
+    point, whichever puts the fingertip centre (contact + radius * normal)
+    nearer to where it is: the first on a face, the second at a box edge or
+    corner, as the plan verifier reads contacts. A free finger (contact None)
+    gets the point its fingertip is closest to.
+    """
+    tips = inverse_transform_points(w.object_pose_xyzquat, trans.hand.fingertip_positions(w.q))
+    pts, n_out = trans.obj.closest_point(tips)
+    points = np.array(pts, dtype=float).reshape(-1, 3)
+    normals = np.array(n_out, dtype=float).reshape(-1, 3)
+    held = [i for i, c in enumerate(w.contacts) if c is not None]
+    if held:
+        stated = np.array([w.contacts[i] for i in held], dtype=float).reshape(-1, 3)
+        _, n_at_stated = trans.obj.closest_point(stated)
+        n_stated = np.asarray(n_at_stated, dtype=float).reshape(-1, 3)
+        r = trans.hand.fingertip_radius
+        gap_stated = np.linalg.norm(stated + r * n_stated - tips[held], axis=1)
+        gap_touched = np.linalg.norm(stated + r * normals[held] - tips[held], axis=1)
+        normals[held] = np.where((gap_stated < gap_touched)[:, None], n_stated, normals[held])
+        points[held] = stated
+    return GraspContacts(points, normals)
 
 
 def _transfer_on(trans: Transitions, start: Waypoint, t: Segment) -> Segment | None:
