@@ -23,9 +23,12 @@ When that fails, :func:`reduce_gsn_path` applies the reduction property edge
 by edge: each GSn edge ``(pose_a, contacts_a) -> (pose_b, contacts_b)`` becomes
 a transfer on the current grasp, or regrasps onto ``contacts_b`` then a
 transfer, or regrasps onto ``contacts_a`` then a transfer; when none is valid
-the edge is bisected on GSn (object pose slerp, fingertips averaged and
-projected onto the surface) until every piece is, or a resolution limit is
-hit.
+the edge is bisected on GSn until every piece is, or a resolution limit is
+hit. The bisection's midpoint is the object pose slerp and contacts halfway:
+first the world fingertip centres averaged and projected onto the surface;
+on a mesh, an edge that fails so is reduced again with each contact halfway
+along its surface geodesic (the paper's section VI,
+:mod:`dexplan.planning.contact_paths`; :attr:`ReductionSettings.midpoints`).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexplan.exceptions import InvalidInputError
+from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.transitions import GraspContacts, Transitions, densify_poses
 from dexplan.pose import interpolate_pose, inverse_transform_points
 from dexplan.segments import Segment
@@ -44,6 +48,9 @@ from dexplan.typing import FloatArray
 
 #: Landings of another finger tried by the look-ahead (:func:`_passes`, ``"enable"``).
 _ENABLE_LANDINGS = 12
+
+MIDPOINTS = ("chord", "geodesic")
+"""Contact interpolations of :attr:`ReductionSettings.midpoints`."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,16 @@ class ReductionSettings:
             the same; no regrasp moves a finger by less.
         resync_m: in :func:`reduce_gsn_path`, a finger whose contact is farther
             than this (m) from the GSn path's is regrasped back onto it.
+        midpoints: how :func:`reduce_gsn_path` places the contacts of a
+            bisected edge's midpoint, tried in this order per GSn edge (an
+            edge that fails with one is reduced again, from the same state,
+            with the next): ``chord`` (the world fingertip centres averaged
+            and projected onto the surface, as OMPL's projected interpolation
+            moves them) and ``geodesic`` (on a mesh, each contact halfway
+            along its surface geodesic, the paper's section VI; skipped on
+            primitives and on meshes without geodesics). Measured on
+            egg_tilt90 (docs/meshes.md): ``chord`` first solves more edges
+            than ``geodesic`` first; the second only adds.
     """
 
     max_regrasps: int = 200
@@ -85,6 +102,15 @@ class ReductionSettings:
     max_depth: int = 5
     same_contact_m: float = 1e-3
     resync_m: float = 0.01
+    midpoints: tuple[str, ...] = MIDPOINTS
+
+    def __post_init__(self) -> None:
+        bad = [m for m in self.midpoints if m not in MIDPOINTS]
+        if bad or not self.midpoints:
+            raise InvalidInputError(
+                f"midpoints must be a non-empty sequence of {', '.join(MIDPOINTS)}, "
+                f"got {self.midpoints!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -365,7 +391,7 @@ def reduce_gsn_path(
         raise InvalidInputError(f"{len(poses)} poses but {len(grasps)} contact sets")
     reducer = _EdgeReducer(trans, settings or ReductionSettings(), deadline, q_start, grasps[0])
     for k in range(len(poses) - 1):
-        if not reducer.edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1], 0):
+        if not reducer.whole_edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1]):
             return ReductionResult(
                 False,
                 tuple(reducer.segments),
@@ -396,11 +422,39 @@ class _EdgeReducer:
         self.regrasps = 0
         self.bisections = 0
         self.failure = ""
+        self.contact_paths = ContactPaths(trans.obj)
+        self.midpoint = settings.midpoints[0]
+        self.geodesic_midpoints = 0
+        self.retries = 0
 
     def stats(self) -> dict[str, int]:
         out = _stats(self.trans, self.regrasps)
         out["reduction_bisections"] = self.bisections
+        out["reduction_geodesic_midpoints"] = self.geodesic_midpoints
+        out["reduction_midpoint_retries"] = self.retries
         return out
+
+    def whole_edge(
+        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
+    ) -> bool:
+        """Reduce one GSn edge, with each of the settings' midpoint interpolations in turn.
+
+        A failed attempt leaves nothing behind: segments, joints, grasp and
+        regrasp count are restored before the next.
+        """
+        kept = (len(self.segments), self.q, self.grasp, self.regrasps)
+        modes = [m for m in self.settings.midpoints if m != "geodesic" or self.contact_paths.active]
+        for k, mode in enumerate(modes):
+            if k:
+                self.retries += 1
+                del self.segments[kept[0] :]
+                self.q, self.grasp, self.regrasps = kept[1], kept[2], kept[3]
+            self.midpoint = mode
+            if self.edge(pa, ca, pb, cb, 0):
+                return True
+            if self.failure == "time limit reached":
+                break
+        return False
 
     def edge(
         self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts, depth: int
@@ -502,15 +556,23 @@ class _EdgeReducer:
     def _midpoint(
         self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
     ) -> tuple[FloatArray, GraspContacts]:
-        """GSn midpoint of an edge, as a projection of the ambient midpoint.
+        """GSn midpoint of an edge: the object pose slerp and the contacts halfway.
 
-        Interpolating the hand joints moves the fingertips roughly along the
-        chord between their world positions (as OMPL's projected interpolation
-        does), so: the object pose slerps, the world fingertip centres are
-        averaged, and each is projected onto the object's offset surface.
+        The contacts per the current midpoint interpolation
+        (:attr:`ReductionSettings.midpoints`): halfway along each contact's
+        surface geodesic (object frame, :class:`ContactPaths`), or as OMPL's
+        projected interpolation moves them (interpolating the hand joints
+        moves the fingertips roughly along the chord between their world
+        positions: the world fingertip centres are averaged and projected
+        onto the surface).
         """
         trans = self.trans
         pm = interpolate_pose(pa, pb, 0.5)
+        if self.midpoint == "geodesic":
+            halfway = self.contact_paths.between(ca, cb, 0.5)
+            if halfway is not None:
+                self.geodesic_midpoints += 1
+                return pm, halfway
         tips_world = 0.5 * (trans.tip_targets(pa, ca) + trans.tip_targets(pb, cb))
         pts, n_out = trans.obj.closest_point(inverse_transform_points(pm, tips_world))
         return pm, GraspContacts(np.asarray(pts).reshape(-1, 3), np.asarray(n_out).reshape(-1, 3))
