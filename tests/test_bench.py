@@ -340,6 +340,34 @@ def test_plots_from_records(tmp_path, sphere, cube):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@needs_matplotlib
+def test_plots_of_a_large_sweep_stay_legible(tmp_path):
+    """13 scenarios x 13 planners: panels wrap into rows and success is a heat map."""
+    import struct
+
+    recs = []
+    for s in range(13):
+        for p in range(13):
+            for seed in (1, 2):
+                recs.append(
+                    {
+                        "scenario": f"scenario_{s}", "planner": f"Planner{p}", "seed": seed,
+                        "solved": (s + p + seed) % 3 != 0, "time": 0.5 + p, "time_limit": 30.0,
+                        "graph_states": 10 + s, "regrasps": 1 + s % 4,
+                    }
+                )  # fmt: skip
+    paths = plot_results(recs, tmp_path, None)
+
+    def size(path):  # PNG header: width, height
+        return struct.unpack(">II", path.read_bytes()[16:24])
+
+    widths = {p.name: size(p)[0] for p in paths}
+    # one row of 13 panels of 13 planners was 16,000 px wide; 24 inches at 110 dpi is 2640
+    assert max(widths.values()) < 3000, widths
+    w, h = size(tmp_path / "bench_success.png")
+    assert w < 2000 and h < 1500
+
+
 # ------------------------------------------------------------------ bad inputs
 
 

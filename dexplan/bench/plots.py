@@ -12,6 +12,11 @@ from dexplan.bench.extras import require_matplotlib
 from dexplan.bench.schema import DEFAULT_BASELINE, PLOT_NAMES
 from dexplan.files import atomic_output
 
+#: Widest row of box-plot panels (inches) before they wrap to a new row.
+_ROW_WIDTH = 24.0
+#: Most (scenario, planner) cells drawn as grouped bars; more get a heat map.
+_MAX_BARS = 24
+
 
 def _ordered(records: Sequence[Mapping[str, Any]], key: str) -> list[str]:
     """The distinct values of a record field, in first-seen order."""
@@ -107,12 +112,21 @@ def _boxes(
     solved_only: bool = False,
     log: bool = True,
 ) -> Path:
-    """Box plots of a column per planner, one panel per scenario, every run a point."""
+    """Box plots of a column per planner, one panel per scenario, every run a point.
+
+    Panels wrap into rows of at most :data:`_ROW_WIDTH` inches, so a sweep of
+    many scenarios stays readable.
+    """
     n_panels, n_planners = len(grid.scenarios), len(grid.planners)
+    panel_w = 1.5 * n_planners + 0.5
+    ncols = max(1, min(n_panels, int(_ROW_WIDTH // panel_w)))
+    nrows = math.ceil(n_panels / ncols)
     fig, axes = grid.plt.subplots(
-        1, n_panels, figsize=(1.3 + 1.5 * n_planners * n_panels, 3.8), squeeze=False
+        nrows, ncols, figsize=(0.8 + panel_w * ncols, 4.2 * nrows), squeeze=False
     )
-    for ax, scen in zip(axes[0], grid.scenarios, strict=True):
+    for ax in axes.flat[n_panels:]:
+        ax.set_visible(False)
+    for ax, scen in zip(axes.flat, grid.scenarios, strict=False):
         data, labels = [], []
         for i, p in enumerate(grid.planners):
             rs = [r for r in grid.by[(scen, p)] if r.get("solved") or not solved_only]
@@ -144,8 +158,14 @@ def _boxes(
 
 
 def _success(grid: _Grid, name: str) -> Path:
-    """Bars of the success rate per planner, one colour per scenario, each with its n."""
+    """Bars of the success rate per planner, one colour per scenario, each with its n.
+
+    Sweeps of more than :data:`_MAX_BARS` (scenario, planner) cells get a
+    table-like heat map instead (scenarios by planners), which stays legible.
+    """
     scenarios, planners = grid.scenarios, grid.planners
+    if len(scenarios) * len(planners) > _MAX_BARS:
+        return _success_map(grid, name)
     fig, ax = grid.plt.subplots(figsize=(1.5 + 1.1 * len(planners) * max(1, len(scenarios)), 3.8))
     width = 0.8 / max(1, len(scenarios))
     for k, scen in enumerate(scenarios):
@@ -172,4 +192,30 @@ def _success(grid: _Grid, name: str) -> Path:
         fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=max(1, len(scenarios))
     )
     ax.grid(axis="y", alpha=0.3)
+    return grid.save(fig, name)
+
+
+def _success_map(grid: _Grid, name: str) -> Path:
+    """Success rate of every (scenario, planner) as a coloured cell with its n."""
+    scenarios, planners = grid.scenarios, grid.planners
+    rates = [
+        [
+            100.0 * sum(1 for r in grid.by[(s, p)] if r.get("solved")) / len(grid.by[(s, p)])
+            if grid.by[(s, p)]
+            else float("nan")
+            for p in planners
+        ]
+        for s in scenarios
+    ]
+    fig, ax = grid.plt.subplots(figsize=(2.5 + 0.9 * len(planners), 1.2 + 0.45 * len(scenarios)))
+    image = ax.imshow(rates, cmap="RdYlGn", vmin=0.0, vmax=100.0, aspect="auto")
+    for i, s in enumerate(scenarios):
+        for j, p in enumerate(planners):
+            n = len(grid.by[(s, p)])
+            if n:
+                ax.text(j, i, f"{rates[i][j]:.0f}%\nn={n}", ha="center", va="center", fontsize=7)
+    ax.set_xticks(range(len(planners)), planners, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(scenarios)), scenarios, fontsize=8)
+    ax.set_title("solved runs (plans that passed the verifier)")
+    fig.colorbar(image, ax=ax, label="success rate (%)", shrink=0.8)
     return grid.save(fig, name)
