@@ -459,8 +459,31 @@ class Landings:
         """
         s = self.settings
         pts, nrm, scores = pool
+        tip_obj = pts + self.hand.fingertip_radius * nrm
+        cand = self._grasp_filters(finger, grasp, pts, nrm)[:tries]
+        holds = self._holds_force_closure(finger, grasp, pts[cand], nrm[cand])
+        if holds is None:
+            return False
+        for c in cand[holds]:
+            horizon = int(scores[c]) + max(1, s.follow_stride)
+            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
+            if q_land is not None and count > 0:
+                return True
+        return False
+
+    def _grasp_filters(
+        self, finger: int, grasp: GraspContacts, points: FloatArray, normals_out: FloatArray
+    ) -> np.ndarray:
+        """Indices of the landings ``points, normals_out: (S, 3)`` (object frame) that may do.
+
+        The cheap tests that depend on the other fingers' contacts: the
+        fingertips stay apart, the landing is not next to the current contact
+        (it would gain nothing), and the sound half-space test leaves force
+        closure of every (n-1) subgrasp possible.
+        """
+        s = self.settings
         r = self.hand.fingertip_radius
-        tip_obj = pts + r * nrm
+        tip_obj = points + r * normals_out
         others = [i for i in range(self.hand.n_fingers) if i != finger]
         other_tips = grasp.points[others] + r * grasp.normals_out[others]
         apart = np.all(
@@ -468,21 +491,27 @@ class Landings:
             >= 2 * r + s.tip_clearance,
             axis=1,
         )
-        moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
-        cand = np.flatnonzero(apart & moved)
-        normals = np.repeat(grasp.normals_out[None], len(cand), axis=0)
-        normals[:, finger] = nrm[cand]
-        cand = cand[~cannot_be_force_closure(normals, self.validity.mu)][:tries]
-        if self.deadline.expired() or not len(cand):
-            return False
-        self.stats["landing_checks"] += len(cand)
-        quality = self.landing_qualities(grasp, finger, pts[cand], nrm[cand])
-        for c in cand[quality > self.validity.fc_margin]:
-            horizon = int(scores[c]) + max(1, s.follow_stride)
-            count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
-            if q_land is not None and count > 0:
-                return True
-        return False
+        moved = np.linalg.norm(points - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
+        keep = np.flatnonzero(apart & moved)
+        normals = np.repeat(grasp.normals_out[None], len(keep), axis=0)
+        normals[:, finger] = normals_out[keep]
+        return keep[~cannot_be_force_closure(normals, self.validity.mu)]
+
+    def _holds_force_closure(
+        self, finger: int, grasp: GraspContacts, points: FloatArray, normals_out: FloatArray
+    ) -> np.ndarray | None:
+        """(C,) every (n-1) subgrasp certified force closure with ``finger`` at each landing.
+
+        ``points, normals_out: (C, 3)`` object frame, evaluated in one batch
+        and counted as landing checks; None past the deadline.
+        """
+        if self.deadline.expired():
+            return None
+        self.stats["landing_checks"] += len(points)
+        if not len(points):
+            return np.zeros(0, dtype=bool)
+        quality = self.landing_qualities(grasp, finger, points, normals_out)
+        return quality > self.validity.fc_margin
 
     def _ranked_landings(
         self,
@@ -507,20 +536,7 @@ class Landings:
             pts = np.vstack([hint[0][None], pts])
             nrm = np.vstack([hint[1][None], nrm])
         tip_obj = pts + r * nrm
-        others = [i for i in range(self.hand.n_fingers) if i != finger]
-        other_tips = grasp.points[others] + r * grasp.normals_out[others]
-        apart = np.all(
-            np.linalg.norm(tip_obj[:, None, :] - other_tips[None], axis=2)
-            >= 2 * r + s.tip_clearance,
-            axis=1,
-        )
-        # a landing next to the current contact gains nothing
-        moved = np.linalg.norm(pts - grasp.points[finger], axis=1) > 0.25 * s.max_step_m
-        keep = np.flatnonzero(apart & moved)
-        # the half-space test (sound, vectorised) before the exact force closure
-        normals = np.repeat(grasp.normals_out[None], len(keep), axis=0)
-        normals[:, finger] = nrm[keep]
-        keep = keep[~cannot_be_force_closure(normals, self.validity.mu)]
+        keep = self._grasp_filters(finger, grasp, pts, nrm)
         if len(keep) == 0:
             return None
         # the first landing_reachable of them (in sampling order) reachable now
@@ -664,16 +680,14 @@ class _LandingForceClosure:
     def holds(self, i: int) -> bool:
         """Force closure with the finger at ranked landing ``keep[i]`` (False past the deadline)."""
         if not self.known[i]:
-            owner = self.landings
-            if owner.deadline.expired():
-                return False
             rows = np.arange(i, min(i + _FC_CHUNK, len(self.keep)))
             rows = rows[~self.known[rows]]
             c = self.keep[rows]
-            owner.stats["landing_checks"] += len(rows)
-            quality = owner.landing_qualities(
-                self.grasp, self.finger, self.points[c], self.normals_out[c]
+            holds = self.landings._holds_force_closure(
+                self.finger, self.grasp, self.points[c], self.normals_out[c]
             )
-            self.ok[rows] = quality > owner.validity.fc_margin
+            if holds is None:
+                return False
+            self.ok[rows] = holds
             self.known[rows] = True
         return bool(self.ok[i])
