@@ -19,14 +19,13 @@ from dexplan.exceptions import InvalidInputError
 from dexplan.grasp.cones import ContactModel, _check_grasp, min_contacts
 from dexplan.grasp.quality import (
     DEFAULT,
-    MAX_INTERIOR_NORM,
     ForceClosure,
     _Contacts,
     _drop_one,
-    _ldp,
     _PairBounds,
     _scaled_torsion,
     _Subsets,
+    screen_groups,
 )
 from dexplan.typing import FloatArray, as_positive
 
@@ -76,43 +75,18 @@ def min_subgrasp_quality_batch(
             f"{pts_b.shape} and {nrm_b.shape}"
         )
     B, k, _ = pts_b.shape
-    out = np.zeros(B)
     if B == 0:
-        return out
+        return np.zeros(0)
     thr = as_positive(margin, "margin", allow_zero=True)
     pts, nrm, mu_f, e, scale = _check_grasp(
         pts_b.reshape(-1, 3), nrm_b.reshape(-1, 3), mu, edges, torque_scale
     )
     tau = _scaled_torsion(contact_model, torsion, scale)
-    solver.stats["evaluations"] += B
-    if k - 1 < min_contacts(mu_f, contact_model):
-        return out
     con = _Contacts(pts, nrm, mu_f, e, scale, tau)
-    # subset s = k b + j of grasp b leaves out its contact j (the scalar order)
-    subsets = (_drop_one(k)[None] + k * np.arange(B)[:, None, None]).reshape(B * k, k - 1)
-    sub = _Subsets(con, subsets)
-    z0, screened = _screen_each(sub, k)
-    alive = np.flatnonzero(screened.reshape(B, k).all(axis=1))
-    if not len(alive):
-        return out
-    rows = (k * alive[:, None] + np.arange(k)).ravel()
-    pairs = _PairBounds(_take(sub, rows), z0[rows])
-    # first_decision: theta = 0 alone, then the relaxation's upper bounds
-    c0 = np.maximum(-pairs.beta.min(axis=2), 0.0)
-    lo = _per_grasp_min(1.0 / np.sqrt(pairs.a2 + c0 * c0 * pairs.z0z0), k)
-    hi = _per_grasp_min(pairs.q_hi, k)
-    above, below = lo > thr, hi <= thr
-    out[alive[above]] = lo[above]
-    out[alive[below & ~above]] = hi[below & ~above]
-    open_ = ~(above | below)
-    if not open_.any():
-        return out
-    pairs.refine()
-    refined = _per_grasp_min(pairs.q_lo, k)
-    settled = open_ & ((refined > thr) | (not solve))
-    out[alive[settled]] = refined[settled]
-    for b in alive[open_ & ~settled]:
-        # the certified bounds leave it open: the scalar method solves pairs
+    out, open_ = _bounded(con, B, k, mu_f, thr, solve, contact_model)
+    # grasps the bounds leave open are the scalar method's (it counts its own)
+    solver.stats["evaluations"] += B - len(open_)
+    for b in open_:
         out[b] = solver.min_subgrasp_quality(
             pts_b[b],
             nrm_b[b],
@@ -124,51 +98,47 @@ def min_subgrasp_quality_batch(
             contact_model=contact_model,
             torsion=torsion,
         )
-        solver.stats["evaluations"] -= 1  # counted above
     return out
+
+
+def _bounded(
+    con: _Contacts, B: int, k: int, mu: float, thr: float, solve: bool, model: ContactModel
+) -> tuple[FloatArray, np.ndarray]:
+    """What the vectorised stages decide for B grasps of k contacts ``con`` (grasp-major).
+
+    Returns:
+        ``(out, open)``: (B,) the values decided (0 where not force closure)
+        and the indices of the grasps the certified bounds leave open when
+        ``solve`` (their pairs must be solved; their ``out`` is unset).
+    """
+    out, none = np.zeros(B), np.zeros(0, dtype=np.intp)
+    if k - 1 < min_contacts(mu, model):
+        return out, none
+    # subset s = k b + j of grasp b leaves out its contact j (the scalar order)
+    subsets = (_drop_one(k)[None] + k * np.arange(B)[:, None, None]).reshape(B * k, k - 1)
+    sub = _Subsets(con, subsets)
+    z0, screened = screen_groups(sub, k)
+    alive = np.flatnonzero(screened.reshape(B, k).all(axis=1))
+    if not len(alive):
+        return out, none
+    rows = (k * alive[:, None] + np.arange(k)).ravel()
+    pairs = _PairBounds(sub.take(rows), z0[rows])
+    # as first_decision: theta = 0 alone, then the relaxation's upper bounds
+    lo = _per_grasp_min(pairs.first_lower(), k)
+    hi = _per_grasp_min(pairs.q_hi, k)
+    above, below = lo > thr, hi <= thr
+    out[alive[above]] = lo[above]
+    out[alive[below & ~above]] = hi[below & ~above]
+    open_ = ~(above | below)
+    if not open_.any():
+        return out, none
+    pairs.refine()
+    refined = _per_grasp_min(pairs.q_lo, k)
+    settled = open_ & ((refined > thr) | (not solve))
+    out[alive[settled]] = refined[settled]
+    return out, alive[open_ & ~settled]
 
 
 def _per_grasp_min(values: FloatArray, k: int) -> FloatArray:
     """(G,) minimum over each grasp's k subsets and 12 directions of ``values: (G k, 12)``."""
     return values.reshape(-1, k * values.shape[1]).min(axis=1)
-
-
-def _screen_each(sub: _Subsets, k: int) -> tuple[FloatArray, np.ndarray]:
-    """The scalar screen of each grasp's k consecutive subsets.
-
-    Returns interior points ``z0: (S, n)`` and ``ok: (S,)``, False where the
-    scalar screen would reject the subset (rank deficient, or the
-    least-distance program finds no interior point). As in the scalar screen,
-    a grasp's remaining subsets are not examined once one fails (their
-    ``ok`` is then meaningless: the grasp is rejected).
-    """
-    bh, guess = sub.bh, sub.guess
-    ok = sub.ok.copy()
-    margin = -(bh @ guess[:, :, None]).max(axis=1)  # (S, 1)
-    good = margin[:, 0] > 1e-6 * np.sqrt(np.einsum("sn,sn->s", guess, guess))
-    z0 = guess / np.where(good[:, None], margin, 1.0)
-    h = -np.ones(bh.shape[1])
-    failed = ~ok.reshape(-1, k).all(axis=1)
-    for s in np.flatnonzero(ok & ~good):
-        if failed[s // k]:
-            continue
-        z = _ldp(bh[s], h)
-        worst = -float(np.max(bh[s] @ z)) if z is not None else 0.0
-        if z is None or not z @ z < MAX_INTERIOR_NORM**2 or not worst > 0.5:
-            ok[s] = False
-            failed[s // k] = True
-            continue
-        z0[s] = z / worst
-    return z0, ok
-
-
-def _take(sub: _Subsets, rows: np.ndarray) -> _Subsets:
-    """The subsets ``rows`` of ``sub`` (a new object sharing nothing mutable)."""
-    out = _Subsets.__new__(_Subsets)
-    out.ok = sub.ok[rows]
-    out.bh = sub.bh[rows]
-    out.ch = sub.ch[rows]
-    out.a = sub.a[rows]
-    out.guess = sub.guess[rows]
-    out.ldp_buffers = {}
-    return out

@@ -187,6 +187,14 @@ class _Subsets:
         self.guess = (proj @ con.push[subsets].reshape(s_count, n, 1))[:, :, 0]
         self.ldp_buffers: dict[int, FloatArray] = {}
 
+    def take(self, rows: np.ndarray) -> _Subsets:
+        """The subsets ``rows`` of these (a new object sharing nothing mutable)."""
+        out = _Subsets.__new__(_Subsets)
+        out.ok, out.bh, out.ch = self.ok[rows], self.bh[rows], self.ch[rows]
+        out.a, out.guess = self.a[rows], self.guess[rows]
+        out.ldp_buffers = {}
+        return out
+
 
 def _public_nnls(e: FloatArray, f: FloatArray, maxiter: int) -> FloatArray:
     return nnls(e, f, maxiter=maxiter)[0]
@@ -234,6 +242,42 @@ def _ldp(bh: FloatArray, h: FloatArray) -> FloatArray | None:
     if not res[n] < -1e-14:
         return None
     return res[:n] / -res[n]
+
+
+def screen_groups(sub: _Subsets, k: int) -> tuple[FloatArray, np.ndarray]:
+    """Exact FC screen of the subsets, in consecutive groups of ``k`` (one grasp each).
+
+    The cheap candidate ``Pi n`` (every finger pushing along its normal, made
+    internal) settles most force-closure subsets; the others get the exact
+    least-distance program ``min |z| s.t. bh z <= -1`` (Lawson-Hanson), which is
+    infeasible iff the subset is not force closure. Once a subset of a group
+    fails (or is rank deficient), the group's other subsets are not examined.
+
+    Returns:
+        Interior points ``z0: (S, n)`` (``bh z0 <= -1``) and ``ok: (S,)``, False
+        where the subset failed; a failed group's other entries are meaningless.
+    """
+    bh, guess = sub.bh, sub.guess
+    ok = sub.ok.copy()
+    margin = -(bh @ guess[:, :, None]).max(axis=1)  # (S, 1)
+    good = margin[:, 0] > 1e-6 * np.sqrt(np.einsum("sn,sn->s", guess, guess))
+    z0 = guess / np.where(good[:, None], margin, 1.0)
+    if good.all():
+        return z0, ok
+    h = -np.ones(bh.shape[1])
+    failed = ~ok.reshape(-1, k).all(axis=1)
+    for s in np.flatnonzero(ok & ~good):
+        if failed[s // k]:
+            continue
+        z = _ldp(bh[s], h)
+        # certificate: bh z < 0 strictly (rescaled so that bh z0 <= -1)
+        worst = -float(np.max(bh[s] @ z)) if z is not None else 0.0
+        if z is None or not z @ z < MAX_INTERIOR_NORM**2 or not worst > 0.5:  # NaN too
+            ok[s] = False
+            failed[s // k] = True
+            continue
+        z0[s] = z / worst
+    return z0, ok
 
 
 # ---------------------------------------------------------------------------
@@ -329,6 +373,11 @@ class _PairBounds:
         self.beta = b * self.inv_slack
         self.z0z0 = np.einsum("sn,sn->s", z0, z0)[:, None]
 
+    def first_lower(self) -> FloatArray:
+        """(S, 12) certified lower bounds on each pair's quality from ``c z0`` alone."""
+        c0 = np.maximum(-self.beta.min(axis=2), 0.0)
+        return 1.0 / np.sqrt(self.a2 + c0 * c0 * self.z0z0)
+
     def first_decision(self, margin: float) -> float | None:
         """The validity fast path: ``theta = 0`` alone (``c z0``) often decides.
 
@@ -336,8 +385,7 @@ class _PairBounds:
             A certified bound on the other side of ``margin`` from the quality's
             (lower bound above it, or upper bound at most it), or None.
         """
-        c0 = np.maximum(-self.beta.min(axis=2), 0.0)
-        worst_lo = float((1.0 / np.sqrt(self.a2 + c0 * c0 * self.z0z0)).min())
+        worst_lo = float(self.first_lower().min())
         if worst_lo > margin:
             return worst_lo
         worst_hi = float(self.q_hi.min())
@@ -675,31 +723,11 @@ class ForceClosure:
     def _screen(sub: _Subsets) -> FloatArray | None:
         """Exact FC screen of every subset: interior points ``bh z0 <= -1``, or None.
 
-        The cheap candidate ``Pi n`` (every finger pushing along its normal, made
-        internal) settles most force-closure subsets; the others get the exact
-        least-distance program ``min |z| s.t. bh z <= -1`` (Lawson-Hanson), which is
-        infeasible iff the subset is not force closure.
+        :func:`screen_groups` with all the subsets in one group: None as soon
+        as one subset is not force closure.
         """
-        if not sub.ok.all():
-            return None
-        bh = sub.bh
-        guess = sub.guess
-        margin = -(bh @ guess[:, :, None]).max(axis=1)  # (S, 1)
-        good = margin[:, 0] > 1e-6 * np.sqrt(np.einsum("sn,sn->s", guess, guess))
-        z0 = guess / np.where(good[:, None], margin, 1.0)
-        if good.all():
-            return z0
-        h = -np.ones(bh.shape[1])
-        for s in np.flatnonzero(~good):
-            z = _ldp(bh[s], h)
-            if z is None or not z @ z < MAX_INTERIOR_NORM**2:  # also catches NaN
-                return None
-            # certificate: bh z < 0 strictly (rescaled so that bh z0 <= -1)
-            worst = -float(np.max(bh[s] @ z))
-            if not worst > 0.5:
-                return None
-            z0[s] = z / worst
-        return z0
+        z0, ok = screen_groups(sub, len(sub.ok))
+        return z0 if ok.all() else None
 
     def _min_quality(
         self, con: _Contacts, subsets: np.ndarray, margin: float | None, solve: bool
