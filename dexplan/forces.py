@@ -216,6 +216,7 @@ class GripForceSolver:
         # the same loaded contacts under the same wrench (a regrasp: the object
         # is still) give the same forces
         self._memo: dict[bytes, tuple[FloatArray, FloatArray, float]] = {}
+        self._holds_memo: dict[bytes, bool] = {}
 
     def solve(
         self,
@@ -286,6 +287,61 @@ class GripForceSolver:
             tuple(bool(b) for b in loaded), P, N, forces, fw, tors, tau, res, float(margin)
         )
 
+    def holds(
+        self,
+        q: FloatArray,
+        object_pose: FloatArray,
+        contacts: Sequence[FloatArray | None],
+    ) -> bool:
+        """Whether the fingers in contact can hold the object within the joints' effort limits.
+
+        The question the planner asks before a regrasp lets a finger go (the
+        others then hold the object still, in one configuration, for the
+        whole regrasp): do forces exist in the cones of the plan's
+        linearization (no margin) that balance the external wrench with
+        every normal force at least ``min_normal_force`` and every limited
+        joint torque within its effort limit? A linear program decides it;
+        :meth:`solve` then finds such forces (it tries the same problem among
+        its margins), so the export's limits check passes there. A hand with
+        no effort limits holds whatever its force-closure grasps hold: True.
+
+        Args:
+            q: (nq,) joints (rad).
+            object_pose: (7,) object pose, world frame, XYZW.
+            contacts: per finger, the contact point (3,) in the object frame,
+                or None for a finger that carries no load.
+        """
+        n = len(contacts)
+        idx = [i for i in range(n) if contacts[i] is not None]
+        pose = np.asarray(object_pose, dtype=float)
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        w_ext_world = self.settings.wrench_world()
+        w_ext = np.concatenate([R.T @ w_ext_world[:3], R.T @ w_ext_world[3:]])
+        if not idx:
+            return bool(np.linalg.norm(w_ext) <= BALANCE_TOL)
+        q = np.asarray(q, dtype=float)
+        P = np.full((n, 3), np.nan)
+        N = np.full((n, 3), np.nan)
+        for i in idx:
+            _, n_s = (
+                np.asarray(v, dtype=float).reshape(3) for v in self.obj.closest_point(contacts[i])
+            )
+            P[i], N[i] = np.asarray(contacts[i], dtype=float), -n_s
+        held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
+        key = np.round(np.concatenate([P[idx].ravel(), w_ext, q[held]]), 12).tobytes()
+        hit = self._holds_memo.get(key)
+        if hit is None:
+            torque = self._torque_rows(q, pose, R, P, N, idx)
+            if torque is None:
+                hit = True
+            else:
+                A, lo, hi = self._constraints(P[idx], N[idx], w_ext, 0.0, self.edges, torque)[:3]
+                hit = _feasible_point(A, lo, hi) is not None
+            if len(self._holds_memo) > 4096:
+                self._holds_memo.clear()
+            self._holds_memo[key] = hit
+        return hit
+
     def _qp_margins(
         self,
         P: FloatArray,
@@ -345,6 +401,41 @@ class GripForceSolver:
         Returns:
             ``(f, tau)``: (k, 3) forces (N) and (k,) torsional moments (N m).
         """
+        A, lo, hi, E, nrm, cone, extra = self._constraints(P, N, w_ext, margin, edges, torque)
+        st = self.settings
+        k = P.shape[0]
+        soft = self.contact_model == "soft"
+        r = 4 if soft else 3
+        L = self.L
+        x = _least_norm(A, lo, hi)
+        if x is None:
+            return None
+        resid = max(
+            float(np.max(np.abs(E @ x - np.concatenate([-w_ext, np.zeros(len(extra))])))),
+            float(np.max(cone @ x, initial=0.0)),
+            float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
+        )
+        if resid > BALANCE_TOL * max(1.0, float(np.max(np.abs(x)))):
+            return None
+        X = x.reshape(k, r)
+        return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
+
+    def _constraints(
+        self,
+        P: FloatArray,
+        N: FloatArray,
+        w_ext: FloatArray,
+        margin: float,
+        edges: int,
+        torque: tuple[FloatArray, FloatArray] | None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, list]:
+        """The grip-force problem ``lo <= A x <= hi`` of :meth:`_qp` and its row blocks.
+
+        Returns:
+            ``(A, lo, hi, E, nrm, cone, extra)``: the stacked rows and bounds,
+            then the balance (and frictionless) equalities ``E``, the normal
+            force rows, the cone facet rows and the frictionless rows alone.
+        """
         st = self.settings
         mu_eff = self.mu * (1.0 - margin)
         soft = self.contact_model == "soft"
@@ -370,18 +461,7 @@ class GripForceSolver:
         hi = np.concatenate(
             [-w_ext, np.zeros(len(extra)), np.full(k, np.inf), np.zeros(len(cone)), effort]
         )
-        x = _least_norm(A, lo, hi)
-        if x is None:
-            return None
-        resid = max(
-            float(np.max(np.abs(E @ x - np.concatenate([-w_ext, np.zeros(len(extra))])))),
-            float(np.max(cone @ x, initial=0.0)),
-            float(np.max(st.min_normal_force - nrm @ x, initial=0.0)),
-        )
-        if resid > BALANCE_TOL * max(1.0, float(np.max(np.abs(x)))):
-            return None
-        X = x.reshape(k, r)
-        return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
+        return A, lo, hi, E, nrm, cone, extra
 
     def _cone_rows(
         self, N: FloatArray, mu_eff: float, margin: float, edges: int, m: int
@@ -572,6 +652,40 @@ def _least_norm(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | N
         hi: (rows,) upper bounds (``inf`` for none).
     """
     import osqp
+
+    x_lp = _feasible_point(A, lo, hi)
+    if x_lp is None:
+        return None
+    m = A.shape[1]
+    prob = osqp.OSQP()
+    prob.setup(
+        sp.identity(m, format="csc"),
+        np.zeros(m),
+        sp.csc_matrix(A),
+        lo,
+        hi,
+        verbose=False,
+        eps_abs=1e-8,
+        eps_rel=1e-8,
+        eps_prim_inf=1e-15,
+        eps_dual_inf=1e-15,
+        max_iter=50000,
+        polishing=True,
+    )
+    prob.warm_start(x=x_lp)
+    res = prob.solve(raise_error=False)
+    x = res.x
+    if x is None or not np.all(np.isfinite(x)) or not _satisfies(A, lo, hi, x):
+        return x_lp
+    return x
+
+
+def _feasible_point(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | None:
+    """A point with ``lo <= A x <= hi`` of least ``max |x_i|``, or None if there is none.
+
+    A linear program (HiGHS through SciPy): exact where OSQP's infeasibility
+    detection is not (see :func:`_least_norm`).
+    """
     from scipy.optimize import linprog
 
     m = A.shape[1]
@@ -595,28 +709,7 @@ def _least_norm(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | N
     )
     if lp.status != 0 or lp.x is None:
         return None
-    x_lp = np.asarray(lp.x[:m], dtype=float)
-    prob = osqp.OSQP()
-    prob.setup(
-        sp.identity(m, format="csc"),
-        np.zeros(m),
-        sp.csc_matrix(A),
-        lo,
-        hi,
-        verbose=False,
-        eps_abs=1e-8,
-        eps_rel=1e-8,
-        eps_prim_inf=1e-15,
-        eps_dual_inf=1e-15,
-        max_iter=50000,
-        polishing=True,
-    )
-    prob.warm_start(x=x_lp)
-    res = prob.solve(raise_error=False)
-    x = res.x
-    if x is None or not np.all(np.isfinite(x)) or not _satisfies(A, lo, hi, x):
-        return x_lp
-    return x
+    return np.asarray(lp.x[:m], dtype=float)
 
 
 def _satisfies(A: FloatArray, lo: FloatArray, hi: FloatArray, x: FloatArray) -> bool:

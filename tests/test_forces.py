@@ -111,3 +111,35 @@ def test_forces_kept_within_the_joints_effort_limits(planned) -> None:
     gfs = [gf for rows in heavy for gf in rows]
     assert all(np.allclose(gf.residual, 0.0, atol=1e-5) for gf in gfs)
     assert max(float(np.max(np.abs(gf.joint_torques))) for gf in gfs) > 1.0
+
+
+@pytest.mark.parametrize("mass", [0.1, 1.0, 3.0, 30.0])
+def test_holds_exactly_where_the_forces_stay_within_the_effort_limits(planned, mass) -> None:
+    """``holds`` (the planner's check before a regrasp) agrees with ``solve``.
+
+    At every regrasp's first lifted waypoint (the other fingers hold the
+    object for the whole regrasp), the linear program says the fingers hold
+    the weight within 1 N m exactly where the least-norm forces that
+    ``solve`` finds need at most 1 N m.
+    """
+    from dexplan.forces import solver_from_plan
+
+    doc, hand = planned
+    solver = solver_from_plan(doc, ForceSettings(mass=mass), hand, ".")
+    answers = []
+    for seg in doc["segments"]:
+        if seg["kind"] != "regrasp":
+            continue
+        w = seg["waypoints"][1]
+        contacts = [None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]]
+        assert contacts[seg["finger"]] is None
+        q, pose = np.asarray(w["q"]), np.asarray(w["object_pose_xyzquat"])
+        held = solver.holds(q, pose, contacts)
+        gf = solver.solve(q, pose, contacts)
+        assert held == bool(np.max(np.abs(gf.joint_torques)) <= 1.0 + 1e-6)
+        answers.append(held)
+    assert answers
+    if mass == 0.1:
+        assert all(answers)  # the planner let these fingers go: the others hold 0.1 kg
+    if mass == 30.0:
+        assert not any(answers)  # no 3-finger hold carries 30 kg within 1 N m

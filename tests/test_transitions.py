@@ -224,3 +224,33 @@ def test_free_finger_checks_agree_with_the_full_check() -> None:
             q = ref.copy()
             q[other] = hand.upper[other]
             assert tr._moved_free(finger, q, ref, pose, mask) == world.is_free(q, pose, mask)
+
+
+def test_no_finger_is_let_go_that_the_others_cannot_hold_within_the_effort_limits() -> None:
+    """A regrasp starts only where the other fingers hold the weight within 1 N m.
+
+    The same start grasp, once with the scenario's 0.1 kg and once with
+    30 kg (which no 3-finger hold of the paper hand carries within its 1 N m
+    effort limits): the heavy object gets no regrasp at all, each refusal
+    counted as a weak hold, and no OMPL or IK work is spent on it.
+    """
+    import dataclasses
+
+    scenario = default_scenario()
+    light = build_context(scenario, seed=3)
+    heavy = build_context(dataclasses.replace(scenario, object_mass=30.0), seed=3)
+    x = light.sampler.sample_at_pose(scenario.start.object_pose_xyzquat)
+    assert x is not None
+    pose, q = x[:7], x[7:]
+    grasp = grasp_from_state(light.transitions, pose, q)
+    future = densify_poses(np.array([pose, pose]), 0.008, 0.04)
+    assert all(light.transitions.can_release(f, pose, q, grasp) for f in range(4))
+    assert not any(heavy.transitions.can_release(f, pose, q, grasp) for f in range(4))
+    assert heavy.transitions.stats["weak_holds"] == 4
+    for f in range(4):
+        point, normal, _ = next(
+            iter(light.transitions.landing_candidates(f, pose, q, grasp, future))
+        )
+        assert heavy.transitions.regrasp(pose, q, grasp, f, point, normal) is None
+    assert heavy.transitions.stats["regrasp_attempts"] == 0
+    assert heavy.transitions.stats["weak_holds"] == 8

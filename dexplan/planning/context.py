@@ -13,6 +13,7 @@ import numpy as np
 
 from dexplan.collision import CollisionWorld, Obstacle
 from dexplan.exceptions import DexplanError, ScenarioError
+from dexplan.forces import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
 from dexplan.hand import Hand
 from dexplan.objects import Shape, shape_from_dict
 from dexplan.planning.deadline import Deadline
@@ -112,6 +113,25 @@ def validity_settings(scenario: Scenario, n_fingers: int) -> ValiditySettings:
     return vset
 
 
+def grip_forces(
+    scenario: Scenario, hand: Hand, obj: Shape, vset: ValiditySettings
+) -> GripForceSolver:
+    """The grip forces an export of the scenario's plans computes.
+
+    The scenario's object mass and gravity (the export's defaults where it
+    gives none), its friction and contact model: the local planners let a
+    finger go only where the others hold the object within the hand's
+    effort limits (:meth:`Transitions.can_release`).
+    """
+    settings = ForceSettings(
+        mass=DEFAULT_MASS if scenario.object_mass is None else scenario.object_mass,
+        gravity=DEFAULT_GRAVITY if scenario.gravity is None else tuple(scenario.gravity),
+    )
+    return GripForceSolver(
+        hand, obj, vset.mu, vset.friction_edges, vset.contact_model, vset.torsion, settings
+    )
+
+
 def build_obstacles(scenario: Scenario) -> list[Obstacle]:
     """The scenario's obstacles."""
     out = []
@@ -174,7 +194,14 @@ def build_context(
     deadline = Deadline()
     sampler = GraspSampler(gsn, validity, rng, sampler_settings, deadline)
     transitions = Transitions(
-        hand, obj, world, vset, transition_settings or TransitionSettings(), rng_local, deadline
+        hand,
+        obj,
+        world,
+        vset,
+        transition_settings or TransitionSettings(),
+        rng_local,
+        deadline,
+        grip_forces(scenario, hand, obj, vset),
     )
     return PlanningContext(
         scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline

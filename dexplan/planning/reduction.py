@@ -269,6 +269,8 @@ def _regrasp_one(
     follow: dict[int, int] = {}
     pool: tuple[FloatArray, FloatArray, FloatArray] | None = None
     for f, mode in _passes(blocking, others, follow, trans, q, grasp, future):
+        if not trans.can_release(f, poses[idx], q, grasp):
+            continue  # the other fingers cannot hold the object within the effort limits
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
         limit = _ENABLE_LANDINGS if mode == "enable" else 8
         for point, normal, score in trans.landing_candidates(

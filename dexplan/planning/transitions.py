@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import CollisionWorld
+from dexplan.forces import GripForceSolver
 from dexplan.grasp import min_subgrasp_quality, min_subgrasp_quality_batch
 from dexplan.hand import Hand
 from dexplan.objects import Shape
@@ -183,6 +184,10 @@ class Transitions(Landings):
         rng: random generator for landing candidates and via points.
         deadline: when regrasps and landings give up (None: never); the
             planner shares its query deadline here.
+        grip: the grip forces of the plan's export (the scenario's object
+            mass and gravity): a finger is let go only where the others hold
+            the object within the joints' effort limits (:meth:`can_release`);
+            None: force closure alone decides.
     """
 
     def __init__(
@@ -194,8 +199,10 @@ class Transitions(Landings):
         settings: TransitionSettings,
         rng: np.random.Generator,
         deadline: Deadline | None = None,
+        grip: GripForceSolver | None = None,
     ) -> None:
         self.hand = hand
+        self.grip = grip
         self.deadline = deadline or Deadline()
         self.obj = obj
         self.world = world
@@ -208,7 +215,13 @@ class Transitions(Landings):
         self._finger_of_joint = np.zeros(hand.nq, dtype=np.int64)
         for i, idx in enumerate(hand.finger_q_index):
             self._finger_of_joint[idx] = i
-        self.stats = {"transfers": 0, "regrasp_attempts": 0, "regrasps": 0, "landing_checks": 0}
+        self.stats = {
+            "transfers": 0,
+            "regrasp_attempts": 0,
+            "regrasps": 0,
+            "landing_checks": 0,
+            "weak_holds": 0,
+        }
         # per finger, its pairs as one geometry data each (checked in one C++ call):
         # the links alone (tracks, landings), and a free finger's moves
         n_f = range(hand.n_fingers)
@@ -424,6 +437,31 @@ class Transitions(Landings):
         return None
 
     # ------------------------------------------------------------------ regrasp
+    def can_release(
+        self, finger: int, pose: FloatArray, q: FloatArray, grasp: GraspContacts
+    ) -> bool:
+        """Whether the other fingers hold the object while ``finger`` is lifted.
+
+        Every (n-1)-subgrasp is force closure, so some forces always balance
+        the object's weight; the joints must also produce them. On
+        paper_sphere seed 6 a 3-finger hold needed 3.6 N m on a joint limited
+        to 1 N m, and the plan could not be exported. Counted in
+        ``stats["weak_holds"]``.
+
+        Args:
+            finger: the finger to let go.
+            pose: (7,) object pose, world frame.
+            q: (nq,) the configuration the regrasp starts from.
+            grasp: the current contacts, object frame.
+        """
+        if self.grip is None:
+            return True
+        contacts = [None if i == finger else grasp.points[i] for i in range(self.hand.n_fingers)]
+        if self.grip.holds(q, pose, contacts):
+            return True
+        self.stats["weak_holds"] += 1
+        return False
+
     def regrasp(
         self,
         pose: FloatArray,
@@ -436,9 +474,10 @@ class Transitions(Landings):
         """Plan a regrasp of ``finger`` to a new contact; None when no motion is found.
 
         The waypoints: lift along the (possibly tilted) normal, a free move in
-        the finger's joint space, landing along the new normal.
+        the finger's joint space, landing along the new normal. None at once
+        when the other fingers cannot hold the object (:meth:`can_release`).
         """
-        if self.deadline.expired():
+        if self.deadline.expired() or not self.can_release(finger, pose, q, grasp):
             return None
         self.stats["regrasp_attempts"] += 1
         hand = self.hand
