@@ -22,6 +22,7 @@ from toy_sphere import (
 
 from dexplan.exceptions import InvalidInputError, PlannerError
 from dexplan.planning.ompl import PLANNERS, ConstraintSpec, PlanningProblem
+from dexplan.planning.ompl.registry import FIRST_SOLUTION_PLANNERS
 from dexplan.planning.roadmap import connected_components
 
 
@@ -51,6 +52,25 @@ def test_every_registered_planner_returns_cleanly(planner):
     assert result.status in {"exact", "approximate", "timeout", "path_invalid"}
     if result.solved:
         check_path(problem, result, SOUTH, NORTH, goal_tol=1e-3)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("planner", sorted(FIRST_SOLUTION_PLANNERS))
+def test_optimizing_planners_stop_at_their_first_solution(planner):
+    """Given a day, RRTstar, InformedRRTstar, SORRTstar and BITstar return their first path.
+
+    Without the objective that every path satisfies they would refine it for
+    the whole limit; BITstar's informed sampler (a rejection loop that never
+    looks at the termination condition) overran a 30 s limit by 18 s on a
+    box. The test's timeout, not a timed assertion, catches a planner that
+    keeps going.
+    """
+    problem = PlanningProblem(make_spec(), is_valid, planner=planner, seed=5)
+    problem.set_start(SOUTH)
+    problem.set_goal_state(NORTH, threshold=1e-3)
+    result = problem.solve(86400.0)
+    assert result.solved
+    check_path(problem, result, SOUTH, NORTH, goal_tol=1e-3)
 
 
 @pytest.mark.timeout(60)

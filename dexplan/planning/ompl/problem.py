@@ -32,11 +32,13 @@ from dexplan.planning.ompl.callbacks import (
     termination,
 )
 from dexplan.planning.ompl.registry import (
+    FIRST_SOLUTION_PLANNERS,
     MULTI_QUERY_PLANNERS,
     PLANNERS,
     PROJECTION_PLANNERS,
     check_planner_name,
     declared_params,
+    first_solution_objective,
     set_planner_param,
     settable_params,
 )
@@ -350,6 +352,8 @@ class PlanningProblem:
                     self._si, spec, self._frame, self._accept, self._sink, first, self._anchor()
                 )
         pdef.setGoal(goal)
+        if self._planner_name in FIRST_SOLUTION_PLANNERS:
+            pdef.setOptimizationObjective(first_solution_objective(self._si))
         self._pdef = pdef
         if self.is_multi_query:
             self._planner.setProblemDefinition(pdef)
