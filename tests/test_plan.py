@@ -166,3 +166,28 @@ def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
     assert verify_plan(doc).ok
     with pytest.raises(PlanFileError, match="other models"):
         Roadmap.load(path, "0" * 16)
+
+
+def test_sampled_start_grasp_is_the_candidate_that_follows_furthest() -> None:
+    """The planner starts from the best of its candidate start grasps: the one whose
+    fingers follow the straight move to the goal furthest, first blocked finger first."""
+    from dexplan.planning.context import build_context
+    from dexplan.planning.planner import START_CANDIDATES, start_state
+    from dexplan.planning.reduction import grasp_follow
+    from dexplan.planning.transitions import densify_poses
+
+    scenario = default_scenario()
+    pose, goal = scenario.start.object_pose_xyzquat, scenario.goal.object_pose_xyzquat
+    ctx = build_context(scenario, seed=2)
+    chosen = start_state(ctx)
+    ref = build_context(scenario, seed=2)
+    cands = ref.sampler.samples_at_pose(pose, START_CANDIDATES)
+    assert len(cands) == START_CANDIDATES
+    st = ref.transitions.settings
+    future = densify_poses(np.array([pose, goal]), st.max_step_m, st.max_step_rad)
+    scores = [grasp_follow(ref.transitions, pose, x[7:], future) for x in cands]
+    assert chosen is not None
+    assert any(np.array_equal(chosen, x) for x in cands)
+    best = max(scores)
+    assert scores[[np.array_equal(chosen, x) for x in cands].index(True)] == best
+    assert len(set(scores)) > 1  # the candidates differ: the choice matters

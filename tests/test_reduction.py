@@ -26,7 +26,7 @@ def scenario():
 def start_and_goal(scenario):
     """A start state and a valid GSn state at the goal pose (180 degrees away)."""
     ctx = build_context(scenario, seed=1)
-    x0 = start_state(ctx)
+    x0 = start_state(ctx, candidates=1)  # the first sampled grasp
     xg = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
     assert x0 is not None and xg is not None
     return x0, xg
@@ -239,7 +239,7 @@ def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
     monkeypatch.setattr(trans, "landing_candidates", none_for_the_blocking_finger)
     monkeypatch.setattr(trans, "can_land", recorded)
     # no neighbour could follow further on another contact: only the look-ahead moves one
-    monkeypatch.setattr(reduction, "_current_follow", lambda *a: len(poses) + 10)
+    monkeypatch.setattr(reduction, "current_follow", lambda *a: len(poses) + 10)
     found = reduction._regrasp_one(trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None)
     assert verdicts, "the look-ahead was not consulted"
     assert found is not None

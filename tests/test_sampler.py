@@ -212,3 +212,22 @@ def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
     tolerance = constraint_spec(ctx, "projected").tolerance  # what OMPL's start check allows
     for x in states:
         assert np.linalg.norm(ctx.gsn.function(x)) <= tolerance
+
+
+def test_samples_at_pose_share_one_pose_and_start_with_the_single_sample() -> None:
+    """``samples_at_pose(pose, k)``: k distinct valid grasps at the pose, the first one
+    the grasp ``sample_at_pose`` finds from the same seed (so ``k = 1`` plans as before)."""
+    from dexplan.planning.context import build_context
+    from dexplan.scenario import default_scenario
+
+    scenario = default_scenario()
+    pose = scenario.start.object_pose_xyzquat
+    one = build_context(scenario, seed=4).sampler.sample_at_pose(pose)
+    ctx = build_context(scenario, seed=4)
+    many = ctx.sampler.samples_at_pose(pose, 6)
+    assert one is not None and len(many) == 6
+    np.testing.assert_array_equal(many[0], one)
+    assert len({x.tobytes() for x in many}) == 6
+    for x in many:
+        np.testing.assert_array_equal(x[:7], pose)
+        assert ctx.validity.check(x).valid

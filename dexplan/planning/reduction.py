@@ -315,7 +315,7 @@ def _passes(
     one out of the way may clear the blocker's path in other ways).
     """
     yield blocking, "gain"
-    follow.update({i: _current_follow(trans, i, q, grasp, future) for i in others})
+    follow.update({i: current_follow(trans, i, q, grasp, future) for i in others})
     order = sorted(others, key=lambda i: follow[i])
     for f in order:
         yield f, "gain"
@@ -324,7 +324,21 @@ def _passes(
             yield f, mode
 
 
-def _current_follow(
+def grasp_follow(
+    trans: Transitions, pose: FloatArray, q: FloatArray, future: FloatArray
+) -> tuple[int, ...]:
+    """How far each finger of the grasp held at ``(pose, q)`` follows ``future``, ascending.
+
+    :func:`current_follow` per finger, sorted: compared as tuples, a grasp
+    whose first blocked finger goes further, then whose second does, ranks
+    higher (a transfer stops at the first blocked finger).
+    """
+    grasp = grasp_from_state(trans, pose, q)
+    n = trans.hand.n_fingers
+    return tuple(sorted(current_follow(trans, i, q, grasp, future) for i in range(n)))
+
+
+def current_follow(
     trans: Transitions, finger: int, q: FloatArray, grasp: GraspContacts, future: FloatArray
 ) -> int:
     """How many of the ``future`` poses ``finger`` can follow on its current contact.

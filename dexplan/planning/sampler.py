@@ -355,10 +355,32 @@ class GraspSampler:
     # ------------------------------------------------------ per-finger pools
     def _run_pools(self, pose: FloatArray | None) -> FloatArray | None:
         """:meth:`_run` with per-finger pools: ``max_attempts`` combined grasps at most."""
+        found = self._pool_samples(pose, 1, self.settings.max_attempts)
+        return found[0] if found else None
+
+    def samples_at_pose(self, pose_xyzquat: FloatArray, count: int) -> list[FloatArray]:
+        """Up to ``count`` valid states with the object at ``pose_xyzquat``.
+
+        With per-finger pools, one pose's pools and combinations serve them
+        all (``count * max_attempts`` combined grasps at most); otherwise
+        :meth:`sample_at_pose` is called ``count`` times.
+        """
+        pose = np.asarray(pose_xyzquat, dtype=float)
+        if self.per_finger:
+            return self._pool_samples(pose, count, count * self.settings.max_attempts)
+        found = (self._run(pose) for _ in range(count))
+        return [x for x in found if x is not None]
+
+    def _pool_samples(self, pose: FloatArray | None, want: int, budget: int) -> list[FloatArray]:
+        """Valid states from per-finger pools, ``want`` at most, ``budget`` grasps checked.
+
+        ``pose`` None: a random pose per round, and one state (the round's
+        other combinations wait in ``_pending`` for the next calls).
+        """
         t0 = time.perf_counter()
         s = self.settings
+        out: list[FloatArray] = []
         try:
-            budget = s.max_attempts
             if pose is None:
                 while self._pending and self._pending_left > 0 and budget > 0:
                     x, quality = self._pending.pop(0)
@@ -367,11 +389,11 @@ class GraspSampler:
                     if self.validity.check(x, quality).valid:
                         self._pending_left -= 1
                         self.stats.valid += 1
-                        return x
+                        return [x]
                 self._pending = []
             while budget > 0:
                 if self.deadline.expired():
-                    return None
+                    return out
                 pose_k = self.sample_pose() if pose is None else pose
                 if self.validity.world.object_collides(pose_k):
                     self.stats.attempts += 1
@@ -392,18 +414,20 @@ class GraspSampler:
                 qualities = self.validity.grasp_qualities(combos).tolist()
                 for k, x in enumerate(combos[:budget]):
                     if self.deadline.expired():
-                        return None
+                        return out
                     self.stats.attempts += 1
                     budget -= 1
                     if self.validity.check(x, qualities[k]).valid:
                         self.stats.valid += 1
+                        out.append(x)
                         if pose is None:
                             self._pending = list(
                                 zip(combos[k + 1 :], qualities[k + 1 :], strict=True)
                             )
                             self._pending_left = s.grasps_per_pose - 1
-                        return x
-            return None
+                        if len(out) >= want or pose is None:
+                            return out
+            return out
         finally:
             self.stats.time_s += time.perf_counter() - t0
 
