@@ -98,7 +98,7 @@ def test_chart_motions_valid_one_way_are_paths_both_ways(cube) -> None:
     undirected edges must be usable both ways, every state valid.
     """
     ctx, chart = cube
-    x0 = start_state(ctx)
+    x0 = start_state(ctx, candidates=1)  # the grasp the 30 motions were drawn around
     assert x0 is not None
     charted = chart_problem(ctx, "RRTConnect", None, "projected", 1, x0)
     assert charted is not None

@@ -13,7 +13,7 @@ import numpy as np
 
 from dexplan.collision import CollisionWorld, Obstacle
 from dexplan.exceptions import DexplanError, ScenarioError
-from dexplan.forces import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
+from dexplan.grip import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
 from dexplan.hand import Hand
 from dexplan.objects import Shape, shape_from_dict
 from dexplan.planning.deadline import Deadline

@@ -32,8 +32,8 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import CollisionWorld
-from dexplan.forces import GripForceSolver
 from dexplan.grasp import min_subgrasp_quality, min_subgrasp_quality_batch
+from dexplan.grip import GripForceSolver
 from dexplan.hand import Hand
 from dexplan.objects import Shape
 from dexplan.planning.deadline import Deadline
