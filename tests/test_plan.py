@@ -191,3 +191,27 @@ def test_sampled_start_grasp_is_the_candidate_that_follows_furthest() -> None:
     best = max(scores)
     assert scores[[np.array_equal(chosen, x) for x in cands].index(True)] == best
     assert len(set(scores)) > 1  # the candidates differ: the choice matters
+
+
+def test_start_q_a_little_off_the_surface_is_moved_onto_it(tmp_path) -> None:
+    """A start.q whose fingertips are 1e-5 to 1e-3 m off the object plans.
+
+    OMPL's constrained space takes states within 1e-5 only; the planner moves
+    the joints onto GSn first (the plan starts there, within the 1 mm check).
+    """
+    import dataclasses
+
+    from dexplan.planning.context import build_context
+    from dexplan.planning.planner import start_state
+
+    scenario = default_scenario()
+    ctx = build_context(scenario, seed=1)
+    x0 = start_state(ctx, candidates=1)
+    q_off = x0[7:] + 2e-3  # every joint 2 mrad off: fingertips ~1e-4 m off the sphere
+    assert 1e-5 < ctx.gsn.residual(ctx.gsn.join(x0[:7], q_off)) < 1e-3
+    start = dataclasses.replace(scenario.start, q=q_off)
+    res = plan(dataclasses.replace(scenario, start=start), seed=1)
+    assert res.solved, res.message
+    q_first = res.segments[0].start.q
+    assert ctx.gsn.residual(ctx.gsn.join(x0[:7], q_first)) < 1e-8
+    assert np.max(np.abs(q_first - q_off)) < 0.01

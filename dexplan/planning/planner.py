@@ -133,6 +133,24 @@ def _reduction_schedule(reduction: str, hopeless: set[str]) -> Iterator[tuple[st
         yield from gaits
 
 
+def _onto_gsn(ctx: PlanningContext, x: FloatArray, tol: float = 1e-9) -> FloatArray:
+    """``x`` with its hand joints moved onto GSn (Gauss-Newton, the object pose kept).
+
+    A ``start.q`` within 1 mm of a grasp is accepted, but OMPL's constrained
+    space takes only states within its tolerance (1e-5): a start 4e-5 off
+    stopped the query with "start is off the manifold". Hand-written or
+    rounded joint values are that far off.
+    """
+    x = np.array(x, dtype=float)
+    for _ in range(20):
+        f = ctx.gsn.function(x)
+        if float(np.max(np.abs(f), initial=0.0)) <= tol:
+            break
+        J = ctx.gsn.jacobian(x)[:, POSE_DIM:]
+        x[POSE_DIM:] -= np.linalg.lstsq(J, f, rcond=None)[0]
+    return x
+
+
 #: Valid start grasps the planner samples to choose the one it starts from.
 START_CANDIDATES = 8
 
@@ -170,6 +188,7 @@ def start_state(
             raise InvalidInputError(
                 f"start.q does not put every fingertip on the object (error {res:.4g} m)"
             )
+        x = _onto_gsn(ctx, x)
         verdict = ctx.validity.check(x)
         if not verdict.valid:
             raise InvalidInputError(f"start.q is not a valid grasp: {verdict.reason}")
