@@ -29,18 +29,24 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dexplan.exceptions import DexplanError, PlanFileError, one_line
+from dexplan.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.plan_schema import validate_plan
 from dexplan.segments import Segment, Waypoint
 from dexplan.typing import FloatArray
 
 if TYPE_CHECKING:  # models only: the plan file never imports planning
-    from dexplan.objects import Shape
     from dexplan.plan_file import PlanModels
 
-__all__ = ["RULES", "VerifyReport", "Violation", "fingertip_contact", "verify_plan"]
+__all__ = [
+    "RULES",
+    "TIP_DISTANCE_TOL",
+    "VerifyReport",
+    "Violation",
+    "fingertip_contact",
+    "verify_plan",
+]
 
 #: Verification tolerances (DESIGN.md).
-TIP_DISTANCE_TOL = 1e-3  # |fingertip distance to surface - r| (m)
 PENETRATION_TOL = 1e-3  # (m)
 MAX_STEP_M = 0.01  # object translation between waypoints (m)
 MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
@@ -108,42 +114,6 @@ RULES: dict[str, str] = {
 
 
 # ---------------------------------------------------------------- contacts
-def fingertip_contact(
-    obj: Shape,
-    c_obj: FloatArray,
-    tip_obj: FloatArray,
-    radius: float,
-    stated: tuple[FloatArray, FloatArray] | None = None,
-) -> tuple[FloatArray, FloatArray, float]:
-    """Where and along which normal a fingertip pushes on the object (the one rule).
-
-    The fingertip sphere touches the surface at the closest point to its
-    centre, pushing along the normal there. On a face that is the stated
-    contact's own normal (exact per contact, so equal contacts give equal
-    answers); at a box edge or corner, the direction from the edge to the
-    fingertip centre. The verifier and the viewer both read contacts this way.
-
-    Args:
-        obj: the object shape.
-        c_obj: (3,) the stated contact, object frame.
-        tip_obj: (3,) the fingertip centre, object frame.
-        radius: fingertip radius (m).
-        stated: ``obj.closest_point(c_obj)`` when the caller has it already
-            (a transfer holds the same contacts at every waypoint).
-
-    Returns:
-        ``(p, n_out, gap)``: (3,) the surface point of the contact and (3,) the
-        outward unit normal the fingertip pushes along, both object frame, and
-        the distance (m) between the stated contact and the fingertip's own.
-    """
-    p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in (stated or obj.closest_point(c_obj)))
-    gap = float(np.linalg.norm(p_s + radius * n_s - tip_obj))
-    if gap > TIP_DISTANCE_TOL:
-        p_t, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tip_obj))
-        gap = float(np.linalg.norm(p_t - c_obj))
-    return p_s, n_s, gap
-
-
 # ---------------------------------------------------------------- reports
 @dataclass(frozen=True)
 class Violation:

@@ -143,3 +143,43 @@ def test_holds_exactly_where_the_forces_stay_within_the_effort_limits(planned, m
         assert all(answers)  # the planner let these fingers go: the others hold 0.1 kg
     if mass == 30.0:
         assert not any(answers)  # no 3-finger hold carries 30 kg within 1 N m
+
+
+def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path) -> None:
+    """A fingertip on a box edge pushes inside the cone about the edge-to-fingertip direction.
+
+    The verifier reads an edge contact's normal from the fingertip centre
+    (``fingertip_contact``); the closest point of the edge point itself names
+    one face's normal instead, and forces in that face's cone are outside the
+    edge contact's cone (the planner's hold check then judged holding grasps
+    unable to hold the object at all). box_tilt90 seed 4 lands fingers on edges.
+    """
+    from dexplan import cli
+    from dexplan.objects.fingertip import fingertip_contact
+    from dexplan.plan_file import models_from_document
+    from dexplan.scenario import builtin_scenario_path
+
+    path = tmp_path / "plan.json"
+    scenario = builtin_scenario_path("suite/box_tilt90")
+    assert cli.run(["plan", str(scenario), "--seed", "4", "-q", "-o", str(path)]) == 0
+    doc = read_plan(path)
+    hand = hand_from_plan(doc["hand"])
+    obj = models_from_document(doc).obj
+    half = np.asarray(doc["object"]["size"]) / 2
+    forces = plan_waypoint_forces(doc, ForceSettings(mass=0.1), hand=hand)
+    mu, r = doc["mu"], hand.fingertip_radius
+    on_edges = 0
+    for seg, rows in zip(doc["segments"], forces, strict=True):
+        for w, gf in zip(seg["waypoints"], rows, strict=True):
+            pose = np.asarray(w["object_pose_xyzquat"])
+            R = _rot(pose)
+            tips = (hand.fingertip_positions(np.asarray(w["q"])) - pose[:3]) @ R
+            for i, c in enumerate(w["contacts"]):
+                if not gf.loaded[i]:
+                    continue
+                _, n_out, _ = fingertip_contact(obj, np.asarray(c), tips[i], r)
+                f = gf.forces[i]
+                fn = -f @ n_out
+                assert fn > 0 and np.linalg.norm(f + fn * n_out) <= mu * fn + 1e-7
+                on_edges += int(np.sum(np.isclose(np.abs(c), half, atol=1e-6)) >= 2)
+    assert on_edges > 0
