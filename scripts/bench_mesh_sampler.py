@@ -1,7 +1,8 @@
 """Valid GSn samples per second on meshes of 5k to 330k triangles (issue 13's ratio figure).
 
-Builds the paper_sphere task with the ball replaced by an icosphere mesh of the
-same radius (5,120, 81,920 or 327,680 triangles, written to a temporary
+Builds the paper_sphere task with the ball replaced by a geodesic sphere mesh
+of the same radius (5,120, 81,920, 100,820 or 327,680 triangles: the
+icosahedron's faces split into 16, 64, 71 or 128 rows, written to a temporary
 folder), and runs the planner's own RLG sampler (``GraspSampler.sample()``,
 random poses) for ``--seconds`` of sampling time on each, alternating the
 meshes ``--rounds`` times in one process; prints a Markdown table (median
@@ -17,6 +18,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import trimesh
 
 from dexplan.planning.context import build_context
@@ -24,13 +26,42 @@ from dexplan.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "dexplan" / "data" / "scenarios" / "paper_sphere.toml"
-#: Icosphere subdivisions: 4 -> 5,120 triangles, 6 -> 81,920, 7 -> 327,680.
-COUNTS = {"5k": 4, "82k": 6, "328k": 7}
+#: Rows each icosahedron face is split into: 20 f^2 triangles.
+COUNTS = {"5k": 16, "82k": 64, "101k": 71, "328k": 128}
+
+
+def geodesic_sphere(frequency: int, radius: float) -> trimesh.Trimesh:
+    """A closed sphere mesh of ``20 frequency^2`` triangles (a geodesic polyhedron).
+
+    trimesh's icospheres come in powers of 4 (81,920 then 327,680 triangles);
+    this one takes any frequency, 71 for the issue's 100k.
+    """
+    ico = trimesh.creation.icosahedron()
+    verts, faces = [], []
+    f = frequency
+    for a, b, c in ico.vertices[ico.faces]:
+        index = {}
+        for i in range(f + 1):
+            for j in range(f + 1 - i):
+                index[i, j] = len(verts)
+                verts.append(a + (b - a) * i / f + (c - a) * j / f)
+        for i in range(f):
+            for j in range(f - i):
+                faces.append([index[i, j], index[i + 1, j], index[i, j + 1]])
+                if j < f - i - 1:
+                    faces.append([index[i + 1, j], index[i + 1, j + 1], index[i, j + 1]])
+    v = np.asarray(verts)
+    v = radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+    mesh = trimesh.Trimesh(v, np.asarray(faces), process=True)  # merges the shared vertices
+    mesh.fix_normals()
+    return mesh
 
 
 def mesh_scenario(folder: Path, count: int) -> Path:
-    """paper_sphere.toml with its 4 cm ball as an icosphere of ``count`` subdivisions."""
-    mesh = trimesh.creation.icosphere(subdivisions=count, radius=0.04)
+    """paper_sphere.toml with its 4 cm ball as a geodesic sphere of frequency ``count``."""
+    mesh = geodesic_sphere(count, 0.04)
+    if not mesh.is_watertight or len(mesh.faces) != 20 * count * count:
+        raise SystemExit(f"geodesic sphere of frequency {count} is not a closed mesh")
     obj = folder / f"ball_{count}.obj"
     mesh.export(obj)
     ball = 'shape = "sphere"\nradius = 0.04'
