@@ -22,7 +22,7 @@ from toy_sphere import (
 
 from dexplan.exceptions import InvalidInputError, PlannerError
 from dexplan.planning.ompl import PLANNERS, ConstraintSpec, PlanningProblem
-from dexplan.planning.ompl.registry import FIRST_SOLUTION_PLANNERS
+from dexplan.planning.ompl.registry import FIRST_SOLUTION_PLANNERS, RESTARTED_PLANNERS
 from dexplan.planning.roadmap import connected_components
 
 
@@ -71,6 +71,23 @@ def test_optimizing_planners_stop_at_their_first_solution(planner):
     result = problem.solve(86400.0)
     assert result.solved
     check_path(problem, result, SOUTH, NORTH, goal_tol=1e-3)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("planner", sorted(RESTARTED_PLANNERS))
+def test_batch_planner_cut_short_solves_in_the_next_round(planner):
+    """FMT and BFMT stopped after one iteration plan again on the next ``solve``.
+
+    The same planner instance answered ``invalid_start`` at once to every
+    later ``solve`` (module 1's rounds on cube_post got no vertex at all).
+    """
+    problem = PlanningProblem(make_spec(), is_valid, planner=planner, seed=5)
+    problem.set_start(SOUTH)
+    problem.set_goal_state(NORTH, threshold=1e-3)
+    first = problem.solve(10.0, max_iterations=1)
+    assert not first.solved
+    second = problem.solve(10.0)
+    assert second.status != "invalid_start"
 
 
 @pytest.mark.timeout(60)

@@ -36,6 +36,7 @@ from dexplan.planning.ompl.registry import (
     MULTI_QUERY_PLANNERS,
     PLANNERS,
     PROJECTION_PLANNERS,
+    RESTARTED_PLANNERS,
     check_planner_name,
     declared_params,
     first_solution_objective,
@@ -163,6 +164,7 @@ class PlanningProblem:
         self._goal: GoalSpec | None = None
         self._goal_state: tuple[FloatArray, float] | None = None
         self._query_dirty = True
+        self._planner_used = False
         self._pdef = ob.ProblemDefinition(si)
         self._planner = self._new_planner()
         for name, value in (params or {}).items():
@@ -362,6 +364,7 @@ class PlanningProblem:
             self._planner = self._new_planner()
         self._planner.setup()
         self._query_dirty = False
+        self._planner_used = False
         return None
 
     # ----------------------------------------------------------------- solving
@@ -464,6 +467,11 @@ class PlanningProblem:
                     "(its solution checker runs in a second thread)"
                 )
             budget = as_int(max_iterations, "max_iterations", 1)
+        if self._planner_used and self._planner_name in RESTARTED_PLANNERS:
+            # a batch planner cut short cannot resume: a fresh batch, the budget given
+            self._planner = self._new_planner()
+            self._planner.setup()
+        self._planner_used = True
         with self._sink.watching(termination(limit, budget)) as ptc:
             status = self._planner.solve(ptc)
         self._raise_callback_error()

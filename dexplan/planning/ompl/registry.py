@@ -117,6 +117,15 @@ and reject those outside the informed ellipsoid in a loop that never checks
 the termination condition: BITstar on box_yaw90 seed 1 found its path in
 round 1 and returned after 48.6 s of a 30 s limit."""
 
+RESTARTED_PLANNERS: frozenset[str] = frozenset({"BFMT", "FMT"})
+"""Batch planners that get a fresh planner for every ``solve`` after the first.
+
+FMT and BFMT draw their batch of samples inside ``solve``; stopped before
+the batch is drawn (a module-1 round's budget), the next ``solve`` of the
+same planner returns ``invalid_start`` at once, every round after (BFMT on
+cube_post: 0 roadmap vertices in every round of 30 s). A fresh planner per
+round draws a fresh batch within that round's (doubled) budget."""
+
 MULTI_QUERY_PLANNERS: frozenset[str] = frozenset({"PRM", "PRMstar"})
 """Planners whose roadmap survives a new start/goal (``clearQuery``); they run a
 solution-checking thread, so their goal is always one C++ goal state."""
