@@ -66,6 +66,15 @@ def count_kinds(segments: list[Segment] | tuple[Segment, ...]) -> dict[str, int]
     }
 
 
+def joint_travel(segments: list[Segment] | tuple[Segment, ...]) -> float:
+    """Total hand joint travel over the plan: ``sum |q_{k+1} - q_k|_1`` (rad; m for prismatic)."""
+    total = 0.0
+    for s in segments:
+        qs = np.array([w.q for w in s.waypoints], dtype=float)
+        total += float(np.abs(np.diff(qs, axis=0)).sum())
+    return total
+
+
 def object_path_length(segments: list[Segment] | tuple[Segment, ...]) -> tuple[float, float]:
     """Total object translation (m) and rotation (rad) over the transfers."""
     from dexplan.pose import quat_angle

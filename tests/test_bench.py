@@ -643,7 +643,13 @@ def test_ray_backend_matches_local_pool(sweep, tmp_path):
         if r["planner"] == "RRTConnect" and ref["solved"]:  # deterministic: seed for seed
             assert r["status_name"] == ref["status_name"]
             assert r["plan_sha256"] == ref["plan_sha256"]
-            for col in ("regrasps", "transfers", "waypoints", "object_path_rad"):
+            for col in (
+                "regrasps",
+                "transfers",
+                "waypoints",
+                "object_path_rad",
+                "joint_travel_rad",
+            ):
                 assert r[col] == ref[col], col
             compared += 1
     assert compared >= 1, "RRTConnect solved no seed: nothing to compare"

@@ -215,3 +215,17 @@ def test_start_q_a_little_off_the_surface_is_moved_onto_it(tmp_path) -> None:
     q_first = res.segments[0].start.q
     assert ctx.gsn.residual(ctx.gsn.join(x0[:7], q_first)) < 1e-8
     assert np.max(np.abs(q_first - q_off)) < 0.01
+
+
+def test_joint_travel_sums_every_joint_change() -> None:
+    """``joint_travel``: the L1 length of the hand's joint path over all segments."""
+    from dexplan.segments import Segment, Waypoint, joint_travel
+
+    pose = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0])
+    c = (np.zeros(3),)
+    qs = [np.array([0.0, 0.0]), np.array([0.1, -0.2]), np.array([0.1, 0.3])]
+    seg = Segment("transfer", None, tuple(Waypoint(pose, q, c) for q in qs))
+    back = Segment("transfer", None, tuple(Waypoint(pose, q, c) for q in qs[::-1]))
+    assert joint_travel([seg]) == pytest.approx(0.1 + 0.2 + 0.5)
+    assert joint_travel([seg, back]) == pytest.approx(1.6)
+    assert joint_travel([]) == 0.0

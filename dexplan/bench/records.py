@@ -78,6 +78,7 @@ def fill_stats(rec: dict[str, Any], stats: PlanStats) -> None:
         "waypoints",
         "object_path_m",
         "object_path_rad",
+        "joint_travel_rad",
     ):
         rec[name] = getattr(stats, name)
     method = stats.reduction_method

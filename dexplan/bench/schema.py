@@ -121,6 +121,7 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     ("waypoints", "INTEGER"),
     ("object_path_m", "REAL"),
     ("object_path_rad", "REAL"),
+    ("joint_travel_rad", "REAL"),  # hand joints' total travel along the plan
     ("states_checked", "INTEGER"),
     ("states_valid", "INTEGER"),
     ("rejected_bounds", "INTEGER"),

@@ -35,6 +35,8 @@ class PlanStats:
         transfers, regrasps: segments of the plan. graph_nodes: segments + 1.
         waypoints: waypoints of the plan.
         object_path_m, object_path_rad: length of the object's path.
+        joint_travel_rad: the hand joints' total travel (sum over waypoints
+            and joints of the absolute change, rad).
         local: counters of the local planners (transfers tried, landings checked...).
         sampler: the sampler's counters. validity: the validity checker's counters.
     """
@@ -65,6 +67,7 @@ class PlanStats:
     waypoints: int | None = None
     object_path_m: float | None = None
     object_path_rad: float | None = None
+    joint_travel_rad: float | None = None
     local: Mapping[str, int] = field(default_factory=dict)
     sampler: Mapping[str, Any] = field(default_factory=dict)
     validity: Mapping[str, Any] = field(default_factory=dict)

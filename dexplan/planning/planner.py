@@ -46,7 +46,7 @@ from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_o
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.scenario import Scenario
-from dexplan.segments import Segment, count_kinds, object_path_length
+from dexplan.segments import Segment, count_kinds, joint_travel, object_path_length
 from dexplan.typing import FloatArray
 
 Verifier = Callable[["PlanResult"], Sequence[str]]
@@ -495,6 +495,7 @@ class _Query:
         self.stats["graph_nodes"] = len(segments) + 1
         self.stats["waypoints"] = sum(len(s.waypoints) for s in segments)
         self.stats["object_path_m"], self.stats["object_path_rad"] = object_path_length(segments)
+        self.stats["joint_travel_rad"] = joint_travel(segments)
         return segments
 
     def finish(
