@@ -229,3 +229,15 @@ def test_joint_travel_sums_every_joint_change() -> None:
     assert joint_travel([seg]) == pytest.approx(0.1 + 0.2 + 0.5)
     assert joint_travel([seg, back]) == pytest.approx(1.6)
     assert joint_travel([]) == 0.0
+
+
+def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> None:
+    """The Allegro (4-joint fingers) skips the start-grasp ranking: the first grasp."""
+    from dexplan.planning.context import build_context
+    from dexplan.planning.planner import start_state
+
+    scenario = load_scenario(builtin_scenario_path("allegro_sphere"))
+    chosen = start_state(build_context(scenario, seed=2))
+    first = start_state(build_context(scenario, seed=2), candidates=1)
+    assert chosen is not None
+    np.testing.assert_array_equal(chosen, first)

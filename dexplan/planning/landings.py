@@ -341,6 +341,10 @@ class Landings:
                 return cands[k].copy()
         return None
 
+    def redundant(self, finger: int) -> bool:
+        """Whether ``finger`` has more postures per contact than IK branches (4+ joints)."""
+        return self.hand._split_ik[finger] is not None
+
     def tracked_count(self, finger: int) -> int:
         """How many landings of ``finger`` are tracked with its links checked (0: none).
 
@@ -348,7 +352,7 @@ class Landings:
         than IK branches), ``tracked_landings_simple`` for the others.
         """
         s = self.settings
-        if self.hand._split_ik[finger] is not None:
+        if self.redundant(finger):
             return s.tracked_landings
         return min(s.tracked_landings, s.tracked_landings_simple)
 

@@ -165,7 +165,11 @@ def start_state(
     the goal pose furthest (:func:`~dexplan.planning.reduction.grasp_follow`,
     the first blocked finger first). Every finger a transfer cannot follow
     costs a regrasp; on box_tilt90 some start grasps turn the box with none
-    and others need 9-17.
+    and others need 9-17. Hands with redundant fingers (the Allegro's 4
+    joints) take the first grasp: the IK-only follow says little about how a
+    redundant finger's posture and links will fare (allegro_sphere's 8
+    candidates scored 1-8 poses for their first blocked finger, and seeds 7
+    and 8 failed from the best-scored one where they plan from the first).
 
     Args:
         ctx: the planning context.
@@ -193,6 +197,9 @@ def start_state(
         if not verdict.valid:
             raise InvalidInputError(f"start.q is not a valid grasp: {verdict.reason}")
         return x
+    trans = ctx.transitions
+    if any(trans.redundant(f) for f in range(ctx.hand.n_fingers)):
+        candidates = 1
     found: list[FloatArray] = []
     for _ in range(max(1, attempts // ctx.sampler.settings.max_attempts)):
         if ctx.deadline.expired() or found:
@@ -200,7 +207,6 @@ def start_state(
         found = ctx.sampler.samples_at_pose(pose, candidates)
     if len(found) <= 1:
         return found[0] if found else None
-    trans = ctx.transitions
     goal = ctx.scenario.goal.object_pose_xyzquat
     future = densify_poses(
         np.array([pose, goal]), trans.settings.max_step_m, trans.settings.max_step_rad
