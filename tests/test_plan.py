@@ -172,17 +172,17 @@ def test_sampled_start_grasp_is_the_candidate_that_follows_furthest() -> None:
     """The planner starts from the best of its candidate start grasps: the one whose
     fingers follow the straight move to the goal furthest, first blocked finger first."""
     from dexplan.planning.context import build_context
-    from dexplan.planning.planner import START_CANDIDATES, start_state
+    from dexplan.planning.planner import start_state
     from dexplan.planning.reduction import grasp_follow
     from dexplan.planning.transitions import densify_poses
 
     scenario = default_scenario()
     pose, goal = scenario.start.object_pose_xyzquat, scenario.goal.object_pose_xyzquat
     ctx = build_context(scenario, seed=2)
-    chosen = start_state(ctx)
+    chosen = start_state(ctx, candidates=8)
     ref = build_context(scenario, seed=2)
-    cands = ref.sampler.samples_at_pose(pose, START_CANDIDATES)
-    assert len(cands) == START_CANDIDATES
+    cands = ref.sampler.samples_at_pose(pose, 8)
+    assert len(cands) == 8
     st = ref.transitions.settings
     future = densify_poses(np.array([pose, goal]), st.max_step_m, st.max_step_rad)
     scores = [grasp_follow(ref.transitions, pose, x[7:], future) for x in cands]
@@ -237,7 +237,7 @@ def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> No
     from dexplan.planning.planner import start_state
 
     scenario = load_scenario(builtin_scenario_path("allegro_sphere"))
-    chosen = start_state(build_context(scenario, seed=2))
+    chosen = start_state(build_context(scenario, seed=2), candidates=8)
     first = start_state(build_context(scenario, seed=2), candidates=1)
     assert chosen is not None
     np.testing.assert_array_equal(chosen, first)
