@@ -247,28 +247,21 @@ class GripForceSolver:
         n = len(contacts)
         if loaded is None:
             loaded = tuple(c is not None for c in contacts)
-        pose = np.asarray(object_pose, dtype=float)
-        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
-        P, N = self._contacts(np.asarray(q, dtype=float), pose, R, contacts)
+        q = np.asarray(q, dtype=float)
+        pose, R, w_ext_world, w_ext = self._frame(object_pose)
+        P, N = self._contacts(q, pose, R, contacts)
         idx = [i for i in range(n) if loaded[i] and contacts[i] is not None]
-        w_ext_world = self.settings.wrench_world()
-        # the wrench in the object frame, torque about the object origin
-        w_ext = np.concatenate([R.T @ w_ext_world[:3], R.T @ w_ext_world[3:]])
         forces = np.zeros((n, 3))
         tors = np.zeros(n)
         margin = self.settings.cone_margin
         if idx:
-            q = np.asarray(q, dtype=float)
-            held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
-            # the loaded fingers' joints enter through the torque limits
-            key = np.round(np.concatenate([P[idx].ravel(), w_ext, q[held]]), 12).tobytes()
+            key = self._key(q, P, w_ext, idx)
             hit = self._memo.get(key)
             if hit is None:
                 torque = self._torque_rows(q, pose, R, P, N, idx)
-                hit = self._qp_margins(P[idx], N[idx], w_ext, where, torque)
-                if len(self._memo) > 4096:
-                    self._memo.clear()
-                self._memo[key] = hit
+                hit = _remember(
+                    self._memo, key, self._qp_margins(P[idx], N[idx], w_ext, where, torque)
+                )
             f, t, margin = hit
             forces[idx] = f
             tors[idx] = t
@@ -310,18 +303,13 @@ class GripForceSolver:
             contacts: per finger, the contact point (3,) in the object frame,
                 or None for a finger that carries no load.
         """
-        n = len(contacts)
-        idx = [i for i in range(n) if contacts[i] is not None]
-        pose = np.asarray(object_pose, dtype=float)
-        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
-        w_ext_world = self.settings.wrench_world()
-        w_ext = np.concatenate([R.T @ w_ext_world[:3], R.T @ w_ext_world[3:]])
+        idx = [i for i in range(len(contacts)) if contacts[i] is not None]
+        pose, R, _, w_ext = self._frame(object_pose)
         if not idx:
             return bool(np.linalg.norm(w_ext) <= BALANCE_TOL)
         q = np.asarray(q, dtype=float)
         P, N = self._contacts(q, pose, R, contacts)
-        held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
-        key = np.round(np.concatenate([P[idx].ravel(), w_ext, q[held]]), 12).tobytes()
+        key = self._key(q, P, w_ext, idx)
         hit = self._holds_memo.get(key)
         if hit is None:
             torque = self._torque_rows(q, pose, R, P, N, idx)
@@ -330,10 +318,33 @@ class GripForceSolver:
             else:
                 A, lo, hi = self._constraints(P[idx], N[idx], w_ext, 0.0, self.edges, torque)[:3]
                 hit = _feasible_point(A, lo, hi) is not None
-            if len(self._holds_memo) > 4096:
-                self._holds_memo.clear()
-            self._holds_memo[key] = hit
+            _remember(self._holds_memo, key, hit)
         return hit
+
+    def _frame(
+        self, object_pose: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The pose, its rotation, and the external wrench in both frames.
+
+        Returns:
+            ``(pose, R, w_ext_world, w_ext)``: (7,) pose, (3, 3) rotation, (6,)
+            external wrench in the world and in the object frame (torque about
+            the object origin).
+        """
+        pose = np.asarray(object_pose, dtype=float)
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        w_ext_world = self.settings.wrench_world()
+        w_ext = np.concatenate([R.T @ w_ext_world[:3], R.T @ w_ext_world[3:]])
+        return pose, R, w_ext_world, w_ext
+
+    def _key(self, q: FloatArray, P: FloatArray, w_ext: FloatArray, idx: list[int]) -> bytes:
+        """Memo key of a grip problem at the loaded fingers ``idx``.
+
+        The loaded contacts, the wrench, and the loaded fingers' joints (they
+        enter through the torque limits).
+        """
+        held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
+        return np.round(np.concatenate([P[idx].ravel(), w_ext, q[held]]), 12).tobytes()
 
     def _contacts(
         self, q: FloatArray, pose: FloatArray, R: FloatArray, contacts: Sequence[FloatArray | None]
@@ -700,6 +711,14 @@ def _least_norm(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | N
     if x is None or not np.all(np.isfinite(x)) or not _satisfies(A, lo, hi, x):
         return x_lp
     return x
+
+
+def _remember(memo: dict, key: bytes, value: Any) -> Any:
+    """Store ``value`` under ``key`` (the memo is emptied past 4096 entries); return it."""
+    if len(memo) > 4096:
+        memo.clear()
+    memo[key] = value
+    return value
 
 
 def _feasible_point(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | None:
