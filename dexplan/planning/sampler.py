@@ -358,18 +358,27 @@ class GraspSampler:
         found = self._pool_samples(pose, 1, self.settings.max_attempts)
         return found[0] if found else None
 
-    def samples_at_pose(self, pose_xyzquat: FloatArray, count: int) -> list[FloatArray]:
+    def samples_at_pose(
+        self, pose_xyzquat: FloatArray, count: int, rng: np.random.Generator | None = None
+    ) -> list[FloatArray]:
         """Up to ``count`` valid states with the object at ``pose_xyzquat``.
 
         With per-finger pools, one pose's pools and combinations serve them
         all (``count * max_attempts`` combined grasps at most); otherwise
-        :meth:`sample_at_pose` is called ``count`` times.
+        :meth:`sample_at_pose` is called ``count`` times. ``rng``: draw from
+        this stream instead of the sampler's own (which is left as it was), so
+        that a caller's samples do not depend on how much the search sampled.
         """
         pose = np.asarray(pose_xyzquat, dtype=float)
-        if self.per_finger:
-            return self._pool_samples(pose, count, count * self.settings.max_attempts)
-        found = (self._run(pose) for _ in range(count))
-        return [x for x in found if x is not None]
+        own = self.rng
+        self.rng = own if rng is None else rng
+        try:
+            if self.per_finger:
+                return self._pool_samples(pose, count, count * self.settings.max_attempts)
+            found = (self._run(pose) for _ in range(count))
+            return [x for x in found if x is not None]
+        finally:
+            self.rng = own
 
     def _pool_samples(self, pose: FloatArray | None, want: int, budget: int) -> list[FloatArray]:
         """Valid states from per-finger pools, ``want`` at most, ``budget`` grasps checked.
