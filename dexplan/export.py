@@ -232,6 +232,11 @@ def _sample_contacts(
         None, and whether it carries load.
     """
     wps = seg["waypoints"]
+    if k + 1 < len(wps) and abs(ts[j] - st.waypoint_times[k + 1]) <= 1e-9:
+        # at the next waypoint: the path parameter there can fall a rounding
+        # error short of it (a regrasp's last sample then read the free
+        # finger as not yet landed, and the next one's finger unloaded too)
+        k += 1
     wp = wps[k]
     at_wp = abs(ts[j] - st.waypoint_times[k]) <= 1e-12 or k == len(wps) - 1
     contacts = []
