@@ -261,3 +261,19 @@ def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> No
     first = start_state(build_context(scenario, seed=2), candidates=1)
     assert chosen is not None
     np.testing.assert_array_equal(chosen, first)
+
+
+def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
+    """When every reduction of the GSn path fails early, module 1 explores again.
+
+    cube_post seed 20: the slerp between two GSn states clips the post, so both
+    gait reductions stop at once (the object itself collides) and the
+    edge-by-edge one hits its bisection limit; the query used to end
+    ``reduction_failed`` after about 1 s of its 60 s.
+    """
+    scenario = load_scenario(builtin_scenario_path("suite/cube_post"))
+    res = plan(scenario, seed=20)
+    assert res.solved, res.message
+    assert res.stats.explorations == 2
+    doc = build_plan_document(scenario, build_hand(scenario), res)
+    assert verify_plan(doc).ok

@@ -30,7 +30,10 @@ class PlanStats:
         module2_attempts, module2_links, module2_time_s: module 2's work.
         goal_samples: valid states the goal sampler returned.
         reduction_method: ``gaits`` or ``edges`` (the one that made the plan).
-        reduction_attempts: reduction attempts made.
+        reduction_attempts: reduction attempts made (of the last GSn path).
+        explorations: GSn paths module 1 found and the reductions tried
+            (more than 1 when every reduction of a path failed early; see
+            :data:`~dexplan.planning.planner.EXPLORE_AGAIN`).
         object_poses_shortcut: poses of the shortcut object trajectory.
         transfers, regrasps: segments of the plan. graph_nodes: segments + 1.
         waypoints: waypoints of the plan.
@@ -60,6 +63,7 @@ class PlanStats:
     goal_samples: int | None = None
     reduction_method: str | None = None
     reduction_attempts: int | None = None
+    explorations: int | None = None
     object_poses_shortcut: int | None = None
     transfers: int | None = None
     regrasps: int | None = None

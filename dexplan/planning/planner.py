@@ -55,6 +55,13 @@ Verifier = Callable[["PlanResult"], Sequence[str]]
 REDUCTIONS = ("auto", "gaits", "edges")
 """Reduction methods accepted by :func:`plan`."""
 
+EXPLORE_AGAIN = 3
+"""Module-1 explorations run again (fresh OMPL seeds) when every reduction of
+a GSn path fails before the deadline: the reductions give up early only when
+the object's own trajectory collides (cube_post seed 20: the slerp between
+two GSn states clips the post, a failure after 1.1 s of 60 s), and another
+GSn path usually goes around."""
+
 VERIFY_RESERVE = 0.05
 """Fraction of the time limit kept for the final verification: the search
 stages (start grasp, module 1 and 2, reduction, smoothing) stop at
@@ -305,6 +312,19 @@ def plan(
         return failed
     assert gsn is not None and gsn.path is not None
     red = query.reduce(gsn, reduction)
+    again = 0
+    while not red.success and query.roadmap_own and again < EXPLORE_AGAIN:
+        if time.perf_counter() >= query.deadline:
+            break
+        again += 1
+        query.say(
+            Stage.MODULE1, f"exploring GSn again ({again} of {EXPLORE_AGAIN}) for another path"
+        )
+        other, _ = query.explore(x_start, again)
+        if other is None:
+            break
+        gsn, red = other, query.reduce(other, reduction)
+    query.stats["explorations"] = 1 + again
     if not red.success:
         return query.result(
             PlanStatus.REDUCTION_FAILED, red.reason or "", gsn_path=gsn.path, start_q=query.q0
@@ -332,6 +352,7 @@ class _Query:
         self.t0 = time.perf_counter()
         self.scenario, self.planner, self.seed = scenario, planner, seed
         self.roadmap = roadmap
+        self.roadmap_given = roadmap
         self.progress = progress
         self.ctx = build_context(scenario, seed, hand=hand)
         # every stage watches one deadline (the sampler, goal sampling and the
@@ -380,8 +401,19 @@ class _Query:
         return x
 
     # -- stage 2: modules 1 and 2 --------------------------------------------
-    def explore(self, x_start: FloatArray) -> tuple[GsnResult | None, PlanResult | None]:
-        """A GSn path from the start to the goal region: ``(gsn, None)`` or ``(None, failure)``."""
+    @property
+    def roadmap_own(self) -> bool:
+        """Whether module 1 explores GSn itself (no roadmap of an earlier run was given)."""
+        return self.roadmap_given is None
+
+    def explore(
+        self, x_start: FloatArray, again: int = 0
+    ) -> tuple[GsnResult | None, PlanResult | None]:
+        """A GSn path from the start to the goal region: ``(gsn, None)`` or ``(None, failure)``.
+
+        ``again``: the how-manieth exploration this is after the first (its
+        OMPL planner gets a seed of its own).
+        """
         ctx, scenario = self.ctx, self.scenario
         draws = [0, 0]  # calls, valid states: tells "no goal grasp" from "no path"
 
@@ -398,14 +430,14 @@ class _Query:
         )
         self.say(Stage.MODULE1, f"module 1: exploring GSn with {self.planner}")
         spec = scenario.planner
-        if self.roadmap is None:
+        if self.roadmap_given is None:
             gsn = explore_gsn(
                 ctx,
                 query,
                 self.planner,
                 params=spec.params,
                 space=spec.space,
-                seed=self.seed,
+                seed=(self.seed + 104_729 * again) % 2**31,
                 deadline=self.deadline,
                 on_round=self.on_round,
             )
