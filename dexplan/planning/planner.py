@@ -219,14 +219,18 @@ def start_state(
         if not verdict.valid:
             raise InvalidInputError(f"start.q is not a valid grasp: {verdict.reason}")
         return x
-    first: list[FloatArray] = []
+    first: FloatArray | None = None
     for _ in range(max(1, attempts // ctx.sampler.settings.max_attempts)):
-        if ctx.deadline.expired() or first:
+        if ctx.deadline.expired() or first is not None:
             break
-        first = ctx.sampler.samples_at_pose(pose, 1)
+        first = ctx.sampler.sample_at_pose(pose)
     trans = ctx.transitions
-    if not first or candidates <= 1 or any(trans.redundant(f) for f in range(ctx.hand.n_fingers)):
-        return first[0] if first else None
+    if (
+        first is None
+        or candidates <= 1
+        or any(trans.redundant(f) for f in range(ctx.hand.n_fingers))
+    ):
+        return first
     goal = ctx.scenario.goal.object_pose_xyzquat
     future = densify_poses(
         np.array([pose, goal]), trans.settings.max_step_m, trans.settings.max_step_rad
@@ -235,13 +239,13 @@ def start_state(
     def all_the_way(x: FloatArray) -> bool:
         return grasp_follow(trans, pose, x[POSE_DIM:], future)[0] >= len(future)
 
-    if all_the_way(first[0]):
-        return first[0]
+    if all_the_way(first):
+        return first
     rng = np.random.default_rng(0) if rng is None else rng
     for x in ctx.sampler.samples_at_pose(pose, candidates - 1, rng):
         if all_the_way(x):
             return x
-    return first[0]
+    return first
 
 
 def plan(
