@@ -11,7 +11,15 @@ from dexplan.exceptions import InvalidInputError
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap import GsnQuery, Roadmap, connected_components, explore_gsn, try_link
+from dexplan.planning.roadmap import (
+    GsnQuery,
+    Roadmap,
+    connected_components,
+    explore_gsn,
+    link_query,
+    try_link,
+)
+from dexplan.planning.transitions import densify_poses
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
 from dexplan.scenario import default_scenario
@@ -162,3 +170,48 @@ def test_module2_pass_only_brings_the_shared_deadline_forward() -> None:
     with pytest.raises(RuntimeError), _cut(shared, 10.0):
         raise RuntimeError("a failing link attempt")
     assert shared.at == 100.0
+
+
+def _link_once(scenario, x0, g):
+    """Module 2 on a two-vertex roadmap (start, a goal-region state), as the planner runs it."""
+    ctx = build_context(scenario, seed=1)
+    roadmap = Roadmap(np.stack([x0, g]), np.zeros((0, 2), int), np.zeros((0, 2), int), "PRM", "k")
+    query = GsnQuery(
+        x0,
+        lambda x: goal_reached(scenario, x[:POSE_DIM]),
+        lambda: None,
+        goal_pose=scenario.goal.object_pose_xyzquat,
+    )
+    stats = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
+    return ctx, link_query(ctx, roadmap, query, 0, time.perf_counter() + 120.0, stats)
+
+
+def test_a_link_into_the_goal_region_ends_on_the_goal_pose_and_is_kept(scenario) -> None:
+    ctx = build_context(scenario, seed=1)
+    x0 = start_state(ctx)
+    goal = scenario.goal.object_pose_xyzquat
+    near_goal = goal + np.array([0.001, 0, 0, 0, 0, 0, 0])
+    g = ctx.sampler.sample_at_pose(near_goal)
+    assert x0 is not None and g is not None and goal_reached(scenario, g[:POSE_DIM])[0]
+    ctx, res = _link_once(scenario, x0, g)
+    assert res.path is not None and len(res.links) == 1
+    link = res.links[0]
+    assert link.result.success
+    # it ends on the goal pose itself, not on the sampled goal state's
+    end = link.result.segments[-1].end.object_pose_xyzquat
+    np.testing.assert_allclose(end[:3], goal[:3], atol=1e-9)
+    assert quat_angle(end[3:], goal[3:]) < 1e-6
+    assert np.linalg.norm(g[:3] - goal[:3]) > 1e-4  # (which differs)
+    # the planner's reduction trajectory (start pose to goal pose) is the link's own
+    s = ctx.transitions.settings
+    dense = densify_poses(np.stack([x0[:POSE_DIM], goal]), s.max_step_m, s.max_step_rad)
+    assert link.matches(dense, x0[POSE_DIM:])
+    assert not link.matches(dense[:-1], x0[POSE_DIM:])
+    other = x0[POSE_DIM:].copy()
+    other[0] += 1e-3
+    assert not link.matches(dense, other)
+    # an attempt's stream is its own: the same link again, regrasp for regrasp
+    _, again = _link_once(scenario, x0, g)
+    assert [(a.kind, a.finger) for a in again.links[0].result.segments] == [
+        (a.kind, a.finger) for a in link.result.segments
+    ]

@@ -40,6 +40,8 @@ class PlanningContext:
         rng: the sampler's random generator (the local planners have their own).
         deadline: the query's deadline, shared by the sampler and the local
             planners (the planner sets it; default: never).
+        seed: the seed the streams were made from (module 2 seeds each link
+            attempt's stream from it).
     """
 
     scenario: Scenario
@@ -52,6 +54,7 @@ class PlanningContext:
     transitions: Transitions
     rng: np.random.Generator
     deadline: Deadline
+    seed: int = 0
 
     def reseed_local_planners(self, *key: int) -> None:
         """Give the local planners a fresh random stream seeded by ``key``.
@@ -204,5 +207,5 @@ def build_context(
         grip_forces(scenario, hand, obj, vset),
     )
     return PlanningContext(
-        scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline
+        scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline, seed
     )

@@ -31,6 +31,9 @@ class PlanStats:
         goal_samples: valid states the goal sampler returned.
         reduction_method: ``gaits`` or ``edges`` (the one that made the plan).
         reduction_attempts: reduction attempts made (of the last GSn path).
+        reduction_from_link: the plan's transfers and regrasps are those of the
+            module-2 link that reached the goal along the same trajectory
+            (reused, not reduced again).
         explorations: GSn paths module 1 found and the reductions tried
             (more than 1 when every reduction of a path failed early; see
             :data:`~dexplan.planning.planner.EXPLORE_AGAIN`).
@@ -63,6 +66,7 @@ class PlanStats:
     goal_samples: int | None = None
     reduction_method: str | None = None
     reduction_attempts: int | None = None
+    reduction_from_link: bool = False
     explorations: int | None = None
     object_poses_shortcut: int | None = None
     transfers: int | None = None

@@ -431,6 +431,7 @@ class _Query:
             start=x_start,
             goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
             goal_sampler=goal_sampler,
+            goal_pose=scenario.goal.object_pose_xyzquat,
         )
         self.say(Stage.MODULE1, f"module 1: exploring GSn with {self.planner}")
         spec = scenario.planner
@@ -523,6 +524,13 @@ class _Query:
             attempt += 1
             if method == "gaits":
                 dense = densify_poses(short if source == "shortcut" else poses, step_m, step_rad)
+                link = next((k for k in gsn.links if k.matches(dense, self.q0)), None)
+                if link is not None:
+                    # module 2 has reduced this very trajectory from this grasp
+                    self.stats["reduction_method"] = method
+                    self.stats["reduction_from_link"] = True
+                    red = link.result
+                    break
                 red = reduce_object_path(ctx.transitions, dense, self.q0, grasp)
             else:
                 # the GSn states' own contacts (the last state's pose may be the

@@ -46,7 +46,12 @@ from dexplan.planning.ompl import (
     PlanningProblem,
     ProjectionSpec,
 )
-from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_object_path
+from dexplan.planning.reduction import (
+    ReductionResult,
+    ReductionSettings,
+    grasp_from_state,
+    reduce_object_path,
+)
 from dexplan.planning.roadmap_file import ROADMAP_FORMAT, read_roadmap_arrays
 from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
@@ -111,11 +116,43 @@ class GsnQuery:
         start: (7 + nq,) start state on GSn.
         goal_test: maps a state to (in goal region, distance to it).
         goal_sampler: returns a valid GSn state in the goal region, or None.
+        goal_pose: (7,) the goal object pose itself, when the region has one:
+            module-2 links into the goal region end there, the pose the
+            planner's reduction ends on (so it can reuse them).
     """
 
     start: FloatArray
     goal_test: Callable[[FloatArray], tuple[bool, float]]
     goal_sampler: Callable[[], FloatArray | None]
+    goal_pose: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class LinkReduction:
+    """A successful module-2 link: the transfers and regrasps that make it.
+
+    The planner reduces its GSn path's object trajectory afresh; when that
+    trajectory is a link's own (a link from the start straight into the goal
+    region), it takes the link's reduction instead of redoing it (seconds on a
+    many-DOF hand, and a fresh try can fail where the link went through).
+
+    Attributes:
+        poses: (P, 7) the dense object trajectory the link followed.
+        q_start: (nq,) hand joints at its start.
+        result: its reduction (successful).
+    """
+
+    poses: FloatArray
+    q_start: FloatArray
+    result: ReductionResult
+
+    def matches(self, poses: FloatArray, q_start: FloatArray, tol: float = 1e-9) -> bool:
+        """Whether it follows ``poses: (P, 7)`` from ``q_start: (nq,)`` (quaternion sign free)."""
+        if poses.shape != self.poses.shape or not np.allclose(q_start, self.q_start, atol=tol):
+            return False
+        dots = np.abs(np.sum(poses[:, 3:] * self.poses[:, 3:], axis=1))
+        same_place = np.allclose(poses[:, :3], self.poses[:, :3], atol=tol)
+        return bool(same_place and np.all(dots > 1 - tol))
 
 
 @dataclass
@@ -273,12 +310,14 @@ class GsnResult:
         roadmap: the roadmap (with start and goal vertices added).
         stats: planner and module-2 figures.
         message: detail when there is no path.
+        links: the module-2 links made for this query, with their reductions.
     """
 
     path: FloatArray | None
     roadmap: Roadmap
     stats: dict[str, Any] = field(default_factory=dict)
     message: str = ""
+    links: tuple[LinkReduction, ...] = ()
 
 
 Geodesic = Callable[[FloatArray, FloatArray], FloatArray | None]
@@ -411,6 +450,7 @@ def explore_gsn(
     key = scenario_key(ctx)
     stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
     iterations, milestones, rounds = ROUND_ITERATIONS, ROUND_MILESTONES, 0
+    links: list[LinkReduction] = []  # every pass's, for the planner to reuse
     while True:
         rounds += 1
         roadmap, starts, path, status = _module1_round(
@@ -429,7 +469,7 @@ def explore_gsn(
         names = ("rounds", "gsn_rounds"), ("nodes", "roadmap_nodes"), ("edges", "roadmap_edges")
         report("module1", {k: int(stats[v]) for k, v in (*names, ("components", "components"))})
         if path is not None:
-            return GsnResult(path, roadmap, stats)
+            return GsnResult(path, roadmap, stats, links=tuple(links))
         iterations *= 2
         milestones *= 2
         if not module2:
@@ -437,7 +477,9 @@ def explore_gsn(
                 return GsnResult(None, roadmap, stats, "no GSn path within the time limit")
             continue
         start = starts[0] if starts else roadmap.add_vertex(query.start)
-        linked = _module2_pass(ctx, roadmap, query, start, deadline, stats, _geodesic(problem))
+        linked = _module2_pass(
+            ctx, roadmap, query, start, deadline, stats, _geodesic(problem), links
+        )
         stats["gsn_time_s"] = time.perf_counter() - t0
         report(
             "module2",
@@ -455,6 +497,7 @@ def _module2_pass(
     deadline: float,
     stats: dict[str, Any],
     geodesic: Geodesic,
+    links: list[LinkReduction],
 ) -> GsnResult:
     """Module 2 of a single query: a few links from the start's component towards the goal.
 
@@ -466,7 +509,15 @@ def _module2_pass(
     link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)
     with _cut(ctx.transitions.deadline, link_by):
         return link_query(
-            ctx, roadmap, query, start, link_by, stats, max_attempts=4, geodesic=geodesic
+            ctx,
+            roadmap,
+            query,
+            start,
+            link_by,
+            stats,
+            max_attempts=4,
+            geodesic=geodesic,
+            links=links,
         )
 
 
@@ -641,12 +692,26 @@ def object_move_free(ctx: PlanningContext, a: FloatArray, b: FloatArray) -> bool
 
 def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:
     """Module-2 link test: can transfers and regrasps carry the object from a to b's pose?"""
+    return link_reduction(ctx, a, b_pose).result.success
+
+
+def link_reduction(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> LinkReduction:
+    """The module-2 link attempt from state ``a`` to the object pose ``b_pose: (7,)``.
+
+    The object moves straight (the poses as the planner's reduction
+    densifies them: unit quaternions, ``b_pose`` on ``a``'s hemisphere) and
+    finger gaits carry it from ``a``'s grasp.
+    """
     tr = ctx.transitions
     s = tr.settings
-    dense = densify_poses(np.array([a[:POSE_DIM], b_pose]), s.max_step_m, s.max_step_rad)
+    ends = np.array([a[:POSE_DIM], b_pose], dtype=float)
+    ends[:, 3:] /= np.linalg.norm(ends[:, 3:], axis=1, keepdims=True)
+    if float(np.dot(ends[0, 3:], ends[1, 3:])) < 0.0:
+        ends[1, 3:] = -ends[1, 3:]
+    dense = densify_poses(ends, s.max_step_m, s.max_step_rad)
     grasp = grasp_from_state(tr, a[:POSE_DIM], a[POSE_DIM:])
     red = reduce_object_path(tr, dense, a[POSE_DIM:], grasp, ReductionSettings())
-    return red.success
+    return LinkReduction(dense, a[POSE_DIM:].copy(), red)
 
 
 def link_query(
@@ -658,6 +723,7 @@ def link_query(
     stats: dict[str, Any],
     max_attempts: int | None = None,
     geodesic: Geodesic | None = None,
+    links: list[LinkReduction] | None = None,
 ) -> GsnResult:
     """Module 2: join the start's component to the goal region with links, then search.
 
@@ -665,13 +731,21 @@ def link_query(
     goal states when there are none. Component pairs are tried nearest first
     (object-pose distance); every successful link merges two components. The
     path's GSn edges are densified with ``geodesic`` when given.
+
+    Each attempt runs on a random stream of its own (the context's seed and
+    the attempt's number), so a link's regrasps do not depend on how many
+    attempts came before within a pass the clock ended. Links into the goal
+    region end on ``query.goal_pose`` when given. Successful links are
+    appended to ``links`` (the result carries them all).
     """
+    links = [] if links is None else links
     t0 = time.perf_counter()
     goals = [i for i, x in enumerate(roadmap.vertices) if query.goal_test(x)[0]]
     while not goals and time.perf_counter() < deadline:
         g = query.goal_sampler()
         if g is not None:
             goals.append(roadmap.add_vertex(g))
+    goal_set = set(goals)
     path_ids = None
     attempts = 0
     while time.perf_counter() < deadline:
@@ -692,7 +766,12 @@ def link_query(
                 continue  # the object alone cannot make this move
             attempts += 1
             stats["module2_attempts"] += 1
-            if try_link(ctx, roadmap.vertices[a], roadmap.vertices[b][:POSE_DIM]):
+            ctx.reseed_local_planners(ctx.seed, 3, int(stats["module2_attempts"]))
+            to_goal = query.goal_pose is not None and int(b) in goal_set
+            b_pose = query.goal_pose if to_goal else roadmap.vertices[b][:POSE_DIM]
+            link = link_reduction(ctx, roadmap.vertices[a], b_pose)
+            if link.result.success:
+                links.append(link)
                 roadmap.add_link(int(a), int(b))
                 stats["module2_links"] += 1
                 linked = True
@@ -704,8 +783,10 @@ def link_query(
     stats["module2_time_s"] += time.perf_counter() - t0
     stats["components_after_links"] = roadmap.components()[0]
     if path_ids is None:
-        return GsnResult(None, roadmap, stats, "start and goal are not connected in GSn")
-    return GsnResult(roadmap.path_states(path_ids, geodesic), roadmap, stats)
+        return GsnResult(
+            None, roadmap, stats, "start and goal are not connected in GSn", tuple(links)
+        )
+    return GsnResult(roadmap.path_states(path_ids, geodesic), roadmap, stats, links=tuple(links))
 
 
 def _link_candidates(
