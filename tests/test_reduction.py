@@ -176,11 +176,12 @@ def test_fingertips_on_box_edges_are_verified_contacts() -> None:
     assert "contact_matches_fingertip" in rules
 
 
-@pytest.mark.parametrize("retries", [0, 2])
+@pytest.mark.parametrize(("retries", "backtracks"), [(0, 0), (2, 0), (2, 3)])
 def test_failed_regrasp_search_is_retried_before_giving_up(
-    scenario, start_and_goal, monkeypatch, retries: int
+    scenario, start_and_goal, monkeypatch, retries: int, backtracks: int
 ) -> None:
-    """A regrasp search that finds nothing runs again ``regrasp_retries`` times, then stops."""
+    """A regrasp search that finds nothing runs again ``regrasp_retries`` times, then the
+    gaits go back ``backtracks`` times (here to the start: no transfer moved the object)."""
     from dexplan.planning import reduction
     from dexplan.planning.transitions import densify_poses
 
@@ -197,11 +198,16 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
     dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
     grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
     red = reduction.reduce_object_path(
-        ctx.transitions, dense, x0[POSE_DIM:], grasp, ReductionSettings(regrasp_retries=retries)
+        ctx.transitions,
+        dense,
+        x0[POSE_DIM:],
+        grasp,
+        ReductionSettings(regrasp_retries=retries, backtracks=backtracks),
     )
     assert not red.success
     assert red.reason is not None and red.reason.startswith("no feasible regrasp")
-    assert len(calls) == 1 + retries
+    assert len(calls) == (1 + retries) * (1 + backtracks)
+    assert red.stats["backtracks"] == backtracks
 
 
 def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
@@ -275,7 +281,7 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
     s = ctx.transitions.settings
     dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
     grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
-    settings = ReductionSettings(max_blind=3, max_stall=7)
+    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=0)
     red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
     assert not red.success and red.reason is not None
     assert len(set(calls)) == 1  # all at the step the transfer was blocked at
@@ -283,6 +289,12 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
         assert red.reason.startswith("no landing for finger") and len(calls) == 4
     else:
         assert red.reason.startswith("no progress after") and len(calls) == 8
+    # with backtracks, each run of them starts again from the last checkpoint
+    calls.clear()
+    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=2)
+    red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
+    assert not red.success and red.stats["backtracks"] == 2
+    assert len(calls) == 3 * (4 if mode == "any" else 8)
 
 
 def test_reduction_schedule_retries_gaits_until_no_trajectory_is_left() -> None:
@@ -302,3 +314,47 @@ def test_reduction_schedule_retries_gaits_until_no_trajectory_is_left() -> None:
     assert next(schedule) in {("gaits", "shortcut"), ("gaits", "raw")}
     hopeless.add("shortcut")
     assert len(list(itertools.islice(schedule, 3))) <= 1  # ends with the pair under way
+
+
+def test_stuck_gaits_go_back_to_an_earlier_transfer_and_carry_on(
+    scenario, start_and_goal, monkeypatch
+) -> None:
+    """A regrasp search that finds nothing once: the gaits resume from an earlier checkpoint."""
+    from dexplan.planning import reduction as red_mod
+    from dexplan.planning.reduction import reduce_object_path
+
+    x0, _ = start_and_goal
+    ctx = build_context(scenario, seed=1)
+    s = ctx.transitions.settings
+    poses = densify_poses(
+        np.stack([x0[:POSE_DIM], scenario.goal.object_pose_xyzquat]), s.max_step_m, s.max_step_rad
+    )
+    grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
+    real = red_mod._regrasp_retrying
+    blocked: list[int] = []
+
+    def fails_once_past_step_10(trans, poses, idx, *args):
+        if idx >= 10 and not blocked:
+            blocked.append(idx)
+            return None
+        return real(trans, poses, idx, *args)
+
+    monkeypatch.setattr(red_mod, "_regrasp_retrying", fails_once_past_step_10)
+    settings = ReductionSettings(backtracks=0)
+    gave_up = reduce_object_path(ctx.transitions, poses, x0[POSE_DIM:], grasp, settings)
+    assert blocked and not gave_up.success
+    assert gave_up.reason.startswith(f"no feasible regrasp at trajectory step {blocked[0]}")
+
+    blocked.clear()
+    ctx = build_context(scenario, seed=1)
+    res = reduce_object_path(ctx.transitions, poses, x0[POSE_DIM:], grasp)
+    assert blocked and res.success, res.reason
+    assert res.stats["backtracks"] == 1
+    # the kept segments chain: each starts where the one before ended
+    assert np.allclose(res.segments[0].start.q, x0[POSE_DIM:])
+    for a, b in itertools.pairwise(res.segments):
+        np.testing.assert_allclose(b.start.q, a.end.q, atol=1e-12)
+        np.testing.assert_allclose(
+            b.start.object_pose_xyzquat, a.end.object_pose_xyzquat, atol=1e-12
+        )
+    assert quat_angle(res.segments[-1].end.object_pose_xyzquat[3:], poses[-1][3:]) < 1e-9

@@ -77,6 +77,15 @@ class ReductionSettings:
         regrasp_retries: a regrasp search that finds no feasible regrasp is
             run again this many times (the landing candidates are random
             samples; a fresh set often holds one) before the reduction gives up.
+        backtracks: when the finger gaits get stuck (no feasible regrasp,
+            ``max_stall`` or ``max_blind``), go back this many times at most
+            to the hand's state after an earlier transfer, at least
+            ``backtrack_steps`` trajectory steps before the stuck one, and go
+            on from there with fresh random landings: where the fingers
+            stand when they reach a hard stretch decides whether they pass
+            it (allegro_cube: the ring finger blocked at 65 degrees on most
+            grasps that reach it, passed on others).
+        backtrack_steps: see ``backtracks``.
         max_depth: resolution limit of :func:`reduce_gsn_path`: a GSn edge is
             bisected at most this many times (into at most ``2**max_depth`` pieces).
         same_contact_m: contacts closer than this (m, object frame) count as
@@ -99,6 +108,8 @@ class ReductionSettings:
     max_stall: int = 30
     max_blind: int = 4
     regrasp_retries: int = 2
+    backtracks: int = 3
+    backtrack_steps: int = 8
     max_depth: int = 5
     same_contact_m: float = 1e-3
     resync_m: float = 0.01
@@ -163,6 +174,28 @@ def reduce_object_path(
     segments: list[Segment] = []
     idx, q = 0, q_start.copy()
     regrasps = stall = blind = 0
+    # (segments kept, trajectory index, q, grasp) after each transfer that moved the object
+    checkpoints: list[tuple[int, int, FloatArray, GraspContacts]] = [(0, 0, q.copy(), grasp)]
+    backtracks = 0
+
+    def stuck(reason: str) -> bool:
+        """Go back to an earlier checkpoint (True), or give up with ``reason`` (False)."""
+        nonlocal segments, idx, q, grasp, regrasps, stall, blind, backtracks, failure
+        if backtracks >= settings.backtracks or trans.deadline.expired():
+            failure = reason
+            return False
+        backtracks += 1
+        trans.stats["backtracks"] += 1
+        back = [c for c in checkpoints if c[1] <= idx - settings.backtrack_steps] or checkpoints[:1]
+        kept, idx, q, grasp = back[-1]
+        del checkpoints[checkpoints.index(back[-1]) + 1 :]
+        segments = segments[:kept]
+        q = q.copy()
+        regrasps = sum(seg.kind == "regrasp" for seg in segments)
+        stall = blind = 0
+        return True
+
+    failure = ""
     while True:
         if trans.deadline.expired():
             return ReductionResult(
@@ -173,6 +206,8 @@ def reduce_object_path(
             segments.append(Segment("transfer", None, tr.waypoints))
             stall = blind = 0
         idx, q = tr.reached, tr.waypoints[-1].q
+        if len(tr.waypoints) > 1:
+            checkpoints.append((len(segments), idx, q.copy(), grasp))
         if tr.reason is None:
             return ReductionResult(True, tuple(segments), idx, None, _stats(trans, regrasps))
         if tr.blocking is None:
@@ -189,21 +224,20 @@ def reduce_object_path(
             trans, poses, idx, q, grasp, tr.blocking, hint_row, settings.regrasp_retries
         )
         if found is None:
-            return ReductionResult(
-                False,
-                tuple(segments),
-                idx,
+            why = (
                 f"no feasible regrasp at trajectory step {idx} (blocked by finger "
-                f"{tr.blocking}: {tr.reason})",
-                _stats(trans, regrasps),
+                f"{tr.blocking}: {tr.reason})"
             )
+            if stuck(why):
+                continue
+            return ReductionResult(False, tuple(segments), idx, failure, _stats(trans, regrasps))
         seg, grasp, mode = found
         segments.append(seg)
         q = seg.end.q
         regrasps += 1
         stall += 1
         blind += mode == "any"
-        if regrasps > settings.max_regrasps or stall > settings.max_stall:
+        if regrasps > settings.max_regrasps:
             return ReductionResult(
                 False,
                 tuple(segments),
@@ -211,15 +245,16 @@ def reduce_object_path(
                 f"no progress after {regrasps} regrasps at trajectory step {idx}",
                 _stats(trans, regrasps),
             )
-        if blind > settings.max_blind:
-            return ReductionResult(
-                False,
-                tuple(segments),
-                idx,
+        why = None
+        if stall > settings.max_stall:
+            why = f"no progress after {regrasps} regrasps at trajectory step {idx}"
+        elif blind > settings.max_blind:
+            why = (
                 f"no landing for finger {tr.blocking} at trajectory step {idx} after "
-                f"{blind} moves of other fingers",
-                _stats(trans, regrasps),
+                f"{blind} moves of other fingers"
             )
+        if why is not None and not stuck(why):
+            return ReductionResult(False, tuple(segments), idx, failure, _stats(trans, regrasps))
 
 
 def _regrasp_retrying(
@@ -278,6 +313,8 @@ def _regrasp_one(
         ):
             if f != blocking and mode == "gain" and score <= follow[f]:
                 break  # moving this finger would not help it follow further
+            if f == blocking and score < 2:
+                continue  # it would land and block again at once (score 1: this pose only)
             new = grasp.replace(f, point, normal)
             if mode == "enable":
                 if pool is None:

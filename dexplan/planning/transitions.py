@@ -221,6 +221,7 @@ class Transitions(Landings):
             "regrasps": 0,
             "landing_checks": 0,
             "weak_holds": 0,
+            "backtracks": 0,
         }
         # per finger, its pairs as one geometry data each (checked in one C++ call):
         # the links alone (tracks, landings), and a free finger's moves
