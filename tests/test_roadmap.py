@@ -156,20 +156,41 @@ def test_roadmap_key_depends_on_the_contact_model():
     assert scenario_key(build_context(point)) != scenario_key(build_context(soft))
 
 
-def test_module2_pass_only_brings_the_shared_deadline_forward() -> None:
-    """A module-2 pass cuts the query's shared deadline for its duration, never extends it."""
-    from dexplan.planning.deadline import Deadline
-    from dexplan.planning.roadmap import _cut
+def test_module2_starts_no_attempt_after_its_share_and_never_cuts_one(
+    scenario, monkeypatch
+) -> None:
+    """Attempts start within MODULE2_SHARE of the time left; each runs with the
+    query's own deadline (a fake clock: each attempt takes 10 s of 100)."""
+    from dexplan.planning import roadmap as rm
 
-    shared = Deadline(100.0)
-    with _cut(shared, 50.0):
-        assert shared.at == 50.0
-    assert shared.at == 100.0
-    with _cut(shared, 200.0):
-        assert shared.at == 100.0
-    with pytest.raises(RuntimeError), _cut(shared, 10.0):
-        raise RuntimeError("a failing link attempt")
-    assert shared.at == 100.0
+    ctx = build_context(scenario, seed=1)
+    x0 = start_state(ctx)
+    goal = scenario.goal.object_pose_xyzquat
+    goals = [ctx.sampler.sample_at_pose(goal) for _ in range(5)]
+    assert x0 is not None and all(g is not None for g in goals)
+    roadmap = Roadmap(
+        np.stack([x0, *goals]), np.zeros((0, 2), int), np.zeros((0, 2), int), "P", "k"
+    )
+    query = GsnQuery(x0, lambda x: goal_reached(scenario, x[:POSE_DIM]), lambda: None)
+    clock = [1000.0]
+    ctx.deadline.at = 1100.0  # the query's
+    seen: list[tuple[float, float]] = []
+
+    def slow_failure(ctx_, a, b_pose, via=()):
+        seen.append((clock[0], ctx_.transitions.deadline.at))
+        clock[0] += 10.0
+        return rm.LinkReduction(
+            np.zeros((1, 7)), a[POSE_DIM:], rm.ReductionResult(False, (), 0, "x")
+        )
+
+    monkeypatch.setattr(rm, "link_reduction", slow_failure)
+    monkeypatch.setattr(rm.time, "perf_counter", lambda: clock[0])
+    stats = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
+    res = rm._module2_pass(ctx, roadmap, query, 0, 1100.0, stats, None, [])
+    assert res.path is None
+    # the share ends at 1000 + 0.3 * 100 = 1030: attempts at 1000, 1010, 1020 only
+    assert [t for t, _ in seen] == [1000.0, 1010.0, 1020.0]
+    assert all(at == 1100.0 for _, at in seen)  # none ran with a cut deadline
 
 
 def _link_once(scenario, x0, g):
@@ -215,3 +236,46 @@ def test_a_link_into_the_goal_region_ends_on_the_goal_pose_and_is_kept(scenario)
     assert [(a.kind, a.finger) for a in again.links[0].result.segments] == [
         (a.kind, a.finger) for a in link.result.segments
     ]
+
+
+def test_a_link_via_another_start_grasp_regrasps_onto_it_first(scenario) -> None:
+    """Module 2's second try from the start: regrasps (object fixed) onto another
+    start grasp, then the gaits from there, one reduction from the start's joints."""
+    from dexplan.planning.reduction import grasp_from_state
+    from dexplan.planning.roadmap import link_reduction
+
+    ctx = build_context(scenario, seed=1)
+    x0 = start_state(ctx)
+    assert x0 is not None
+    pose0, n = x0[:POSE_DIM], ctx.hand.n_fingers
+    tr = ctx.transitions
+    grasp0 = grasp_from_state(tr, pose0, x0[POSE_DIM:])
+    alts = ctx.sampler.samples_at_pose(pose0, 8, np.random.default_rng(7))
+    far = [
+        via
+        for via in alts
+        if np.all(
+            np.linalg.norm(
+                grasp_from_state(tr, pose0, via[POSE_DIM:]).points - grasp0.points, axis=1
+            )
+            > 0.005
+        )
+    ]
+    assert far  # a grasp on which every finger has to move
+    via = far[0]
+    target = grasp_from_state(tr, pose0, via[POSE_DIM:])
+    link = link_reduction(ctx, x0, scenario.goal.object_pose_xyzquat, [via])
+    assert link.result.success, link.result.reason
+    segs = link.result.segments
+    np.testing.assert_allclose(segs[0].start.q, x0[POSE_DIM:], atol=1e-12)
+    moves = segs[:n]
+    assert all(g.kind == "regrasp" for g in moves)
+    assert sorted(g.finger for g in moves) == list(range(n))
+    for g in moves:  # the object stays at the start pose while they regrasp
+        for w in g.waypoints:
+            np.testing.assert_allclose(w.object_pose_xyzquat, pose0, atol=1e-12)
+    # then the fingertips touch the other grasp's contacts
+    reached = grasp_from_state(tr, pose0, moves[-1].end.q)
+    np.testing.assert_allclose(reached.points, target.points, atol=1e-6)
+    for a, b in itertools.pairwise(segs):
+        np.testing.assert_allclose(b.start.q, a.end.q, atol=1e-12)

@@ -84,7 +84,9 @@ class ReductionSettings:
             on from there with fresh random landings: where the fingers
             stand when they reach a hard stretch decides whether they pass
             it (allegro_cube: the ring finger blocked at 65 degrees on most
-            grasps that reach it, passed on others).
+            grasps that reach it, passed on others). Gaits stuck within
+            ``backtrack_steps`` of the start give up at once: the start grasp
+            itself is the trouble, which the caller changes (module 2).
         backtrack_steps: see ``backtracks``.
         max_depth: resolution limit of :func:`reduce_gsn_path`: a GSn edge is
             bisected at most this many times (into at most ``2**max_depth`` pieces).
@@ -181,7 +183,11 @@ def reduce_object_path(
     def stuck(reason: str) -> bool:
         """Go back to an earlier checkpoint (True), or give up with ``reason`` (False)."""
         nonlocal segments, idx, q, grasp, regrasps, stall, blind, backtracks, failure
-        if backtracks >= settings.backtracks or trans.deadline.expired():
+        if (
+            backtracks >= settings.backtracks
+            or idx < settings.backtrack_steps  # stuck near the start: another grasp's turn
+            or trans.deadline.expired()
+        ):
             failure = reason
             return False
         backtracks += 1
@@ -397,6 +403,51 @@ def current_follow(
     return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
 
 
+def regrasps_onto(
+    trans: Transitions,
+    pose: FloatArray,
+    q: FloatArray,
+    grasp: GraspContacts,
+    target: GraspContacts,
+    same_contact_m: float = 1e-3,
+) -> tuple[list[Segment], FloatArray, GraspContacts] | None:
+    """Regrasps (one finger at a time, the object fixed at ``pose``) from ``grasp`` onto ``target``.
+
+    Every intermediate grasp keeps all its (n-1) subgrasps force closure; the
+    finger order is chosen greedily, farthest contact first. Fingers already
+    within ``same_contact_m`` of their target stay.
+
+    Args:
+        trans: local planners.
+        pose: (7,) object pose, world frame.
+        q: (nq,) hand joints holding ``grasp``.
+        grasp: the current contacts, object frame.
+        target: the contacts to end on, object frame.
+        same_contact_m: contacts closer than this (m) count as the same.
+
+    Returns:
+        ``(regrasp segments, q, grasp)`` at the end (no segments when nothing
+        had to move), or None when no order works.
+    """
+    gap = np.linalg.norm(grasp.points - target.points, axis=1)
+    todo = [int(f) for f in np.argsort(-gap) if gap[f] > same_contact_m]
+    segs: list[Segment] = []
+    while todo:
+        for f in todo:
+            new = grasp.replace(f, target.points[f], target.normals_out[f])
+            if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
+                continue
+            seg = trans.regrasp(pose, q, grasp, f, target.points[f], target.normals_out[f])
+            if seg is not None:
+                segs.append(seg)
+                q, grasp = seg.end.q, new
+                todo.remove(f)
+                break
+        else:
+            return None
+    return segs, q, grasp
+
+
 def _stats(trans: Transitions, regrasps: int) -> dict[str, int]:
     out = dict(trans.stats)
     out["reduction_regrasps"] = regrasps
@@ -584,31 +635,14 @@ class _EdgeReducer:
     def _regrasps_to(
         self, pose: FloatArray, target: GraspContacts
     ) -> tuple[list[Segment], FloatArray, GraspContacts] | None:
-        """Regrasps (one finger at a time) from the current grasp onto ``target``.
+        """:func:`regrasps_onto` from the current grasp; None also when it is ``target``.
 
-        Every intermediate grasp keeps all its (n-1) subgrasps force closure;
-        the finger order is chosen greedily. None when no order works.
+        (The same grasp: the transfer on it already failed.)
         """
-        trans, grasp, q = self.trans, self.grasp, self.q
-        gap = np.linalg.norm(grasp.points - target.points, axis=1)
-        todo = [int(f) for f in np.argsort(-gap) if gap[f] > self.settings.same_contact_m]
-        if not todo:
-            return None  # same grasp: the transfer on it already failed
-        segs: list[Segment] = []
-        while todo:
-            for f in todo:
-                new = grasp.replace(f, target.points[f], target.normals_out[f])
-                if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
-                    continue
-                seg = trans.regrasp(pose, q, grasp, f, target.points[f], target.normals_out[f])
-                if seg is not None:
-                    segs.append(seg)
-                    q, grasp = seg.end.q, new
-                    todo.remove(f)
-                    break
-            else:
-                return None
-        return segs, q, grasp
+        out = regrasps_onto(
+            self.trans, pose, self.q, self.grasp, target, self.settings.same_contact_m
+        )
+        return None if out is None or not out[0] else out
 
     def _midpoint(
         self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts

@@ -18,12 +18,12 @@ A roadmap can be saved (``.npz``) and loaded to answer later queries
 
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import hashlib
 import itertools
 import json
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,7 +37,6 @@ from dexplan.exceptions import InvalidInputError, RoadmapFileError, shorten
 from dexplan.files import atomic_output
 from dexplan.planning.chart import ChartProblem, ContactChart
 from dexplan.planning.context import PlanningContext
-from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import (
     MULTI_QUERY_PLANNERS,
@@ -51,12 +50,14 @@ from dexplan.planning.reduction import (
     ReductionSettings,
     grasp_from_state,
     reduce_object_path,
+    regrasps_onto,
 )
 from dexplan.planning.roadmap_file import ROADMAP_FORMAT, read_roadmap_arrays
 from dexplan.planning.smoothing import straight_move_ok
 from dexplan.planning.transitions import densify_poses
 from dexplan.pose import quat_angle
 from dexplan.scenario import scenario_description
+from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
 #: Share of the time left that one module-2 pass of a single query may use.
@@ -501,35 +502,25 @@ def _module2_pass(
 ) -> GsnResult:
     """Module 2 of a single query: a few links from the start's component towards the goal.
 
-    It gets :data:`MODULE2_SHARE` of the time left (the shared deadline is
-    brought forward meanwhile), so that module 1 grows its roadmap again when
-    the links fail: a many-DOF hand's link attempt may take seconds.
+    Attempts start within :data:`MODULE2_SHARE` of the time left, so that
+    module 1 grows its roadmap again when the links fail; an attempt that
+    has started runs to its end (or the query's deadline). A many-DOF hand's
+    link takes seconds: cut at the share's end, allegro_cube's first links
+    stopped at 34 of 40 steps after 17 s, and the next pass started again.
     """
     t_now = time.perf_counter()
     link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)
-    with _cut(ctx.transitions.deadline, link_by):
-        return link_query(
-            ctx,
-            roadmap,
-            query,
-            start,
-            link_by,
-            stats,
-            max_attempts=4,
-            geodesic=geodesic,
-            links=links,
-        )
-
-
-@contextlib.contextmanager
-def _cut(shared: Deadline, at: float) -> Iterator[None]:
-    """Bring a shared deadline forward to ``at`` for a while (never later than it was)."""
-    before = shared.at
-    shared.at = min(before, at)
-    try:
-        yield
-    finally:
-        shared.at = before
+    return link_query(
+        ctx,
+        roadmap,
+        query,
+        start,
+        link_by,
+        stats,
+        max_attempts=4,
+        geodesic=geodesic,
+        links=links,
+    )
 
 
 def gsn_problem(
@@ -695,12 +686,17 @@ def try_link(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> bool:
     return link_reduction(ctx, a, b_pose).result.success
 
 
-def link_reduction(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> LinkReduction:
+def link_reduction(
+    ctx: PlanningContext, a: FloatArray, b_pose: FloatArray, via: Sequence[FloatArray] = ()
+) -> LinkReduction:
     """The module-2 link attempt from state ``a`` to the object pose ``b_pose: (7,)``.
 
     The object moves straight (the poses as the planner's reduction
     densifies them: unit quaternions, ``b_pose`` on ``a``'s hemisphere) and
-    finger gaits carry it from ``a``'s grasp.
+    finger gaits carry it from ``a``'s grasp, or, with ``via`` states
+    ``(7 + nq,)`` at ``a``'s object pose, from the grasp of the first of them
+    the hand can regrasp onto with the object fixed
+    (:func:`~dexplan.planning.reduction.regrasps_onto`).
     """
     tr = ctx.transitions
     s = tr.settings
@@ -709,8 +705,22 @@ def link_reduction(ctx: PlanningContext, a: FloatArray, b_pose: FloatArray) -> L
     if float(np.dot(ends[0, 3:], ends[1, 3:])) < 0.0:
         ends[1, 3:] = -ends[1, 3:]
     dense = densify_poses(ends, s.max_step_m, s.max_step_rad)
-    grasp = grasp_from_state(tr, a[:POSE_DIM], a[POSE_DIM:])
-    red = reduce_object_path(tr, dense, a[POSE_DIM:], grasp, ReductionSettings())
+    q, grasp = a[POSE_DIM:], grasp_from_state(tr, a[:POSE_DIM], a[POSE_DIM:])
+    settings = ReductionSettings()
+    moves: list[Segment] = []
+    if len(via):
+        for x in via:
+            target = grasp_from_state(tr, x[:POSE_DIM], x[POSE_DIM:])
+            moved = regrasps_onto(tr, dense[0], q, grasp, target, settings.same_contact_m)
+            if moved is not None:
+                moves, q, grasp = moved
+                break
+        else:
+            why = f"no regrasps onto any of {len(via)} other start grasps"
+            return LinkReduction(dense, q.copy(), ReductionResult(False, (), 0, why))
+    red = reduce_object_path(tr, dense, q, grasp, settings)
+    if moves:
+        red = dataclasses.replace(red, segments=(*moves, *red.segments))
     return LinkReduction(dense, a[POSE_DIM:].copy(), red)
 
 
@@ -734,7 +744,10 @@ def link_query(
 
     Each attempt runs on a random stream of its own (the context's seed and
     the attempt's number), so a link's regrasps do not depend on how many
-    attempts came before within a pass the clock ended. Links into the goal
+    attempts came before within a pass the clock ended. Every second attempt
+    from the start itself first regrasps onto another sampled start grasp
+    (allegro_cube: the gaits from some start grasps stall within a few
+    degrees whatever the landings, from others they turn the cube in seconds). Links into the goal
     region end on ``query.goal_pose`` when given. Successful links are
     appended to ``links`` (the result carries them all).
     """
@@ -766,10 +779,14 @@ def link_query(
                 continue  # the object alone cannot make this move
             attempts += 1
             stats["module2_attempts"] += 1
-            ctx.reseed_local_planners(ctx.seed, 3, int(stats["module2_attempts"]))
+            n = int(stats["module2_attempts"])
+            ctx.reseed_local_planners(ctx.seed, 3, n)
             to_goal = query.goal_pose is not None and int(b) in goal_set
             b_pose = query.goal_pose if to_goal else roadmap.vertices[b][:POSE_DIM]
-            link = link_reduction(ctx, roadmap.vertices[a], b_pose)
+            # every other attempt from the start begins by regrasping onto
+            # another start grasp: gaits that stall do so from some grasps
+            via = _other_grasps(ctx, roadmap.vertices[a], n) if a == start and n % 2 == 0 else []
+            link = link_reduction(ctx, roadmap.vertices[a], b_pose, via)
             if link.result.success:
                 links.append(link)
                 roadmap.add_link(int(a), int(b))
@@ -787,6 +804,16 @@ def link_query(
             None, roadmap, stats, "start and goal are not connected in GSn", tuple(links)
         )
     return GsnResult(roadmap.path_states(path_ids, geodesic), roadmap, stats, links=tuple(links))
+
+
+#: Other start grasps a module-2 attempt may regrasp onto before its gaits.
+OTHER_GRASPS = 8
+
+
+def _other_grasps(ctx: PlanningContext, x: FloatArray, attempt: int) -> list[FloatArray]:
+    """Other valid states at ``x``'s object pose, from a stream of the attempt's own."""
+    rng = np.random.default_rng([ctx.seed, 4, attempt])
+    return ctx.sampler.samples_at_pose(x[:POSE_DIM], OTHER_GRASPS, rng)
 
 
 def _link_candidates(
