@@ -192,6 +192,19 @@ def test_module2_starts_no_attempt_after_its_share_and_never_cuts_one(
     assert [t for t, _ in seen] == [1000.0, 1010.0, 1020.0]
     assert all(at == 1100.0 for _, at in seen)  # none ran with a cut deadline
 
+    # an attempt that ends after the share with a link into the goal region: the path
+    def slow_success(ctx_, a, b_pose, via=()):
+        clock[0] += 40.0
+        return rm.LinkReduction(
+            np.zeros((1, 7)), a[POSE_DIM:], rm.ReductionResult(True, (), 0, None)
+        )
+
+    monkeypatch.setattr(rm, "link_reduction", slow_success)
+    clock[0] = 1000.0
+    res = rm._module2_pass(ctx, roadmap, query, 0, 1100.0, stats, None, [])
+    assert res.path is not None and len(res.links) == 1
+    np.testing.assert_array_equal(res.path[0], x0)
+
 
 def _link_once(scenario, x0, g):
     """Module 2 on a two-vertex roadmap (start, a goal-region state), as the planner runs it."""

@@ -797,6 +797,9 @@ def link_query(
                 break
         if not linked:
             break
+    if path_ids is None and goals:
+        # a link made as the time ran out (an attempt runs to its end)
+        path_ids = roadmap.shortest_path(start, goals)
     stats["module2_time_s"] += time.perf_counter() - t0
     stats["components_after_links"] = roadmap.components()[0]
     if path_ids is None:
