@@ -744,8 +744,9 @@ def link_query(
 
     Each attempt runs on a random stream of its own (the context's seed and
     the attempt's number), so a link's regrasps do not depend on how many
-    attempts came before within a pass the clock ended. Every second attempt
-    from the start itself first regrasps onto another sampled start grasp
+    attempts came before within a pass the clock ended. Every attempt from
+    the start after the query's first one first regrasps onto another
+    sampled start grasp
     (allegro_cube: the gaits from some start grasps stall within a few
     degrees whatever the landings, from others they turn the cube in seconds). Links into the goal
     region end on ``query.goal_pose`` when given. Successful links are
@@ -783,9 +784,9 @@ def link_query(
             ctx.reseed_local_planners(ctx.seed, 3, n)
             to_goal = query.goal_pose is not None and int(b) in goal_set
             b_pose = query.goal_pose if to_goal else roadmap.vertices[b][:POSE_DIM]
-            # every other attempt from the start begins by regrasping onto
+            # after the first, attempts from the start begin by regrasping onto
             # another start grasp: gaits that stall do so from some grasps
-            via = _other_grasps(ctx, roadmap.vertices[a], n) if a == start and n % 2 == 0 else []
+            via = _other_grasps(ctx, roadmap.vertices[a], n) if a == start and n > 1 else []
             link = link_reduction(ctx, roadmap.vertices[a], b_pose, via)
             if link.result.success:
                 links.append(link)
