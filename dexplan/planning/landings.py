@@ -471,7 +471,7 @@ class Landings:
         for c in cand[holds]:
             horizon = int(scores[c]) + max(1, s.follow_stride)
             count, q_land = self.track_score(finger, q, tip_obj[c], nrm[c], future_poses, horizon)
-            if q_land is not None and count > 1:  # it must follow beyond this pose
+            if q_land is not None and count > 0:
                 return True
         return False
 

@@ -319,8 +319,6 @@ def _regrasp_one(
         ):
             if f != blocking and mode == "gain" and score <= follow[f]:
                 break  # moving this finger would not help it follow further
-            if f == blocking and score < 2:
-                continue  # it would land and block again at once (score 1: this pose only)
             new = grasp.replace(f, point, normal)
             if mode == "enable":
                 if pool is None:
