@@ -180,28 +180,28 @@ def reduce_object_path(
     checkpoints: list[tuple[int, int, FloatArray, GraspContacts]] = [(0, 0, q.copy(), grasp)]
     backtracks = 0
 
-    def stuck(reason: str) -> bool:
-        """Go back to an earlier checkpoint (True), or give up with ``reason`` (False)."""
-        nonlocal segments, idx, q, grasp, regrasps, stall, blind, backtracks, failure
+    def backtracked() -> bool:
+        """Go back to an earlier checkpoint (True), or not (False: give up)."""
+        nonlocal segments, idx, q, grasp, regrasps, stall, blind, backtracks
         if (
             backtracks >= settings.backtracks
             or idx < settings.backtrack_steps  # stuck near the start: another grasp's turn
             or trans.deadline.expired()
         ):
-            failure = reason
             return False
         backtracks += 1
         trans.stats["backtracks"] += 1
-        back = [c for c in checkpoints if c[1] <= idx - settings.backtrack_steps] or checkpoints[:1]
-        kept, idx, q, grasp = back[-1]
-        del checkpoints[checkpoints.index(back[-1]) + 1 :]
+        # the latest checkpoint far enough back (checkpoints go forward in idx)
+        limit = idx - settings.backtrack_steps
+        k = max((i for i, c in enumerate(checkpoints) if c[1] <= limit), default=0)
+        kept, idx, q, grasp = checkpoints[k]
+        del checkpoints[k + 1 :]
         segments = segments[:kept]
         q = q.copy()
         regrasps = sum(seg.kind == "regrasp" for seg in segments)
         stall = blind = 0
         return True
 
-    failure = ""
     while True:
         if trans.deadline.expired():
             return ReductionResult(
@@ -234,9 +234,9 @@ def reduce_object_path(
                 f"no feasible regrasp at trajectory step {idx} (blocked by finger "
                 f"{tr.blocking}: {tr.reason})"
             )
-            if stuck(why):
+            if backtracked():
                 continue
-            return ReductionResult(False, tuple(segments), idx, failure, _stats(trans, regrasps))
+            return ReductionResult(False, tuple(segments), idx, why, _stats(trans, regrasps))
         seg, grasp, mode = found
         segments.append(seg)
         q = seg.end.q
@@ -259,8 +259,8 @@ def reduce_object_path(
                 f"no landing for finger {tr.blocking} at trajectory step {idx} after "
                 f"{blind} moves of other fingers"
             )
-        if why is not None and not stuck(why):
-            return ReductionResult(False, tuple(segments), idx, failure, _stats(trans, regrasps))
+        if why is not None and not backtracked():
+            return ReductionResult(False, tuple(segments), idx, why, _stats(trans, regrasps))
 
 
 def _regrasp_retrying(

@@ -746,11 +746,11 @@ def link_query(
     the attempt's number), so a link's regrasps do not depend on how many
     attempts came before within a pass the clock ended. Every attempt from
     the start after the query's first one first regrasps onto another
-    sampled start grasp
-    (allegro_cube: the gaits from some start grasps stall within a few
-    degrees whatever the landings, from others they turn the cube in seconds). Links into the goal
-    region end on ``query.goal_pose`` when given. Successful links are
-    appended to ``links`` (the result carries them all).
+    sampled start grasp (allegro_cube: the gaits from some start grasps
+    stall within a few degrees whatever the landings, from others they turn
+    the cube in seconds). Links into the goal region end on
+    ``query.goal_pose`` when given. Successful links are appended to
+    ``links`` (the result carries them all).
     """
     links = [] if links is None else links
     t0 = time.perf_counter()
