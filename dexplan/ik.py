@@ -242,6 +242,8 @@ class SplitFingerIK:
         self.m = chain.m
         self.rest = 0.5 * (self.lo + self.hi)
         self._lo_tol, self._hi_tol = self.lo - 1e-12, self.hi + 1e-12
+        self._lo_list = [float(x) for x in self._lo_tol]
+        self._hi_list = [float(x) for x in self._hi_tol]
         if free is None:
             self.grid = np.zeros(1)
             self.table = np.zeros(1)
@@ -256,6 +258,7 @@ class SplitFingerIK:
         self._table_geometry = self.geometry(self.table)
         self._near_cache: dict[int, tuple[dict[str, FloatArray], FloatArray]] = {}
         self._grid_geometry = self.geometry(self.grid)
+        self._rows = self._scalar_rows(self._table_geometry) if free is not None else []
 
     # ------------------------------------------------------------ structure
     @classmethod
@@ -303,6 +306,9 @@ class SplitFingerIK:
             [np.einsum("ij,ij->i", x - o, n) for x in (origins[:, i1], origins[:, i2], tip)]
         )
         L1, L2 = j2 - j1, t - j2
+        # the last link (last joint to tip), rigid with L2's link beyond the
+        # second flexion joint: turns by the same in-plane angle
+        last = t - plane(origins[:, -1])
         l1s, l2s = np.einsum("ij,ij->i", L1, L1), np.einsum("ij,ij->i", L2, L2)
         return {
             "o": o,
@@ -312,6 +318,7 @@ class SplitFingerIK:
             "j1": j1,
             "L1": L1,
             "L2": L2,
+            "last": last,
             # per free value constants of the solve (computed once, not per call)
             "l1s": l1s,
             "l2s": l2s,
@@ -452,6 +459,14 @@ class SplitFingerIK:
         solution is found near ``q_prev``, the sampling grid is searched
         (nearest to ``q_prev``).
         """
+        if self._rows:
+            best, near = self._track_scalar(target, q_prev, approach)
+            if best is not None or near is not None:
+                return near if best is None else best
+            # a far target (a landing, not a small step): the whole grid
+            t = np.asarray(target, dtype=float)[None]
+            q, ok = self._nearest(*self._candidates(t, self.grid, self._grid_geometry), q_prev)
+            return q[0] if ok[0] else None
         t = np.asarray(target, dtype=float)[None]
         g, v = self._table_near(q_prev)
         q, ok = self._candidates(t, v, g)
@@ -477,6 +492,125 @@ class SplitFingerIK:
             geometry = {key: val[ks] for key, val in self._table_geometry.items()}
             near = self._near_cache[k0] = (geometry, self.table[ks])
         return near
+
+    def _scalar_rows(self, g: dict[str, FloatArray]) -> list[tuple[float, ...]]:
+        """Per table entry, the solve's constants as Python floats (for :meth:`_track_scalar`).
+
+        Empty when the last link leaves the flexion plane (its direction would
+        not follow from the plane angles); :meth:`solve_near` then uses the
+        vectorised path only.
+        """
+        q = np.zeros((len(self.table), self.m))
+        q[:, self.free] = self.table
+        _, origins, _ = self.chain.forward(q)
+        if np.any(np.abs(np.einsum("ij,ij->i", origins[:, -1] - g["o"], g["n"])) > 1e-9):
+            return []
+        rows = []
+        for k in range(len(self.table)):
+            last = g["last"][k]
+            rows.append(
+                (
+                    *g["o"][k],
+                    *g["a"][k],
+                    *g["b"][k],
+                    *g["n"][k],
+                    *g["j1"][k],
+                    *g["L1"][k],
+                    *g["L2"][k],
+                    g["l1l2s"][k],
+                    g["l12"][k],
+                    g["dphi"][k],
+                    g["s2"][k],
+                    last[0],
+                    last[1],
+                    1.0 / math.hypot(*last),
+                    self.table[k],
+                )
+            )
+        return [tuple(float(x) for x in r) for r in rows]
+
+    def _track_scalar(
+        self, target: FloatArray, q_prev: FloatArray, approach: FloatArray | None
+    ) -> tuple[FloatArray | None, FloatArray | None]:
+        """:meth:`solve_near` on the table entries near ``q_prev``, in scalar arithmetic.
+
+        The same table entries, branches, limits, step bound and scores as
+        the vectorised path (:meth:`_candidates`, then :meth:`_best_posture`
+        and :meth:`_nearest`), with the last link's direction from the plane
+        angles instead of forward kinematics: one target costs a fraction of
+        the NumPy calls' overhead.
+
+        Returns:
+            ``(best, nearest)``: the best posture within the step (None without
+            ``approach`` or when no solution is that near) and the solution
+            nearest ``q_prev`` (None when there is none at these entries).
+        """
+        tx, ty, tz = (float(x) for x in target)
+        ax_, ay_, az_ = (0.0, 0.0, 0.0) if approach is None else (float(x) for x in approach)
+        prev = [float(x) for x in q_prev]
+        ia, i1, i2 = self.sub
+        fr = self.free
+        lo, hi = self._lo_list, self._hi_list
+        step = TRACK_MAX_STEP
+        k0 = int(np.argmin(np.abs(self.table - prev[fr])))
+        top = len(self.table) - 1
+        best_score, best = -math.inf, None
+        near_d, near = math.inf, None
+        pi, two_pi = math.pi, 2.0 * math.pi
+        for d in TRACK_DELTAS:
+            k = min(max(k0 + d, 0), top)
+            (ox, oy, oz, ax, ay, az, bx, by, bz, nx, ny, nz, j1u, j1w, L1u, L1w, L2u, L2w,
+             l1l2s, l12, dphi, s2, lu, lw, inv_last, v) = self._rows[k]  # fmt: skip
+            px, py, pz = tx - ox, ty - oy, tz - oz
+            u = px * ax + py * ay + pz * az
+            pb = px * bx + py * by + pz * bz
+            pn = px * nx + py * ny + pz * nz
+            rho = math.sqrt(pb * pb + pn * pn)
+            app_a = ax_ * ax + ay_ * ay + az_ * az
+            app_b = ax_ * bx + ay_ * by + az_ * bz
+            app_n = ax_ * nx + ay_ * ny + az_ * nz
+            du = u - j1u
+            dv = v - prev[fr]
+            for sgn in (1.0, -1.0):
+                th0 = (math.atan2(sgn * pn, sgn * pb) + pi) % two_pi - pi
+                if not (lo[ia] <= th0 <= hi[ia]):
+                    continue
+                dw = sgn * rho - j1w
+                c = (du * du + dw * dw - l1l2s) / l12
+                if abs(c) > 1.0:
+                    continue
+                acs = math.acos(c)
+                base = math.atan2(dw, du)
+                # the plane's in-plane normal direction w is cos th0 b + sin th0 n
+                app_w = math.cos(th0) * app_b + math.sin(th0) * app_n
+                d0 = th0 - prev[ia]
+                for elbow in (1.0, -1.0):
+                    al2 = elbow * acs - dphi
+                    ca, sa = math.cos(al2), math.sin(al2)
+                    psi = base - math.atan2(L1w + sa * L2u + ca * L2w, L1u + ca * L2u - sa * L2w)
+                    q1 = (psi + pi) % two_pi - pi
+                    q2 = (s2 * al2 + pi) % two_pi - pi
+                    if not (lo[i1] <= q1 <= hi[i1] and lo[i2] <= q2 <= hi[i2]):
+                        continue
+                    d1, d2 = q1 - prev[i1], q2 - prev[i2]
+                    dist = d0 * d0 + d1 * d1 + d2 * d2 + dv * dv
+                    sol = None
+                    if dist < near_d:
+                        sol = [0.0] * self.m
+                        sol[ia], sol[i1], sol[i2], sol[fr] = th0, q1, q2, v
+                        near_d, near = dist, sol
+                    if approach is None or max(abs(d0), abs(d1), abs(d2), abs(dv)) > step:
+                        continue
+                    turn = psi + al2
+                    ct, st = math.cos(turn), math.sin(turn)
+                    align = ((ct * lu - st * lw) * app_a + (st * lu + ct * lw) * app_w) * inv_last
+                    if align - dist > best_score:
+                        if sol is None:
+                            sol = [0.0] * self.m
+                            sol[ia], sol[i1], sol[i2], sol[fr] = th0, q1, q2, v
+                        best_score, best = align - dist, sol
+        clip = lambda x: None if x is None else np.clip(np.array(x), self.lo, self.hi)  # noqa: E731
+        return clip(best), clip(near)
 
     def options_near(
         self, target: FloatArray, q_prev: FloatArray, approach: FloatArray
