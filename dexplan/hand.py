@@ -25,6 +25,7 @@ import pinocchio as pin
 from dexplan.exceptions import DependencyError, InvalidInputError, ModelError, shorten
 from dexplan.files import read_input_file
 from dexplan.ik import FingerChain, SplitFingerIK, batch_dls
+from dexplan.reach import ReachVoxels
 from dexplan.typing import FloatArray, IntArray, as_vector
 from dexplan.urdf import (
     build_models,
@@ -252,6 +253,7 @@ class Hand:
             )
             for i in range(self.n_fingers)
         ]
+        self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -419,6 +421,13 @@ class Hand:
         if split is None:
             return np.zeros((0, len(idx)))
         return split.options_near(p_target_world, q_hand[idx], approach)
+
+    def reach_voxels(self, finger: int) -> ReachVoxels:
+        """Where ``finger``'s fingertip centre can be (built on first use, :mod:`dexplan.reach`)."""
+        voxels = self._reach[finger]
+        if voxels is None:
+            voxels = self._reach[finger] = ReachVoxels.of_finger(self, finger)
+        return voxels
 
     def has_closed_form_ik(self, finger: int) -> bool:
         """True when ``finger`` is solved in closed form (see :meth:`finger_ik`).

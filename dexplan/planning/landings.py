@@ -568,11 +568,14 @@ class Landings:
         """The first ``most`` of candidates ``keep`` whose fingertip centre the finger reaches.
 
         ``tip_obj: (S, 3)`` fingertip centres (object frame) indexed by
-        ``keep``; reached: IK within the joint margin at ``pose``. Solved a
-        chunk at a time, stopping once ``most`` are found (the same
+        ``keep``; reached: IK within the joint margin at ``pose``. Candidates
+        outside the finger's reach voxels (:mod:`dexplan.reach`) are dropped
+        first; the rest are solved a chunk at a time, stopping once ``most`` are found (the same
         candidates as one batch over all of them, for less IK).
         """
         R = self._frames(pose)[0]
+        # outside the finger's reach voxels: not worth an IK solve
+        keep = keep[self.hand.reach_voxels(finger).contains(tip_obj[keep] @ R.T + pose[:3])]
         found: list[np.ndarray] = []
         count = 0
         for lo in range(0, len(keep), _REACH_CHUNK):
@@ -587,10 +590,15 @@ class Landings:
     def _ik_in_margin(self, finger: int, tips: FloatArray) -> tuple[FloatArray, np.ndarray]:
         """IK of ``finger`` to fingertip centres ``tips: (N, 3)`` (world frame), off the limits.
 
+        Targets outside the finger's reach voxels are not solved (not reached).
+
         Returns ``q: (N, m)`` and ``ok: (N,)``: solved and within the joint margin.
         """
-        q, ok = self.hand.finger_ik_batch(finger, tips)
         idx = self.hand.finger_q_index[finger]
+        q = np.zeros((len(tips), len(idx)))
+        ok = self.hand.reach_voxels(finger).contains(tips)
+        if ok.any():
+            q[ok], ok[ok] = self.hand.finger_ik_batch(finger, tips[ok])
         ok &= np.all((q >= self._lo[idx]) & (q <= self._hi[idx]), axis=1)
         return q, ok
 

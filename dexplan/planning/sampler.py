@@ -45,10 +45,6 @@ from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_to_matrix, random_quaternion, slerp
 from dexplan.typing import FloatArray
 
-#: Random configurations whose fingertips fill a finger's reach voxels.
-REACH_SAMPLES = 20000
-#: Reach voxel edge (m).
-REACH_VOXEL = 0.004
 #: Depth (m) a fingertip sphere on a candidate contact may dip into the object
 #: elsewhere: in a concavity tighter than the fingertip it does, and the state
 #: is off GSn by that much per finger. OMPL rejects a start state whose
@@ -192,47 +188,9 @@ class GraspSampler:
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
-        self._voxels = [self._reach_voxels(i) for i in range(hand.n_fingers)] if per_finger else []
         # the rest of a pose's combinations, with their force-closure qualities
         self._pending: list[tuple[FloatArray, float]] = []
         self._pending_left = 0
-
-    def _reach_voxels(self, finger: int) -> tuple[FloatArray, float, np.ndarray]:
-        """Voxels (world frame) the fingertip centre reaches: ``(origin, size, occupied)``.
-
-        Filled by forward kinematics of ``REACH_SAMPLES`` random configurations
-        (fixed seed) and dilated by one voxel; ``occupied`` is a 3-D boolean grid.
-        """
-        hand = self.gsn.hand
-        idx = hand.finger_q_index[finger]
-        rng = np.random.default_rng(1000 + finger)
-        qf = rng.uniform(hand.lower[idx], hand.upper[idx], size=(REACH_SAMPLES, len(idx)))
-        chain = hand._chains[finger]
-        if chain is not None:
-            tips = chain.tips(qf)
-        else:
-            q = hand.neutral.copy()
-            tips = np.empty((len(qf), 3))
-            for k, v in enumerate(qf[:2000]):
-                q[idx] = v
-                tips[k] = hand.fingertip_positions(q)[finger]
-            tips = tips[:2000]
-        size = REACH_VOXEL
-        origin = tips.min(axis=0) - 2 * size
-        ijk = np.floor((tips - origin) / size).astype(np.int64)
-        grid = np.zeros(tuple(ijk.max(axis=0) + 3), dtype=bool)
-        for d in np.ndindex(3, 3, 3):
-            grid[tuple((ijk + np.array(d) - 1).T)] = True
-        return origin, size, grid
-
-    def _reachable(self, finger: int, tips: FloatArray) -> np.ndarray:
-        """(N,) True where fingertip centres ``tips: (N, 3)`` lie in a reached voxel."""
-        origin, size, grid = self._voxels[finger]
-        ijk = np.floor((tips - origin) / size).astype(np.int64)
-        inside = np.all((ijk >= 0) & (ijk < np.array(grid.shape)), axis=1)
-        out = np.zeros(len(tips), dtype=bool)
-        out[inside] = grid[tuple(ijk[inside].T)]
-        return out
 
     def _reach_shell(self, finger: int) -> tuple[FloatArray, float, float]:
         """Centre (first joint origin), min and max reach of a fingertip, estimated by FK."""
@@ -511,7 +469,7 @@ class GraspSampler:
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
-        ok[ok] = self._reachable(i, tips[ok])
+        ok[ok] = self.gsn.hand.reach_voxels(i).contains(tips[ok])
         ok[ok] = self._fits(pts[ok], n_out[ok])
         cand = np.flatnonzero(ok)
         if not len(cand):

@@ -1,0 +1,29 @@
+"""Reach voxels (dexplan.reach): reachable fingertip centres are inside, far ones outside."""
+
+import numpy as np
+import pytest
+
+from dexplan.hand import Hand
+
+
+@pytest.mark.parametrize("name", ["paper", "allegro", "three_finger"])
+def test_reach_voxels_hold_the_reachable_and_only_near_it(name: str) -> None:
+    hand = Hand.builtin(name)
+    rng = np.random.default_rng(5)
+    for i in range(hand.n_fingers):
+        idx = hand.finger_q_index[i]
+        voxels = hand.reach_voxels(i)
+        assert voxels is hand.reach_voxels(i)  # built once
+        # fresh configurations (another seed than the voxels' own), by Pinocchio
+        q = np.tile(hand.neutral, (300, 1))
+        q[:, idx] = rng.uniform(hand.lower[idx] + 0.02, hand.upper[idx] - 0.02, (300, len(idx)))
+        tips = np.array([hand.fingertip_positions(qk)[i] for qk in q])
+        assert voxels.contains(tips).mean() >= 0.99
+        # farther than any fingertip from the finger's base joint: never inside
+        base = hand.joint_origin(int(idx[0]), hand.neutral)
+        reach = np.max(np.linalg.norm(tips - base, axis=1))
+        d = rng.normal(size=(300, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        far = base + d * (reach + 0.05)
+        assert not voxels.contains(far).any()
+        assert not voxels.contains(np.array([[10.0, 0.0, 0.0]])).any()
