@@ -399,16 +399,22 @@ class SplitFingerIK:
         vu = L1[..., 0] + ca * L2[..., 0] - sa * L2[..., 1]
         vw = L1[..., 1] + sa * L2[..., 0] + ca * L2[..., 1]
         ia, i1, i2 = self.sub
+        lo, hi = self._lo_tol, self._hi_tol
+        # each joint's values and limits apart (contiguous arrays), then interleaved
+        qa = _wrap(th0)
+        q1 = _wrap(np.arctan2(dw, du)[..., None] - np.arctan2(vw, vu))
+        q2 = _wrap(g["s2"][:, None, None] * al2)
+        ok = reach & (qa >= lo[ia]) & (qa <= hi[ia])
+        ok = ok[..., None] & (q1 >= lo[i1]) & (q1 <= hi[i1]) & (q2 >= lo[i2]) & (q2 <= hi[i2])
         q = np.empty((N, K, 2, 2, self.m))
-        q[..., ia] = _wrap(th0)[..., None]
-        q[..., i1] = _wrap(np.arctan2(dw, du)[..., None] - np.arctan2(vw, vu))
-        q[..., i2] = _wrap(g["s2"][:, None, None] * al2)
+        q[..., ia] = np.clip(qa, self.lo[ia], self.hi[ia])[..., None]
+        q[..., i1] = np.clip(q1, self.lo[i1], self.hi[i1])
+        q[..., i2] = np.clip(q2, self.lo[i2], self.hi[i2])
         if self.free is not None:
-            q[..., self.free] = v[:, None, None]
-        inside = np.all((q >= self._lo_tol) & (q <= self._hi_tol), axis=-1)
-        ok = (reach[..., None] & inside).reshape(N, 4 * K)
-        np.clip(q, self.lo, self.hi, out=q)
-        return q.reshape(N, 4 * K, self.m), ok
+            f = self.free
+            ok &= ((v >= lo[f]) & (v <= hi[f]))[None, :, None, None]
+            q[..., f] = np.clip(v, self.lo[f], self.hi[f])[:, None, None]
+        return q.reshape(N, 4 * K, self.m), ok.reshape(N, 4 * K)
 
     def solve(
         self,
@@ -434,8 +440,8 @@ class SplitFingerIK:
         self, q: FloatArray, ok: np.ndarray, q_ref: FloatArray | None
     ) -> tuple[FloatArray, np.ndarray]:
         ref = self.rest if q_ref is None else np.asarray(q_ref, dtype=float)
-        ref = np.broadcast_to(ref, (q.shape[0], self.m))
-        d = np.sum((q - ref[:, None, :]) ** 2, axis=2)
+        diff = q - np.broadcast_to(ref, (q.shape[0], self.m))[:, None, :]
+        d = np.einsum("ncm,ncm->nc", diff, diff)
         d[~ok] = np.inf
         best = np.argmin(d, axis=1)
         rows = np.arange(len(q))
