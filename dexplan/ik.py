@@ -654,10 +654,44 @@ class SplitFingerIK:
         return q[rows[int(np.argmax(align - step))]]
 
     def alignment(self, q: FloatArray, approach: FloatArray) -> FloatArray:
-        """Cosine ``(C,)`` between the last link of ``q: (C, m)`` and ``approach: (3,)``."""
-        tip, origins, _ = self.chain.forward(q)
-        d = tip - origins[:, -1]
-        return (d @ approach) / np.linalg.norm(d, axis=1)
+        """Cosines ``(C,)`` of the last link of ``q: (C, m)`` with ``approach: (3,)`` or (C, 3)."""
+        return np.einsum("ij,ij->i", self.directions(q)[0], np.broadcast_to(approach, (len(q), 3)))
+
+    def directions(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Last-link direction and flexion-plane normal of configurations ``q: (C, m)``.
+
+        From the plane angles when every free-joint value lies on the table
+        (solutions of this solver do): the last link turns in the flexion
+        plane by ``q[f1] + s2 q[f2]`` and the plane turns about the axis
+        joint by ``q[a]``; otherwise by forward kinematics.
+
+        Returns:
+            ``last: (C, 3)`` unit vectors from the last joint to the
+            fingertip and ``normal: (C, 3)`` the first flexion axis, world frame.
+        """
+        q = np.asarray(q, dtype=float).reshape(-1, self.m)
+        ia, i1, i2 = self.sub
+        k = None
+        if self.free is not None and self._rows:
+            step = (self.table[-1] - self.table[0]) / (len(self.table) - 1)
+            k = np.rint((q[:, self.free] - self.table[0]) / step).astype(np.int64)
+            k = np.clip(k, 0, len(self.table) - 1)
+            if np.any(np.abs(self.table[k] - q[:, self.free]) > 1e-12):
+                k = None
+        if k is None:
+            tip, origins, axes = self.chain.forward(q)
+            d = tip - origins[:, -1]
+            return d / np.linalg.norm(d, axis=1, keepdims=True), axes[:, i1]
+        g = self._table_geometry
+        a, b, n = g["a"][k], g["b"][k], g["n"][k]
+        th0 = q[:, ia, None]
+        w = np.cos(th0) * b + np.sin(th0) * n  # the plane's in-plane direction after abduction
+        turn = q[:, i1] + g["s2"][k] * q[:, i2]
+        ct, st = np.cos(turn), np.sin(turn)
+        lu, lw = g["last"][k, 0], g["last"][k, 1]
+        last = (ct * lu - st * lw)[:, None] * a + (st * lu + ct * lw)[:, None] * w
+        last /= np.hypot(lu, lw)[:, None]
+        return last, np.cos(th0) * n - np.sin(th0) * b
 
 
 def planar_branches(solver, targets: FloatArray) -> tuple[FloatArray, np.ndarray, FloatArray]:

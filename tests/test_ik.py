@@ -164,6 +164,23 @@ def test_scalar_tracking_equals_the_vectorised_path(name: str) -> None:
         assert found > 300
 
 
+def test_directions_match_forward_kinematics() -> None:
+    """SplitFingerIK.directions from the plane angles equals FK's last link and flexion axis."""
+    hand = Hand.builtin("allegro")
+    rng = np.random.default_rng(3)
+    for i in range(hand.n_fingers):
+        split = hand._split_ik[i]
+        q = _random_q(hand, i, 200, seed=10 + i)
+        on_table = q.copy()
+        on_table[:, split.free] = split.table[rng.integers(0, len(split.table), len(q))]
+        for qs in (on_table, q):  # the second: off the table, by FK
+            last, normal = split.directions(qs)
+            tip, origins, axes = split.chain.forward(qs)
+            d = tip - origins[:, -1]
+            np.testing.assert_allclose(last, d / np.linalg.norm(d, axis=1)[:, None], atol=1e-12)
+            np.testing.assert_allclose(normal, axes[:, split.sub[1]], atol=1e-12)
+
+
 def test_finger_ik_nearest_to_q_init() -> None:
     """Hand.finger_ik on a redundant finger returns the solution nearest q_init."""
     hand = Hand.builtin("allegro")

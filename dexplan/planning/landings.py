@@ -161,7 +161,7 @@ class Landings:
         if normals_obj is not None and split is not None and limit is not None and ok.any():
             inward = np.stack([-normals_obj @ R.T for R in Rs]).reshape(-1, 3)
             rows = np.flatnonzero(ok)
-            axes = split.chain.forward(q[rows])[2][:, split.sub[1]]  # flexion-plane normals
+            axes = split.directions(q[rows])[1]  # flexion-plane normals
             off = np.einsum("ij,ij->i", axes, inward[rows])
             ok[rows] = np.sqrt(np.maximum(0.0, 1.0 - off * off)) >= limit
         return ok.reshape(P, C)
@@ -656,9 +656,8 @@ class Landings:
         idx = hand.finger_q_index[finger]
         ok &= np.all((cands >= self._lo[idx]) & (cands <= self._hi[idx]), axis=2)
         C, A, m = cands.shape
-        tip, origins, _ = split.chain.forward(cands.reshape(-1, m))
-        d = (tip - origins[:, -1]).reshape(C, A, 3)
-        cos = np.einsum("caj,cj->ca", d, inward) / np.linalg.norm(d, axis=2)
+        d = split.directions(cands.reshape(-1, m))[0].reshape(C, A, 3)
+        cos = np.einsum("caj,cj->ca", d, inward)
         cos[~ok] = -np.inf
         return cos.max(axis=1)
 
