@@ -94,7 +94,7 @@ class TransitionSettings:
     max_step_rad: float = 0.04
     joint_margin: float = 0.02
     lift_height: float = 0.008
-    landing_candidates: int = 1200
+    landing_candidates: int = 600
     landing_edges: int = 300
     via_points: int = 96
     tip_clearance: float = 0.004
