@@ -60,12 +60,17 @@ def test_combinations_keep_fingertips_apart(ctx) -> None:
     pose = ctx.scenario.start.object_pose_xyzquat
     pools = sampler.finger_pools(pose)
     assert pools is not None
-    combos = sampler.combinations(pose, pools)
+    found = sampler.combinations(pose, pools)
+    combos = found.states
     assert 1 <= len(combos) <= sampler.settings.combinations
     gap = 2 * hand.fingertip_radius + sampler.settings.tip_clearance
-    for x in combos:
+    for k, x in enumerate(combos):
         np.testing.assert_array_equal(x[:POSE_DIM], pose)
         assert ctx.gsn.residual(x) < 1e-6
+        # the contacts handed to the batched force closure are the state's own
+        p, n = ctx.gsn.contacts(x)
+        np.testing.assert_allclose(found.points_obj[k], p, atol=1e-9)
+        np.testing.assert_allclose(found.normals_in_obj[k], n, atol=1e-9)
         tips = hand.fingertip_positions(x[POSE_DIM:])
         d = np.linalg.norm(tips[:, None] - tips[None], axis=2)
         assert np.all(d[np.triu_indices(len(tips), 1)] >= gap - 1e-9)

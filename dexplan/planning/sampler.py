@@ -112,6 +112,25 @@ class SamplerSettings:
     grasps_per_pose: int = 24
 
 
+@dataclass(frozen=True)
+class Combinations:
+    """Grasps combined from one pose's per-finger pools (:meth:`GraspSampler.combinations`).
+
+    Attributes:
+        states: ambient states ``(7 + nq,)``, most promising first.
+        points_obj: (M, k, 3) their contact points, object frame (contact
+            fingers in ``GraspSubspace.contact_ids`` order).
+        normals_in_obj: (M, k, 3) inward unit surface normals there, object frame.
+    """
+
+    states: list[FloatArray]
+    points_obj: FloatArray
+    normals_in_obj: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.states)
+
+
 @dataclass
 class SamplerStats:
     """Counters of the sampler: attempts, valid samples, IK failures, time.
@@ -371,14 +390,19 @@ class GraspSampler:
                     self.stats.attempts += 1
                     budget -= 1
                     continue
-                combos = self.combinations(pose_k, pools)
+                found = self.combinations(pose_k, pools)
+                combos = found.states
                 if not combos:
                     self.stats.attempts += 1
                     budget -= 1
                     continue
                 # force closure, the costliest check, decides most rejections:
                 # one batch for the pose's combinations
-                qualities = self.validity.grasp_qualities(combos).tolist()
+                # (from the pools' contacts, which the states' own contacts
+                # equal to rounding: no forward kinematics and projection again)
+                qualities = self.validity.contact_qualities(
+                    found.points_obj, found.normals_in_obj
+                ).tolist()
                 for k, x in enumerate(combos[:budget]):
                     if self.deadline.expired():
                         return out
@@ -545,7 +569,7 @@ class GraspSampler:
 
     def combinations(
         self, pose_xyzquat: FloatArray, pools: dict[int, tuple[FloatArray, FloatArray, FloatArray]]
-    ) -> list[FloatArray]:
+    ) -> Combinations:
         """Grasps combined from per-finger pools, most promising first (validity not checked).
 
         Draws ``combination_draws`` random combinations (one pool entry per
@@ -557,7 +581,7 @@ class GraspSampler:
         random joint values.
 
         Returns:
-            Up to ``combinations`` ambient states ``(7 + nq,)``.
+            Up to ``combinations`` ambient states ``(7 + nq,)`` and their contacts.
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         fingers = list(pools)
@@ -571,9 +595,9 @@ class GraspSampler:
         for a in range(len(fingers)):
             for b in range(a + 1, len(fingers)):
                 ok &= np.linalg.norm(tips[:, a] - tips[:, b], axis=1) >= gap
-        pick, normals = pick[ok], normals[ok]
+        pick, normals, tips = pick[ok], normals[ok], tips[ok]
         held = ~self._cannot_hold(normals)
-        pick, normals = pick[held], normals[held]
+        pick, normals, tips = pick[held], normals[held], tips[held]
         k = len(fingers)
         total = normals.sum(axis=1)
         if k >= 3:
@@ -583,6 +607,7 @@ class GraspSampler:
         else:
             score = np.linalg.norm(total, axis=1) / max(k, 1)
         out: list[FloatArray] = []
+        rows: list[int] = []
         seen: set[bytes] = set()
         for row in np.argsort(score, kind="stable"):
             key = pick[row].tobytes()
@@ -595,4 +620,9 @@ class GraspSampler:
             for j, i in enumerate(fingers):
                 q[hand.finger_q_index[i]] = pools[i][2][pick[row, j]]
             out.append(np.concatenate([pose_xyzquat[:POSE_DIM], q]))
-        return out
+            rows.append(int(row))
+        R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
+        n_w = normals[rows].reshape(-1, len(fingers), 3)
+        tips_w = tips[rows].reshape(n_w.shape)
+        points = (tips_w - hand.fingertip_radius * n_w - pose_xyzquat[:3]) @ R
+        return Combinations(out, points, -(n_w @ R))

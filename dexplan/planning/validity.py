@@ -240,16 +240,30 @@ class GraspValidity:
             state (the same decision at the margin; values equal up to the pair
             solver's tolerance), for :meth:`check`'s ``fc_quality``.
         """
-        s = self.settings
         contacts = [self.gsn.contacts(x) for x in xs]
-        if not s.subgrasps or not xs:
-            return np.array([self.grasp_quality(p, n) for p, n in contacts])
+        k = len(self.gsn.contact_ids)
+        return self.contact_qualities(
+            np.array([p for p, _ in contacts]).reshape(-1, k, 3),
+            np.array([n for _, n in contacts]).reshape(-1, k, 3),
+        )
+
+    def contact_qualities(self, points_obj: FloatArray, normals_in_obj: FloatArray) -> FloatArray:
+        """:meth:`grasp_quality` of many contact sets, in one batch.
+
+        Args:
+            points_obj: (M, k, 3) contact points, object frame.
+            normals_in_obj: (M, k, 3) inward unit normals there, object frame.
+
+        Returns:
+            ``(M,)`` qualities (see :meth:`grasp_qualities`).
+        """
+        s = self.settings
+        if not s.subgrasps or not len(points_obj):
+            return np.array(
+                [self.grasp_quality(p, n) for p, n in zip(points_obj, normals_in_obj, strict=True)]
+            )
         return min_subgrasp_quality_batch(
-            np.array([p for p, _ in contacts]),
-            np.array([n for _, n in contacts]),
-            s.mu,
-            torque_scale=self.torque_scale,
-            **s.quality_args(),
+            points_obj, normals_in_obj, s.mu, torque_scale=self.torque_scale, **s.quality_args()
         )
 
     def check(self, x: FloatArray, fc_quality: float | None = None) -> Verdict:
