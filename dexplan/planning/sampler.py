@@ -399,9 +399,11 @@ class GraspSampler:
                 # force closure, the costliest check, decides most rejections:
                 # one batch for the pose's combinations
                 # (from the pools' contacts, which the states' own contacts
-                # equal to rounding: no forward kinematics and projection again)
+                # equal to rounding: no forward kinematics and projection
+                # again); grasps the certified bounds leave undecided are
+                # skipped, not solved exactly
                 qualities = self.validity.contact_qualities(
-                    found.points_obj, found.normals_in_obj
+                    found.points_obj, found.normals_in_obj, exact=False
                 ).tolist()
                 for k, x in enumerate(combos[:budget]):
                     if self.deadline.expired():
@@ -467,51 +469,84 @@ class GraspSampler:
         """
         self.stats.pools += 1
         R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
+        t = pose_xyzquat[:3]
         q = self.gsn.hand.neutral.copy()
         M_obj = pose_to_se3(pose_xyzquat)
-        pools = {}
+        # every finger's candidate contacts first (cheap): a pose where some
+        # finger reaches none is dropped before any IK or collision check
+        cands = {}
         for i in self.gsn.contact_ids:
-            pool = self._finger_pool(i, R, pose_xyzquat[:3], q, M_obj)
+            cands[i] = self._pool_candidates(i, R, t)
+            if cands[i] is None:
+                self.stats.ik_failures += 1
+                return None
+        pools = {}
+        # fewest candidates first: the pool most likely to come out empty
+        for i in sorted(cands, key=lambda f: len(cands[f][0])):
+            pool = self._finger_pool(i, *cands[i], R, t, q, M_obj)
             if pool is None:
                 self.stats.ik_failures += 1
                 return None
             pools[i] = pool
-        return pools
+        return {i: pools[i] for i in self.gsn.contact_ids}
 
-    def _finger_pool(
-        self, i: int, R: FloatArray, t: FloatArray, q: FloatArray, M_obj: pin.SE3
-    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
-        """One finger's pool at object rotation ``R: (3, 3)``, position ``t: (3,)`` (world).
+    def _pool_candidates(
+        self, i: int, R: FloatArray, t: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """Finger ``i``'s candidate contacts at object rotation ``R``, position ``t`` (world).
 
-        ``q: (nq,)`` a scratch hand configuration (its other fingers do not
-        matter: only this finger's pairs with the palm, the object and the
-        obstacles are checked). None when no candidate works.
+        Sampled surface points whose fingertip centre lies in the finger's
+        reach shell and voxels, facing the finger, where the fingertip fits.
+
+        Returns:
+            ``(tips, normals)``: (C, 3) fingertip centres and outward normals
+            (world frame), or None when there is none.
         """
-        hand, s, rng = self.gsn.hand, self.settings, self.rng
-        world = self.validity.world
-        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, rng, self._edges[1])
+        hand, s = self.gsn.hand, self.settings
+        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, self.rng, self._edges[1])
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
-        ok[ok] = self.gsn.hand.reach_voxels(i).contains(tips[ok])
+        ok[ok] = hand.reach_voxels(i).contains(tips[ok])
         ok[ok] = self._fits(pts[ok], n_out[ok])
-        cand = np.flatnonzero(ok)
-        if not len(cand):
+        if not ok.any():
             return None
-        q_sol, solved = hand.finger_ik_candidates(i, tips[cand])
+        return tips[ok], n_w[ok]
+
+    def _finger_pool(
+        self,
+        i: int,
+        tips: FloatArray,
+        n_w: FloatArray,
+        R: FloatArray,
+        t: FloatArray,
+        q: FloatArray,
+        M_obj: pin.SE3,
+    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """One finger's pool from its candidates (:meth:`_pool_candidates`).
+
+        ``tips, n_w: (C, 3)`` the candidates' fingertip centres and outward
+        normals (world frame); ``R: (3, 3)``, ``t: (3,)`` the object's rotation and position
+        (world); ``q: (nq,)`` a scratch hand configuration (its other fingers
+        do not matter: only this finger's pairs with the palm, the object and
+        the obstacles are checked). None when no candidate works.
+        """
+        hand, s, rng = self.gsn.hand, self.settings, self.rng
+        world = self.validity.world
+        cand = np.arange(len(tips))
+        q_sol, solved = hand.finger_ik_candidates(i, tips)
         idx = hand.finger_q_index[i]
         # off the limits: a finger at a limit cannot follow the object
         m = s.joint_margin
         solved &= np.all((q_sol >= hand.lower[idx] + m) & (q_sol <= hand.upper[idx] - m), axis=2)
         clearance = self._link_clearance(i, q_sol, solved, R, t)
+        # per contact, the solutions whose links stay farthest from the object
+        # first (one sort for all rows; unsolved ones last, not tried)
+        order = np.argsort(np.where(solved, -clearance, np.inf), axis=1, kind="stable")
+        tries = np.minimum(solved.sum(axis=1), s.solutions_per_contact)
         keep_c, keep_q = [], []
         for row in rng.permutation(len(cand)):
-            options = np.flatnonzero(solved[row])
-            if not len(options):
-                continue
-            # the solutions whose links stay farthest from the object first
-            options = options[np.argsort(-clearance[row, options], kind="stable")]
-            for opt in options[: s.solutions_per_contact]:
+            for opt in order[row, : tries[row]]:
                 q[idx] = q_sol[row, opt]
                 if world.pairs_collide(self._finger_data[i], q, M_obj):
                     self.stats.finger_rejections += 1
@@ -588,16 +623,18 @@ class GraspSampler:
         sizes = np.array([len(pools[i][0]) for i in fingers])
         M = s.combination_draws
         pick = (rng.random((M, len(fingers))) * sizes).astype(np.int64)
-        tips = np.stack([pools[i][0][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
-        normals = np.stack([pools[i][1][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
+        # fingertips apart: each pair of pools' distances once, then looked up
         gap = 2 * hand.fingertip_radius + s.tip_clearance
         ok = np.ones(len(pick), dtype=bool)
         for a in range(len(fingers)):
             for b in range(a + 1, len(fingers)):
-                ok &= np.linalg.norm(tips[:, a] - tips[:, b], axis=1) >= gap
-        pick, normals, tips = pick[ok], normals[ok], tips[ok]
+                ta, tb = pools[fingers[a]][0], pools[fingers[b]][0]
+                apart = np.linalg.norm(ta[:, None] - tb[None], axis=2) >= gap
+                ok &= apart[pick[:, a], pick[:, b]]
+        pick = pick[ok]
+        normals = np.stack([pools[i][1][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
         held = ~self._cannot_hold(normals)
-        pick, normals, tips = pick[held], normals[held], tips[held]
+        pick, normals = pick[held], normals[held]
         k = len(fingers)
         total = normals.sum(axis=1)
         if k >= 3:
@@ -606,7 +643,6 @@ class GraspSampler:
             score = sub.max(axis=1)
         else:
             score = np.linalg.norm(total, axis=1) / max(k, 1)
-        out: list[FloatArray] = []
         rows: list[int] = []
         seen: set[bytes] = set()
         for row in np.argsort(score, kind="stable"):
@@ -614,15 +650,16 @@ class GraspSampler:
             if key in seen:
                 continue
             seen.add(key)
-            if len(out) >= s.combinations:
+            if len(rows) >= s.combinations:
                 break
-            q = rng.uniform(hand.lower, hand.upper)
-            for j, i in enumerate(fingers):
-                q[hand.finger_q_index[i]] = pools[i][2][pick[row, j]]
-            out.append(np.concatenate([pose_xyzquat[:POSE_DIM], q]))
             rows.append(int(row))
+        # free fingers at random joint values (one draw, as one per grasp would give)
+        q = rng.uniform(hand.lower, hand.upper, size=(len(rows), len(hand.lower)))
+        for j, i in enumerate(fingers):
+            q[:, hand.finger_q_index[i]] = pools[i][2][pick[rows, j]]
+        out = [np.concatenate([pose_xyzquat[:POSE_DIM], qk]) for qk in q]
         R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
-        n_w = normals[rows].reshape(-1, len(fingers), 3)
-        tips_w = tips[rows].reshape(n_w.shape)
+        n_w = normals[rows]
+        tips_w = np.stack([pools[i][0][pick[rows, j]] for j, i in enumerate(fingers)], axis=1)
         points = (tips_w - hand.fingertip_radius * n_w - pose_xyzquat[:3]) @ R
-        return Combinations(out, points, -(n_w @ R))
+        return Combinations(out, points.reshape(-1, k, 3), -(n_w @ R).reshape(-1, k, 3))
