@@ -11,6 +11,10 @@ Run with -j 1 discipline (one process, nothing else heavy on the machine)::
 
     python scripts/bench_sampler.py                      # paper and Allegro spheres
     python scripts/bench_sampler.py dexplan/data/scenarios/allegro_cube.toml --seconds 20
+    python scripts/bench_sampler.py --seconds 8 --seeds 5  # median valid/s over seeds 1-5
+
+With ``--seeds N`` a row gives the median valid samples per second over the
+seeds (and their range) and the counts summed over them.
 
 It only uses the public planning context, so it also runs against older
 checkouts (``PYTHONPATH=/path/to/old/checkout python scripts/bench_sampler.py``),
@@ -21,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import time
 from pathlib import Path
 
@@ -52,6 +57,7 @@ def bench(path: str, seconds: float, seed: int) -> dict[str, object]:
         "valid_per_s": round(st.samples_per_second, 1),
         "valid_per_attempt": round(st.valid_fraction, 4),
         "validity_checked": vs.checked,
+        "validity_valid": vs.valid,
         "valid_per_check": round(vs.valid / vs.checked, 4) if vs.checked else 0.0,
         "rejected": dict(vs.rejected),
         "sampler": st.as_dict(),
@@ -63,30 +69,46 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scenarios", nargs="*", default=list(DEFAULT))
     ap.add_argument("--seconds", type=float, default=10.0, help="sampling time per scenario")
-    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=1, help="first seed")
+    ap.add_argument(
+        "--seeds", type=int, default=1, help="seeds per scenario (--seed, --seed + 1, ...)"
+    )
     ap.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
     args = ap.parse_args()
-    rows = [bench(p, args.seconds, args.seed) for p in args.scenarios]
+    seeds = range(args.seed, args.seed + args.seeds)
+    runs = [[bench(p, args.seconds, s) for s in seeds] for p in args.scenarios]
     if args.json:
-        for r in rows:
-            print(json.dumps(r))
+        for per_seed in runs:
+            for r in per_seed:
+                print(json.dumps(r))
         return
     print(
-        "| scenario | valid/s | valid/attempt | attempts | checks | valid/check "
+        "| scenario | valid/s (median, range) | valid/attempt | attempts | checks | valid/check "
         "| rejected: joint_limits / collision / force_closure / bounds | IK failures |"
     )
     print("|---|---|---|---|---|---|---|---|")
-    for r in rows:
-        rej = r["rejected"]
-        assert isinstance(rej, dict)
-        sampler = r["sampler"]
-        assert isinstance(sampler, dict)
+    for per_seed in runs:
+        rates = [float(r["valid_per_s"]) for r in per_seed]  # type: ignore[arg-type]
+        rate = f"{statistics.median(rates):.1f}"
+        if len(rates) > 1:
+            rate += f" ({min(rates):.0f}-{max(rates):.0f})"
+        # the counts summed over the seeds
+        tot: dict[str, float] = {}
+        for r in per_seed:
+            rej, sampler = r["rejected"], r["sampler"]
+            assert isinstance(rej, dict) and isinstance(sampler, dict)
+            for key, val in [*rej.items(), ("ik_failures", sampler.get("ik_failures", 0))]:
+                tot[key] = tot.get(key, 0) + val
+            for key in ("attempts", "validity_checked", "validity_valid", "valid"):
+                tot[key] = tot.get(key, 0) + float(r[key])  # type: ignore[arg-type]
+        checks = tot["validity_checked"]
         print(
-            f"| {r['scenario']} | {r['valid_per_s']} | {r['valid_per_attempt']} | {r['attempts']} "
-            f"| {r['validity_checked']} | {r['valid_per_check']} "
-            f"| {rej.get('joint_limits', 0)} / {rej.get('collision', 0)} / "
-            f"{rej.get('force_closure', 0)} / {rej.get('bounds', 0)} "
-            f"| {sampler.get('ik_failures', 0)} |"
+            f"| {per_seed[0]['scenario']} | {rate} | {tot['valid'] / max(tot['attempts'], 1):.4f} "
+            f"| {int(tot['attempts'])} | {int(checks)} "
+            f"| {tot['validity_valid'] / max(checks, 1):.4f} "
+            f"| {int(tot.get('joint_limits', 0))} / {int(tot.get('collision', 0))} / "
+            f"{int(tot.get('force_closure', 0))} / {int(tot.get('bounds', 0))} "
+            f"| {int(tot.get('ik_failures', 0))} |"
         )
 
 

@@ -266,14 +266,19 @@ def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> No
 def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
     """When every reduction of the GSn path fails early, module 1 explores again.
 
-    cube_post seed 20: the slerp between two GSn states clips the post, so both
+    cube_obstacle seed 11 (cube_post seed 20 until the sampler's settings
+    changed): the slerp between two GSn states clips the obstacle, so both
     gait reductions stop at once (the object itself collides) and the
-    edge-by-edge one hits its bisection limit; the query used to end
-    ``reduction_failed`` after about 1 s of its 60 s.
+    edge-by-edge one hits its bisection limit; such a query used to end
+    ``reduction_failed`` after about 1 s of its time limit.
     """
-    scenario = load_scenario(builtin_scenario_path("suite/cube_post"))
-    res = plan(scenario, seed=20)
+    scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
+    events = []
+    res = plan(scenario, seed=11, progress=events.append)
     assert res.solved, res.message
     assert res.stats.explorations == 2
+    messages = [e.message for e in events]
+    again = next(i for i, m in enumerate(messages) if m.startswith("exploring GSn again"))
+    assert any("object_collision" in m for m in messages[:again])
     doc = build_plan_document(scenario, build_hand(scenario), res)
     assert verify_plan(doc).ok

@@ -106,10 +106,10 @@ class SamplerSettings:
     pool_candidates: int = 256
     pool_edges: int = 64
     solutions_per_contact: int = 3
-    combinations: int = 40
+    combinations: int = 96
     combination_draws: int = 4000
     joint_margin: float = 0.03
-    grasps_per_pose: int = 24
+    grasps_per_pose: int = 64
 
 
 @dataclass(frozen=True)
