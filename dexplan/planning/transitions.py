@@ -107,7 +107,7 @@ class TransitionSettings:
     landing_alignment: float | None = 0.4
     tracked_landings: int = 16
     landing_reachable: int = 96
-    tracked_landings_simple: int = 4
+    tracked_landings_simple: int = 8
 
 
 @dataclass(frozen=True)
