@@ -1,6 +1,7 @@
 """The reduction property edge by edge (bisection) and the planner's reduction choice."""
 
 import copy
+import functools
 import itertools
 
 import numpy as np
@@ -8,6 +9,7 @@ import pytest
 
 from dexplan.exceptions import InvalidInputError
 from dexplan.plan_file import build_plan_document, verify_plan
+from dexplan.planning import sampler as sampler_module
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state
@@ -20,6 +22,27 @@ from dexplan.scenario import builtin_scenario_path, default_scenario, load_scena
 @pytest.fixture(scope="module")
 def scenario():
     return default_scenario()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _instance_sampler():
+    """Sampler settings under which these tests' instances show what they check.
+
+    The tests below check properties of particular reductions (a 180-degree
+    edge that needs bisection and then succeeds, a coarse GSn path of 3 or
+    more states); with the sampler's defaults (96 combinations a pose, 64
+    grasps from one pose) seed 1 draws a 180-degree edge that 5 bisections
+    do not reduce and seed 3 a GSn path of 2 states. With 40 combinations
+    and 24 grasps a pose (the earlier defaults) they are as the tests need.
+    """
+    original = sampler_module.SamplerSettings
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(
+            sampler_module,
+            "SamplerSettings",
+            functools.partial(original, combinations=40, grasps_per_pose=24),
+        )
+        yield
 
 
 @pytest.fixture(scope="module")
@@ -181,7 +204,7 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
     scenario, start_and_goal, monkeypatch, retries: int, backtracks: int
 ) -> None:
     """A regrasp search that finds nothing runs again ``regrasp_retries`` times, then the
-    gaits go back ``backtracks`` times (here to the start: no transfer moved the object)."""
+    gaits go back ``backtracks`` times (to the latest checkpoint: ``backtrack_steps`` 0)."""
     from dexplan.planning import reduction
     from dexplan.planning.transitions import densify_poses
 
@@ -202,7 +225,8 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
         dense,
         x0[POSE_DIM:],
         grasp,
-        ReductionSettings(regrasp_retries=retries, backtracks=backtracks),
+        # backtrack_steps=0: go back even when stuck within the first steps
+        ReductionSettings(regrasp_retries=retries, backtracks=backtracks, backtrack_steps=0),
     )
     assert not red.success
     assert red.reason is not None and red.reason.startswith("no feasible regrasp")
@@ -291,7 +315,7 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
         assert red.reason.startswith("no progress after") and len(calls) == 8
     # with backtracks, each run of them starts again from the last checkpoint
     calls.clear()
-    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=2)
+    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=2, backtrack_steps=0)
     red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
     assert not red.success and red.stats["backtracks"] == 2
     assert len(calls) == 3 * (4 if mode == "any" else 8)
@@ -358,3 +382,28 @@ def test_stuck_gaits_go_back_to_an_earlier_transfer_and_carry_on(
             b.start.object_pose_xyzquat, a.end.object_pose_xyzquat, atol=1e-12
         )
     assert quat_angle(res.segments[-1].end.object_pose_xyzquat[3:], poses[-1][3:]) < 1e-9
+
+
+def test_densified_quaternions_keep_their_sign() -> None:
+    """A pose given with the other quaternion sign comes out negated, not jumped to.
+
+    Consecutive output quaternions never point into opposite hemispheres, so
+    a transfer ends on the sign the next segment starts from (the plan
+    verifier compares poses as written: a regrasp at ``-q`` after a transfer
+    ending at ``q`` broke continuity in an edge-by-edge plan).
+    """
+    from dexplan.pose import quat_from_axis_angle
+
+    q1 = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), 0.6)
+    q2 = quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), 0.9)
+    poses = np.array(
+        [
+            [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.1, *(-q1)],  # the same rotation as q1, other sign
+            [0.01, 0.0, 0.1, *q2],
+        ]
+    )
+    dense = densify_poses(poses, 0.008, 0.04)
+    dots = np.einsum("ij,ij->i", dense[:-1, 3:], dense[1:, 3:])
+    assert np.all(dots > 0.99)
+    assert quat_angle(dense[-1, 3:], q2) < 1e-9

@@ -495,6 +495,12 @@ def reduce_gsn_path(
     """
     if len(poses) != len(grasps):
         raise InvalidInputError(f"{len(poses)} poses but {len(grasps)} contact sets")
+    # quaternion signs continuous along the path: a transfer ends on the sign
+    # its slerp arrives with, and the next edge's regrasps must start there
+    poses = np.array(poses, dtype=float)
+    for k in range(1, len(poses)):
+        if float(np.dot(poses[k - 1, 3:], poses[k, 3:])) < 0.0:
+            poses[k, 3:] *= -1.0
     reducer = _EdgeReducer(trans, settings or ReductionSettings(), deadline, q_start, grasps[0])
     for k in range(len(poses) - 1):
         if not reducer.whole_edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1]):

@@ -23,7 +23,6 @@ task space so the fingertip leaves and meets the surface squarely.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -161,10 +160,13 @@ def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> 
 
     Returns:
         (P', 7) poses, straight line in position and slerp in orientation
-        between the given ones.
+        between the given ones, the quaternions' signs continuous (each
+        interpolation starts from the previous output, so a given pose whose
+        quaternion has the other sign comes out negated, the same rotation).
     """
     out = [poses[0]]
-    for a, b in itertools.pairwise(poses):
+    for b in poses[1:]:
+        a = out[-1]
         d = float(np.linalg.norm(b[:3] - a[:3]))
         ang = quat_angle(a[3:], b[3:])
         k = max(1, math.ceil(max(d / max_step_m, ang / max_step_rad)))
