@@ -29,7 +29,7 @@ PKG = ROOT / "dexplan"
 LAYERS: dict[str, int] = {
     "exceptions": 0, "typing": 0, "files": 0, "pose": 0, "segments": 0, "native_output": 0,
     "hand": 1, "urdf": 1, "ik": 1, "objects": 1, "collision": 1, "grasp": 1, "scenario": 1,
-    "goals": 1, "grip": 1,
+    "goals": 1, "grip": 1, "reach": 1,
     "plan_file": 2, "plan_schema": 2, "plan_verify": 2,
     "planning": 3,
     "api": 4, "timing": 4, "forces": 4, "replay": 4, "viz": 4, "bench": 4, "cli": 4,
