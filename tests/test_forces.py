@@ -152,7 +152,8 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
     (``fingertip_contact``); the closest point of the edge point itself names
     one face's normal instead, and forces in that face's cone are outside the
     edge contact's cone (the planner's hold check then judged holding grasps
-    unable to hold the object at all). box_tilt90 seed 1 lands fingers on edges.
+    unable to hold the object at all). box_tilt90 seed 6 lands fingers on edges
+    (seed 1 did until the sampler's settings changed; seeds 1-5 now load no edge contact).
     """
     from dexplan import cli
     from dexplan.objects.fingertip import fingertip_contact
@@ -161,7 +162,7 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
 
     path = tmp_path / "plan.json"
     scenario = builtin_scenario_path("suite/box_tilt90")
-    assert cli.run(["plan", str(scenario), "--seed", "1", "-q", "-o", str(path)]) == 0
+    assert cli.run(["plan", str(scenario), "--seed", "6", "-q", "-o", str(path)]) == 0
     doc = read_plan(path)
     hand = hand_from_plan(doc["hand"])
     obj = models_from_document(doc).obj
