@@ -580,7 +580,7 @@ class Landings:
         count = 0
         for lo in range(0, len(keep), _REACH_CHUNK):
             chunk = keep[lo : lo + _REACH_CHUNK]
-            ok_now = self._ik_in_margin(finger, tip_obj[chunk] @ R.T + pose[:3])[1]
+            ok_now = self._solve_in_margin(finger, tip_obj[chunk] @ R.T + pose[:3])[1]
             found.append(chunk[ok_now])
             count += int(ok_now.sum())
             if count >= most:
@@ -598,7 +598,13 @@ class Landings:
         q = np.zeros((len(tips), len(idx)))
         ok = self.hand.reach_voxels(finger).contains(tips)
         if ok.any():
-            q[ok], ok[ok] = self.hand.finger_ik_batch(finger, tips[ok])
+            q[ok], ok[ok] = self._solve_in_margin(finger, tips[ok])
+        return q, ok
+
+    def _solve_in_margin(self, finger: int, tips: FloatArray) -> tuple[FloatArray, np.ndarray]:
+        """:meth:`_ik_in_margin` for targets already inside the reach voxels."""
+        q, ok = self.hand.finger_ik_batch(finger, tips)
+        idx = self.hand.finger_q_index[finger]
         ok &= np.all((q >= self._lo[idx]) & (q <= self._hi[idx]), axis=1)
         return q, ok
 

@@ -533,7 +533,6 @@ class GraspSampler:
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         world = self.validity.world
-        cand = np.arange(len(tips))
         q_sol, solved = hand.finger_ik_candidates(i, tips)
         idx = hand.finger_q_index[i]
         # off the limits: a finger at a limit cannot follow the object
@@ -545,13 +544,13 @@ class GraspSampler:
         order = np.argsort(np.where(solved, -clearance, np.inf), axis=1, kind="stable")
         tries = np.minimum(solved.sum(axis=1), s.solutions_per_contact)
         keep_c, keep_q = [], []
-        for row in rng.permutation(len(cand)):
+        for row in rng.permutation(len(tips)):
             for opt in order[row, : tries[row]]:
                 q[idx] = q_sol[row, opt]
                 if world.pairs_collide(self._finger_data[i], q, M_obj):
                     self.stats.finger_rejections += 1
                     continue
-                keep_c.append(cand[row])
+                keep_c.append(row)
                 keep_q.append(q_sol[row, opt].copy())
                 break
             if len(keep_c) >= s.pool_size:
