@@ -266,15 +266,16 @@ def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> No
 def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
     """When every reduction of the GSn path fails early, module 1 explores again.
 
-    cube_obstacle seed 11 (cube_post seed 20 until the sampler's settings
-    changed): the slerp between two GSn states clips the obstacle, so both
-    gait reductions stop at once (the object itself collides) and the
-    edge-by-edge one hits its bisection limit; such a query used to end
+    cube_obstacle seed 8 (the only such query of the suite and cube_obstacle
+    on seeds 1-20 at the sampler's current settings; seed 11 and cube_post
+    seed 20 were such under earlier ones): the slerp between two GSn states
+    clips the obstacle, so both gait reductions stop at once (the object
+    itself collides) and the edge-by-edge one hits its bisection limit; such a query used to end
     ``reduction_failed`` after about 1 s of its time limit.
     """
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
     events = []
-    res = plan(scenario, seed=11, progress=events.append)
+    res = plan(scenario, seed=8, progress=events.append)
     assert res.solved, res.message
     assert res.stats.explorations == 2
     messages = [e.message for e in events]

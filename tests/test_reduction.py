@@ -1,7 +1,6 @@
 """The reduction property edge by edge (bisection) and the planner's reduction choice."""
 
 import copy
-import functools
 import itertools
 
 import numpy as np
@@ -9,7 +8,6 @@ import pytest
 
 from dexplan.exceptions import InvalidInputError
 from dexplan.plan_file import build_plan_document, verify_plan
-from dexplan.planning import sampler as sampler_module
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.planner import plan, start_state
@@ -22,27 +20,6 @@ from dexplan.scenario import builtin_scenario_path, default_scenario, load_scena
 @pytest.fixture(scope="module")
 def scenario():
     return default_scenario()
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _instance_sampler():
-    """Sampler settings under which these tests' instances show what they check.
-
-    The tests below check properties of particular reductions (a 180-degree
-    edge that needs bisection and then succeeds, a coarse GSn path of 3 or
-    more states); with the sampler's defaults (96 combinations a pose, 64
-    grasps from one pose) seed 1 draws a 180-degree edge that 5 bisections
-    do not reduce and seed 3 a GSn path of 2 states. With 40 combinations
-    and 24 grasps a pose (the earlier defaults) they are as the tests need.
-    """
-    original = sampler_module.SamplerSettings
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(
-            sampler_module,
-            "SamplerSettings",
-            functools.partial(original, combinations=40, grasps_per_pose=24),
-        )
-        yield
 
 
 @pytest.fixture(scope="module")

@@ -32,13 +32,15 @@ on GSk without a projection step. All randomness comes from the
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import pose_to_se3
 from dexplan.grasp.halfspace import cannot_be_force_closure
+from dexplan.hand import Hand
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.validity import GraspValidity
@@ -51,6 +53,12 @@ from dexplan.typing import FloatArray
 #: constraint norm exceeds 1e-5 (``constraint_spec`` in
 #: :mod:`dexplan.planning.roadmap`); five fingers at this depth stay below it.
 FIT_TOL = 2e-6
+
+#: Of a pose's combination draws, those best balanced, this many per combination
+#: kept (:attr:`SamplerSettings.combinations`), get the half-space test; the rest
+#: are dropped unranked (on the Allegro sphere 10 % of the draws pass the test
+#: and no valid grasp ranked past 200).
+RANKED_PER_COMBINATION = 4
 
 
 @dataclass(frozen=True)
@@ -84,14 +92,30 @@ class SamplerSettings:
             limits) collision-checked per candidate contact.
         combinations: grasps combined from one set of pools and checked
             before a new object pose is drawn (sample() returns at the first
-            valid one).
+            valid one). None: 96 for hands with fingers of more than 3
+            joints, 40 otherwise (see ``grasps_per_pose``).
         combination_draws: random combinations ranked to choose those.
         joint_margin: pool solutions keep this far (rad) from joint limits
             (transfers stop short of them, ``TransitionSettings.joint_margin``).
         grasps_per_pose: with random poses (:meth:`GraspSampler.sample`),
             up to this many valid grasps are returned, one per call, from the
-            ranked combinations of a pose before a new pose is drawn (the
-            pools are the costly part; 1: a new pose every call).
+            ranked combinations of a pose before a new pose is drawn (1: a
+            new pose every call). None: 64 for hands with fingers of more
+            than 3 joints, whose pools are costly (Allegro sphere: 481 valid
+            grasps/s with 96 combinations and 64 grasps a pose, 291 with 40
+            and 24; its plans the same with 1), 1 otherwise: a roadmap
+            gains more from distinct object poses than from a faster
+            sampler, since checking its motions costs far more than
+            sampling (the suite's cube_post, seeds 1-10, 30 s: PRM 6/10
+            solved with 96 and 64, 9/10 with 40 and 24, 10/10 with 40 and
+            1 in a median 1.8 s; PRMstar 6/10, 7/10, 10/10).
+        check_batch: ranked combinations whose force closure is computed in
+            one batch; a pose is left after a batch with no valid grasp. The
+            normal-balance ranking puts a pose's valid grasps first (on the
+            Allegro sphere, seed 1, 150 poses of 400 ranked combinations:
+            25 % of the first 25 valid, 4 % of ranks 50-75, none past 200;
+            half the poses have none in their first 24 and almost never one
+            later): half the force-closure work for 2 % fewer valid grasps.
     """
 
     candidates: int = 48
@@ -106,10 +130,11 @@ class SamplerSettings:
     pool_candidates: int = 256
     pool_edges: int = 64
     solutions_per_contact: int = 3
-    combinations: int = 96
+    combinations: int | None = None
     combination_draws: int = 4000
     joint_margin: float = 0.03
-    grasps_per_pose: int = 64
+    grasps_per_pose: int | None = None
+    check_batch: int = 24
 
 
 @dataclass(frozen=True)
@@ -170,6 +195,21 @@ class SamplerStats:
         }
 
 
+def _long_fingers(hand: Hand) -> bool:
+    """Whether some finger of ``hand`` has more than 3 joints (redundant for a contact)."""
+    return max(len(idx) for idx in hand.finger_q_index) > 3
+
+
+def _resolved(settings: SamplerSettings, hand: Hand) -> SamplerSettings:
+    """``settings`` with the hand-dependent defaults (None fields) filled in."""
+    long = _long_fingers(hand)
+    return replace(
+        settings,
+        combinations=settings.combinations or (96 if long else 40),
+        grasps_per_pose=settings.grasps_per_pose or (64 if long else 1),
+    )
+
+
 class GraspSampler:
     """Samples valid states of a grasp subspace.
 
@@ -194,7 +234,7 @@ class GraspSampler:
         self.deadline = deadline or Deadline()
         self.validity = validity
         self.rng = rng
-        self.settings = settings or SamplerSettings()
+        self.settings = _resolved(settings or SamplerSettings(), gsn.hand)
         self.stats = SamplerStats()
         self._reach = [self._reach_shell(i) for i in range(gsn.hand.n_fingers)]
         hand = gsn.hand
@@ -202,13 +242,13 @@ class GraspSampler:
         self.per_finger = bool(per_finger)
         edges = self.settings.edge_contacts
         if edges is None:
-            edges = max(len(idx) for idx in hand.finger_q_index) > 3
+            edges = _long_fingers(hand)
         self._edges = (self.settings.candidate_edges, self.settings.pool_edges) if edges else (0, 0)
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
-        # the rest of a pose's combinations, with their force-closure qualities
-        self._pending: list[tuple[FloatArray, float]] = []
+        # the rest of a pose's combinations, checked as they are drawn
+        self._pending: Iterator[tuple[FloatArray, bool]] | None = None
         self._pending_left = 0
 
     def _reach_shell(self, finger: int) -> tuple[FloatArray, float, float]:
@@ -360,23 +400,26 @@ class GraspSampler:
     def _pool_samples(self, pose: FloatArray | None, want: int, budget: int) -> list[FloatArray]:
         """Valid states from per-finger pools, ``want`` at most, ``budget`` grasps checked.
 
-        ``pose`` None: a random pose per round, and one state (the round's
-        other combinations wait in ``_pending`` for the next calls).
+        ``pose`` None: a random pose per round, and one state (the rest of the
+        round's checks wait in ``_pending`` for the next calls).
         """
         t0 = time.perf_counter()
         s = self.settings
         out: list[FloatArray] = []
         try:
-            if pose is None:
-                while self._pending and self._pending_left > 0 and budget > 0:
-                    x, quality = self._pending.pop(0)
+            if pose is None and self._pending is not None:
+                for x, valid in self._pending:
                     self.stats.attempts += 1
                     budget -= 1
-                    if self.validity.check(x, quality).valid:
-                        self._pending_left -= 1
+                    if valid:
                         self.stats.valid += 1
+                        self._pending_left -= 1
+                        if self._pending_left <= 0:
+                            self._pending = None
                         return [x]
-                self._pending = []
+                    if budget <= 0:
+                        return out
+                self._pending = None
             while budget > 0:
                 if self.deadline.expired():
                     return out
@@ -391,38 +434,52 @@ class GraspSampler:
                     budget -= 1
                     continue
                 found = self.combinations(pose_k, pools)
-                combos = found.states
-                if not combos:
+                if not found.states:
                     self.stats.attempts += 1
                     budget -= 1
                     continue
-                # force closure, the costliest check, decides most rejections:
-                # one batch for the pose's combinations
-                # (from the pools' contacts, which the states' own contacts
-                # equal to rounding: no forward kinematics and projection
-                # again); grasps the certified bounds leave undecided are
-                # skipped, not solved exactly
-                qualities = self.validity.contact_qualities(
-                    found.points_obj, found.normals_in_obj, exact=False
-                ).tolist()
-                for k, x in enumerate(combos[:budget]):
-                    if self.deadline.expired():
-                        return out
+                checks = self._checked(found)
+                for x, valid in checks:
                     self.stats.attempts += 1
                     budget -= 1
-                    if self.validity.check(x, qualities[k]).valid:
+                    if valid:
                         self.stats.valid += 1
                         out.append(x)
                         if pose is None:
-                            self._pending = list(
-                                zip(combos[k + 1 :], qualities[k + 1 :], strict=True)
-                            )
+                            self._pending = checks
                             self._pending_left = s.grasps_per_pose - 1
                         if len(out) >= want or pose is None:
                             return out
+                    if budget <= 0 or self.deadline.expired():
+                        return out
             return out
         finally:
             self.stats.time_s += time.perf_counter() - t0
+
+    def _checked(self, found: Combinations) -> Iterator[tuple[FloatArray, bool]]:
+        """Each of a pose's ranked combinations with its validity, best first.
+
+        Force closure, the costliest check, decides most rejections: it is
+        computed a batch of ``check_batch`` combinations at a time (from the
+        pools' contacts, which the states' own contacts equal to rounding: no
+        forward kinematics and projection again); grasps the certified bounds
+        leave undecided are skipped, not solved exactly. The pose is left
+        after a batch with no valid grasp: the ranking puts the valid ones
+        first (see :class:`SamplerSettings`).
+        """
+        n = self.settings.check_batch
+        for start in range(0, len(found.states), n):
+            part = slice(start, start + n)
+            qualities = self.validity.contact_qualities(
+                found.points_obj[part], found.normals_in_obj[part], exact=False
+            ).tolist()
+            any_valid = False
+            for x, quality in zip(found.states[part], qualities, strict=True):
+                valid = self.validity.check(x, quality).valid
+                any_valid |= valid
+                yield x, valid
+            if not any_valid:
+                return
 
     def _fits(self, points: FloatArray, normals_out: FloatArray) -> np.ndarray:
         """(N,) True where a fingertip sphere on the contact touches the object there only.
@@ -631,17 +688,29 @@ class GraspSampler:
                 apart = np.linalg.norm(ta[:, None] - tb[None], axis=2) >= gap
                 ok &= apart[pick[:, a], pick[:, b]]
         pick = pick[ok]
-        normals = np.stack([pools[i][1][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
-        held = ~self._cannot_hold(normals)
-        pick, normals = pick[held], normals[held]
+        # per finger (M, 3) arrays: sums and norms of small stacked axes are slow
+        each = [pools[i][1][pick[:, j]] for j, i in enumerate(fingers)]
         k = len(fingers)
-        total = normals.sum(axis=1)
+        total = np.sum(each, axis=0)
         if k >= 3:
             # subgrasp without finger j: (total - n_j) / (k - 1)
-            sub = np.linalg.norm(total[:, None, :] - normals, axis=2) / (k - 1)
-            score = sub.max(axis=1)
+            worst = np.zeros(len(pick))
+            for n_j in each:
+                d = total - n_j
+                np.maximum(worst, np.einsum("ij,ij->i", d, d), out=worst)
+            score = np.sqrt(worst) / (k - 1)
         else:
-            score = np.linalg.norm(total, axis=1) / max(k, 1)
+            score = np.sqrt(np.einsum("ij,ij->i", total, total)) / max(k, 1)
+        # only the best-balanced draws are worth the half-space test: the
+        # valid grasps rank first (see ``check_batch``)
+        best = np.arange(len(score))
+        keep = RANKED_PER_COMBINATION * s.combinations
+        if len(score) > keep:
+            best = np.sort(np.argpartition(score, keep)[:keep])
+        pick, score = pick[best], score[best]
+        normals = np.stack([n_j[best] for n_j in each], axis=1)
+        held = ~self._cannot_hold(normals)
+        pick, normals, score = pick[held], normals[held], score[held]
         rows: list[int] = []
         seen: set[bytes] = set()
         for row in np.argsort(score, kind="stable"):
@@ -656,7 +725,10 @@ class GraspSampler:
         q = rng.uniform(hand.lower, hand.upper, size=(len(rows), len(hand.lower)))
         for j, i in enumerate(fingers):
             q[:, hand.finger_q_index[i]] = pools[i][2][pick[rows, j]]
-        out = [np.concatenate([pose_xyzquat[:POSE_DIM], qk]) for qk in q]
+        states = np.empty((len(rows), POSE_DIM + q.shape[1]))
+        states[:, :POSE_DIM] = pose_xyzquat[:POSE_DIM]
+        states[:, POSE_DIM:] = q
+        out = list(states)
         R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
         n_w = normals[rows]
         tips_w = np.stack([pools[i][0][pick[rows, j]] for j, i in enumerate(fingers)], axis=1)
