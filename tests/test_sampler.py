@@ -236,3 +236,29 @@ def test_samples_at_pose_share_one_pose_and_start_with_the_single_sample() -> No
     for x in many:
         np.testing.assert_array_equal(x[:7], pose)
         assert ctx.validity.check(x).valid
+
+
+@pytest.mark.parametrize("per_pose", [1, 3])
+def test_grasps_per_pose_caps_the_states_drawn_from_one_object_pose(per_pose) -> None:
+    """``grasps_per_pose`` valid states at most from one random pose, then a new pose."""
+    ctx = build_context(
+        default_scenario(), seed=4, sampler_settings=SamplerSettings(grasps_per_pose=per_pose)
+    )
+    poses = []
+    for _ in range(30):
+        x = ctx.sampler.sample()
+        assert x is not None and ctx.validity.is_valid(x)
+        poses.append(x[:POSE_DIM].tobytes())
+    counts = [poses.count(p) for p in set(poses)]
+    assert max(counts) == per_pose  # on the paper sphere most poses give several
+
+
+def test_hand_dependent_sampler_defaults() -> None:
+    """Long fingers (the Allegro's 4 joints): many grasps a pose; the paper hand: distinct poses."""
+    allegro = build_context(load_scenario(ALLEGRO), seed=1).sampler.settings
+    paper = build_context(default_scenario(), seed=1).sampler.settings
+    assert (allegro.combinations, allegro.grasps_per_pose) == (96, 64)
+    assert (paper.combinations, paper.grasps_per_pose) == (40, 2)
+    mine = SamplerSettings(combinations=7, grasps_per_pose=5)
+    ctx = build_context(load_scenario(ALLEGRO), seed=1, sampler_settings=mine)
+    assert (ctx.sampler.settings.combinations, ctx.sampler.settings.grasps_per_pose) == (7, 5)

@@ -103,12 +103,12 @@ class SamplerSettings:
             new pose every call). None: 64 for hands with fingers of more
             than 3 joints, whose pools are costly (Allegro sphere: 481 valid
             grasps/s with 96 combinations and 64 grasps a pose, 291 with 40
-            and 24; its plans the same with 1), 1 otherwise: a roadmap
+            and 24; its plans the same with 2), 2 otherwise: a roadmap
             gains more from distinct object poses than from a faster
             sampler, since checking its motions costs far more than
             sampling (the suite's cube_post, seeds 1-10, 30 s: PRM 6/10
             solved with 96 and 64, 9/10 with 40 and 24, 10/10 with 40 and
-            1 in a median 1.8 s; PRMstar 6/10, 7/10, 10/10).
+            2 in a median 1.8 s; PRMstar 6/10, 7/10, 10/10).
         check_batch: ranked combinations whose force closure is computed in
             one batch; a pose is left after a batch with no valid grasp. The
             normal-balance ranking puts a pose's valid grasps first (on the
@@ -203,10 +203,11 @@ def _long_fingers(hand: Hand) -> bool:
 def _resolved(settings: SamplerSettings, hand: Hand) -> SamplerSettings:
     """``settings`` with the hand-dependent defaults (None fields) filled in."""
     long = _long_fingers(hand)
+    combinations, per_pose = settings.combinations, settings.grasps_per_pose
     return replace(
         settings,
-        combinations=settings.combinations or (96 if long else 40),
-        grasps_per_pose=settings.grasps_per_pose or (64 if long else 1),
+        combinations=(96 if long else 40) if combinations is None else combinations,
+        grasps_per_pose=(64 if long else 2) if per_pose is None else per_pose,
     )
 
 
@@ -445,7 +446,7 @@ class GraspSampler:
                     if valid:
                         self.stats.valid += 1
                         out.append(x)
-                        if pose is None:
+                        if pose is None and s.grasps_per_pose > 1:
                             self._pending = checks
                             self._pending_left = s.grasps_per_pose - 1
                         if len(out) >= want or pose is None:
