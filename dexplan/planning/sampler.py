@@ -669,8 +669,10 @@ class GraspSampler:
         ``2 r + tip_clearance``, and sorts the rest by normal balance: the
         largest, over the grasp's (k-1)-finger subgrasps, length of the mean
         outward normal (0 when the normals of every subgrasp cancel, which
-        force closure of every subgrasp needs on a sphere). Free fingers get
-        random joint values.
+        force closure of every subgrasp needs on a sphere). Of the best
+        ``RANKED_PER_COMBINATION * combinations``, those the half-space test
+        does not rule out are kept, best first, duplicates dropped. Free
+        fingers get random joint values.
 
         Returns:
             Up to ``combinations`` ambient states ``(7 + nq,)`` and their contacts.
