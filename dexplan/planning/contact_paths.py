@@ -21,7 +21,7 @@ import numpy as np
 
 from dexplan.exceptions import GeodesicError
 from dexplan.objects import Mesh, Shape
-from dexplan.objects.geodesic import MeshGeodesics, surface_geodesics
+from dexplan.objects.geodesic import MeshGeodesics, SurfacePath, surface_geodesics
 from dexplan.planning.transitions import GraspContacts
 
 __all__ = ["ContactPaths"]
@@ -55,6 +55,19 @@ class ContactPaths:
     def active(self) -> bool:
         """Whether contacts move along surface geodesics."""
         return self._geo is not None
+
+    def paths(self, ca: GraspContacts, cb: GraspContacts) -> list[SurfacePath] | None:
+        """Each finger's surface geodesic from ``ca`` to ``cb`` (object frame).
+
+        None when geodesics are not available (see :attr:`fallback`) or a
+        finger's two contacts have no geodesic between them.
+        """
+        if self._geo is None:
+            return None
+        try:
+            return [self._geo.path(a, b) for a, b in zip(ca.points, cb.points, strict=True)]
+        except GeodesicError:
+            return None
 
     def between(self, ca: GraspContacts, cb: GraspContacts, t: float) -> GraspContacts | None:
         """Contacts a fraction ``t`` of the way along each finger's surface geodesic.

@@ -1,0 +1,158 @@
+"""GSn motions of the paper's section VI: contacts along surface geodesics.
+
+Between two GSn states on a mesh the paper moves each contact along its
+surface geodesic while the object pose interpolates. Here: the pose moves
+on a straight line and a slerp, each contact the same arc-length fraction of
+its geodesic (:class:`~dexplan.planning.contact_paths.ContactPaths`), and
+each finger follows by closed-form IK to its fingertip centre (the branch
+nearest the previous step, the last link pressing along the inward normal);
+steps of at most ``step_m`` of contact travel or object translation and
+``step_rad`` of rotation, halved (``max_splits`` times at most) while a
+joint moves more than ``jump_rad`` in one (else the motion fails: an IK
+branch jump); every state goes through the validity checker.
+
+OMPL's projected interpolation (module 1's motions) joins other pairs of
+states than this motion does (docs/meshes.md: accepting either joins
+1.25-2.8x the pairs); this is the motion a Python ``ob.MotionValidator``
+would add. ``scripts/section6_motions.py`` compares the two.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dexplan.planning.contact_paths import ContactPaths
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.reduction import grasp_from_state
+from dexplan.planning.transitions import Transitions
+from dexplan.planning.validity import GraspValidity
+from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.typing import FloatArray
+
+__all__ = ["GeodesicMotion", "GeodesicMotionSettings", "MotionFailure", "geodesic_motion"]
+
+
+@dataclass(frozen=True)
+class GeodesicMotionSettings:
+    """Step sizes of :func:`geodesic_motion`.
+
+    Attributes:
+        step_m: largest contact travel (along its geodesic) or object
+            translation in one step (m).
+        step_rad: largest object rotation in one step (rad).
+        jump_rad: largest joint change in one step (rad); a larger one is
+            halved, at most ``max_splits`` times.
+        max_splits: halvings of one step before the motion fails.
+    """
+
+    step_m: float = 0.002
+    step_rad: float = 0.02
+    jump_rad: float = 0.05
+    max_splits: int = 5
+
+
+class MotionFailure(enum.Enum):
+    """Why a section VI motion is not valid."""
+
+    NO_GEODESIC = "no_geodesic"  # not a mesh, or no geodesic between two contacts
+    IK = "ik"  # a fingertip centre out of its finger's reach
+    JOINT_JUMP = "joint_jump"  # an IK branch change (past max_splits halvings)
+    INVALID = "invalid"  # a state the validity checker rejects (see detail)
+
+
+@dataclass(frozen=True)
+class GeodesicMotion:
+    """A section VI motion, or why there is none.
+
+    Attributes:
+        states: (N, 7 + nq) ambient states from the start to the end, both
+            included, each valid; (0, 7 + nq) when the motion failed.
+        failure: None when valid.
+        detail: the validity checker's reason for ``INVALID``.
+    """
+
+    states: FloatArray
+    failure: MotionFailure | None = None
+    detail: str | None = None
+
+    @property
+    def valid(self) -> bool:
+        """Whether the motion is valid."""
+        return self.failure is None
+
+
+def geodesic_motion(
+    trans: Transitions,
+    validity: GraspValidity,
+    paths: ContactPaths,
+    a: FloatArray,
+    b: FloatArray,
+    settings: GeodesicMotionSettings | None = None,
+) -> GeodesicMotion:
+    """The section VI motion between GSn states ``a`` and ``b: (7 + nq,)``.
+
+    Every finger holds a contact (the grasps of ``a`` and ``b`` are those of
+    their fingertips, :func:`~dexplan.planning.reduction.grasp_from_state`).
+    The last state reaches ``b``'s object pose and fingertip centres; its
+    joints are the IK's, equal to ``b``'s when ``b`` lies on the branch the
+    motion followed.
+    """
+    s = settings or GeodesicMotionSettings()
+    hand = trans.hand
+    empty = np.zeros((0, len(a)))
+    pa, pb = np.array(a[:POSE_DIM], dtype=float), np.array(b[:POSE_DIM], dtype=float)
+    pa[3:] /= np.linalg.norm(pa[3:])
+    pb[3:] /= np.linalg.norm(pb[3:])
+    if float(pa[3:] @ pb[3:]) < 0.0:  # the same rotation's nearer sign
+        pb[3:] = -pb[3:]
+    curves = paths.paths(
+        grasp_from_state(trans, pa, a[POSE_DIM:]), grasp_from_state(trans, pb, b[POSE_DIM:])
+    )
+    if curves is None:
+        return GeodesicMotion(empty, MotionFailure.NO_GEODESIC)
+    n = max(
+        1,
+        math.ceil(max(c.length for c in curves) / s.step_m),
+        math.ceil(float(np.linalg.norm(pb[:3] - pa[:3])) / s.step_m),
+        math.ceil(quat_angle(pa[3:], pb[3:]) / s.step_rad),
+    )
+    r = hand.fingertip_radius
+    out: list[FloatArray] = [np.concatenate([pa, a[POSE_DIM:]])]
+
+    def state(t: float, q_prev: FloatArray) -> FloatArray | MotionFailure:
+        pose = interpolate_pose(pa, pb, t)
+        R = quat_to_matrix(pose[3:])
+        q = q_prev.copy()
+        for f, curve in enumerate(curves):
+            p, _, n_out = curve.at(t)
+            q_f = hand.finger_ik_fast(f, R @ (p + r * n_out) + pose[:3], q_prev, -(R @ n_out))
+            if q_f is None:
+                return MotionFailure.IK
+            q[hand.finger_q_index[f]] = q_f
+        return np.concatenate([pose, q])
+
+    def advance(t0: float, t1: float, depth: int) -> GeodesicMotion | None:
+        """Append the states from ``t0`` (the last one) to ``t1``; a failure, or None."""
+        x = state(t1, out[-1][POSE_DIM:])
+        if isinstance(x, MotionFailure):
+            return GeodesicMotion(empty, x)
+        if np.max(np.abs(x[POSE_DIM:] - out[-1][POSE_DIM:])) > s.jump_rad:
+            if depth >= s.max_splits:
+                return GeodesicMotion(empty, MotionFailure.JOINT_JUMP)
+            mid = 0.5 * (t0 + t1)
+            return advance(t0, mid, depth + 1) or advance(mid, t1, depth + 1)
+        verdict = validity.check(x)
+        if not verdict.valid:
+            return GeodesicMotion(empty, MotionFailure.INVALID, str(verdict.reason))
+        out.append(x)
+        return None
+
+    for k in range(1, n + 1):
+        failed = advance((k - 1) / n, k / n, 0)
+        if failed is not None:
+            return failed
+    return GeodesicMotion(np.array(out))

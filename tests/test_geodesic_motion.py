@@ -1,0 +1,89 @@
+"""Section VI motions: contacts along surface geodesics, fingers by IK, every state valid."""
+
+import numpy as np
+import pytest
+
+from dexplan.planning.contact_paths import ContactPaths
+from dexplan.planning.context import build_context
+from dexplan.planning.geodesic_motion import (
+    GeodesicMotionSettings,
+    MotionFailure,
+    geodesic_motion,
+)
+from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.reduction import grasp_from_state
+from dexplan.planning.roadmap import pose_distances
+from dexplan.pose import quat_angle
+from dexplan.scenario import default_scenario, load_scenario
+
+EGG = "dexplan/data/scenarios/suite/egg_tilt90.toml"
+
+
+@pytest.fixture(scope="module")
+def motions():
+    """Section VI motions between 12 sampled egg states and their 3 nearest."""
+    ctx = build_context(load_scenario(EGG), seed=1)
+    paths = ContactPaths(ctx.obj)
+    xs = []
+    while len(xs) < 12:
+        x = ctx.sampler.sample()
+        if x is not None:
+            xs.append(x)
+    xs = np.array(xs)
+    found = []
+    for i, a in enumerate(xs):
+        d = pose_distances(xs, a[None])
+        d[i] = np.inf
+        for j in np.argsort(d, kind="stable")[:3]:
+            found.append(
+                (a, xs[j], geodesic_motion(ctx.transitions, ctx.validity, paths, a, xs[j]))
+            )
+    return ctx, paths, found
+
+
+def test_valid_motions_run_on_gsn_from_start_to_end(motions) -> None:
+    ctx, paths, found = motions
+    valid = [(a, b, m) for a, b, m in found if m.valid]
+    assert len(valid) >= 3  # egg seed 1: about a third of such pairs
+    jump = GeodesicMotionSettings().jump_rad
+    for a, b, m in valid:
+        xs = m.states
+        assert xs.shape[1] == len(a) and len(xs) >= 2
+        np.testing.assert_array_equal(xs[0][POSE_DIM:], a[POSE_DIM:])
+        # the end: b's object pose and fingertip centres
+        np.testing.assert_allclose(xs[-1][:3], b[:3], atol=1e-9)
+        assert quat_angle(xs[-1][3:7], b[3:7]) < 1e-6
+        tips_end = ctx.hand.fingertip_positions(xs[-1][POSE_DIM:])
+        np.testing.assert_allclose(tips_end, ctx.hand.fingertip_positions(b[POSE_DIM:]), atol=1e-6)
+        # every state on GSn and valid, joints in small steps
+        assert max(ctx.gsn.residual(x) for x in xs) < 1e-6
+        assert all(ctx.validity.is_valid(x) for x in xs[1:])
+        assert np.max(np.abs(np.diff(xs[:, POSE_DIM:], axis=0))) <= jump + 1e-12
+        # each contact moves along its geodesic: a middle state's contacts lie on them
+        ga = grasp_from_state(ctx.transitions, a[:POSE_DIM], a[POSE_DIM:])
+        gb = grasp_from_state(ctx.transitions, xs[-1][:POSE_DIM], xs[-1][POSE_DIM:])
+        mid = xs[len(xs) // 2]
+        gm = grasp_from_state(ctx.transitions, mid[:POSE_DIM], mid[POSE_DIM:])
+        curves = paths.paths(ga, gb)
+        for f, curve in enumerate(curves):
+            on = np.array([curve.at(t)[0] for t in np.linspace(0, 1, 401)])
+            gap = np.min(np.linalg.norm(on - gm.points[f], axis=1))
+            assert gap <= curve.length / 800 + 1e-6
+
+
+def test_failed_motions_say_why(motions) -> None:
+    _, _, found = motions
+    failed = [m for _, _, m in found if not m.valid]
+    assert failed  # the egg's pairs include motions the fingers cannot follow
+    for m in failed:
+        assert m.states.shape[0] == 0
+        assert isinstance(m.failure, MotionFailure)
+        assert (m.detail is not None) == (m.failure is MotionFailure.INVALID)
+
+
+def test_primitives_have_no_geodesics() -> None:
+    ctx = build_context(default_scenario(), seed=1)
+    x = ctx.sampler.sample()
+    assert x is not None
+    m = geodesic_motion(ctx.transitions, ctx.validity, ContactPaths(ctx.obj), x, x)
+    assert m.failure is MotionFailure.NO_GEODESIC and not m.valid
