@@ -9,7 +9,8 @@ nearest the previous step, the last link pressing along the inward normal);
 steps of at most ``step_m`` of contact travel or object translation and
 ``step_rad`` of rotation, halved (``max_splits`` times at most) while a
 joint moves more than ``jump_rad`` in one (else the motion fails: an IK
-branch jump); every state goes through the validity checker.
+branch jump); every state after the first goes through the validity
+checker (the first is the caller's, a roadmap state).
 
 OMPL's projected interpolation (module 1's motions) joins other pairs of
 states than this motion does (docs/meshes.md: accepting either joins
