@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.context import build_context
 from dexplan.planning.geodesic_motion import (
@@ -10,9 +11,10 @@ from dexplan.planning.geodesic_motion import (
     MotionFailure,
     geodesic_motion,
 )
-from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.gsn import POSE_DIM, GraspSubspace
 from dexplan.planning.reduction import grasp_from_state
 from dexplan.planning.roadmap import pose_distances
+from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
 from dexplan.scenario import default_scenario, load_scenario
 
@@ -87,3 +89,19 @@ def test_primitives_have_no_geodesics() -> None:
     assert x is not None
     m = geodesic_motion(ctx.transitions, ctx.validity, ContactPaths(ctx.obj), x, x)
     assert m.failure is MotionFailure.NO_GEODESIC and not m.valid
+
+
+def test_free_fingers_are_refused(motions) -> None:
+    """A GSk subspace (a finger free) is refused: the motion moves every finger on the surface."""
+    ctx, paths, found = motions
+    a, b, _ = found[0]
+    gsk = GraspSubspace(
+        ctx.hand,
+        ctx.obj,
+        [True, True, True, False],
+        workspace_center=ctx.gsn.workspace_center,
+        workspace_half_extent=ctx.gsn.workspace_half_extent,
+    )
+    checker = GraspValidity(gsk, ctx.world, ctx.validity.settings)
+    with pytest.raises(InvalidInputError, match="contact fingers"):
+        geodesic_motion(ctx.transitions, checker, paths, a, b)

@@ -5,6 +5,7 @@ import pinocchio as pin
 import pytest
 
 from dexplan.collision import pose_to_se3
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.sampler import SamplerSettings
@@ -262,3 +263,8 @@ def test_hand_dependent_sampler_defaults() -> None:
     mine = SamplerSettings(combinations=7, grasps_per_pose=5)
     ctx = build_context(load_scenario(ALLEGRO), seed=1, sampler_settings=mine)
     assert (ctx.sampler.settings.combinations, ctx.sampler.settings.grasps_per_pose) == (7, 5)
+
+
+def test_check_batch_must_be_positive() -> None:
+    with pytest.raises(InvalidInputError, match="check_batch must be >= 1, got 0"):
+        build_context(default_scenario(), seed=1, sampler_settings=SamplerSettings(check_batch=0))

@@ -4,7 +4,8 @@ Between two GSn states on a mesh the paper moves each contact along its
 surface geodesic while the object pose interpolates. Here: the pose moves
 on a straight line and a slerp, each contact the same arc-length fraction of
 its geodesic (:class:`~dexplan.planning.contact_paths.ContactPaths`), and
-each finger follows by closed-form IK to its fingertip centre (the branch
+each finger follows by IK to its fingertip centre (closed form where the
+finger has one, :meth:`~dexplan.hand.Hand.finger_ik_fast`; the branch
 nearest the previous step, the last link pressing along the inward normal);
 steps of at most ``step_m`` of contact travel or object translation and
 ``step_rad`` of rotation, halved (``max_splits`` times at most) while a
@@ -26,12 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dexplan.exceptions import InvalidInputError
 from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.reduction import grasp_from_state
 from dexplan.planning.transitions import Transitions
 from dexplan.planning.validity import GraspValidity
-from dexplan.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.pose import interpolate_pose, inverse_transform_points, quat_angle, quat_to_matrix
 from dexplan.typing import FloatArray
 
 __all__ = ["GeodesicMotion", "GeodesicMotionSettings", "MotionFailure", "geodesic_motion"]
@@ -60,7 +62,7 @@ class MotionFailure(enum.Enum):
     """Why a section VI motion is not valid."""
 
     NO_GEODESIC = "no_geodesic"  # not a mesh, or no geodesic between two contacts
-    IK = "ik"  # a fingertip centre out of its finger's reach
+    IK = "ik"  # no IK solution for a fingertip centre (out of reach, or not converged)
     JOINT_JUMP = "joint_jump"  # an IK branch change (past max_splits halvings)
     INVALID = "invalid"  # a state the validity checker rejects (see detail)
 
@@ -98,12 +100,25 @@ def geodesic_motion(
 
     Every finger holds a contact (the grasps of ``a`` and ``b`` are those of
     their fingertips, :func:`~dexplan.planning.reduction.grasp_from_state`).
-    The last state reaches ``b``'s object pose and fingertip centres; its
-    joints are the IK's, equal to ``b``'s when ``b`` lies on the branch the
-    motion followed.
+    A fingertip centre sits one radius along its triangle's normal off the
+    geodesic point, plus its state's own offset from there (nonzero where a
+    contact lies on a mesh edge or vertex), blended linearly from ``a``'s to
+    ``b``'s. The last state reaches ``b``'s object pose (its quaternion may
+    be ``-b``'s, the same rotation) and fingertip centres; its joints are
+    the IK's, equal to ``b``'s when ``b`` lies on the branch the motion
+    followed.
+
+    Raises:
+        InvalidInputError: the subspace has free fingers (this moves every
+            finger along the surface).
     """
     s = settings or GeodesicMotionSettings()
     hand = trans.hand
+    if len(validity.gsn.contact_ids) != hand.n_fingers:
+        raise InvalidInputError(
+            f"geodesic_motion moves every finger along the surface; contact fingers "
+            f"{list(validity.gsn.contact_ids)} of {hand.n_fingers}"
+        )
     empty = np.zeros((0, len(a)))
     pa, pb = np.array(a[:POSE_DIM], dtype=float), np.array(b[:POSE_DIM], dtype=float)
     pa[3:] /= np.linalg.norm(pa[3:])
@@ -115,13 +130,21 @@ def geodesic_motion(
     )
     if curves is None:
         return GeodesicMotion(empty, MotionFailure.NO_GEODESIC)
+    r = hand.fingertip_radius
+
+    def offsets(pose: FloatArray, q: FloatArray, t: float) -> FloatArray:
+        """(n, 3) fingertip centres minus the curves' offset points at ``t``, object frame."""
+        tips = inverse_transform_points(pose, hand.fingertip_positions(q))
+        on = [p + r * n_out for p, _, n_out in (c.at(t) for c in curves)]
+        return tips - np.array(on)
+
+    off_a, off_b = offsets(pa, a[POSE_DIM:], 0.0), offsets(pb, b[POSE_DIM:], 1.0)
     n = max(
         1,
         math.ceil(max(c.length for c in curves) / s.step_m),
         math.ceil(float(np.linalg.norm(pb[:3] - pa[:3])) / s.step_m),
         math.ceil(quat_angle(pa[3:], pb[3:]) / s.step_rad),
     )
-    r = hand.fingertip_radius
     out: list[FloatArray] = [np.concatenate([pa, a[POSE_DIM:]])]
 
     def state(t: float, q_prev: FloatArray) -> FloatArray | MotionFailure:
@@ -130,7 +153,8 @@ def geodesic_motion(
         q = q_prev.copy()
         for f, curve in enumerate(curves):
             p, _, n_out = curve.at(t)
-            q_f = hand.finger_ik_fast(f, R @ (p + r * n_out) + pose[:3], q_prev, -(R @ n_out))
+            tip = p + r * n_out + (1.0 - t) * off_a[f] + t * off_b[f]
+            q_f = hand.finger_ik_fast(f, R @ tip + pose[:3], q_prev, -(R @ n_out))
             if q_f is None:
                 return MotionFailure.IK
             q[hand.finger_q_index[f]] = q_f

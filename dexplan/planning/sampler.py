@@ -39,6 +39,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.collision import pose_to_se3
+from dexplan.exceptions import InvalidInputError
 from dexplan.grasp.halfspace import cannot_be_force_closure
 from dexplan.hand import Hand
 from dexplan.planning.deadline import Deadline
@@ -236,6 +237,10 @@ class GraspSampler:
         self.validity = validity
         self.rng = rng
         self.settings = _resolved(settings or SamplerSettings(), gsn.hand)
+        if self.settings.check_batch < 1:
+            raise InvalidInputError(
+                f"sampler check_batch must be >= 1, got {self.settings.check_batch}"
+            )
         self.stats = SamplerStats()
         self._reach = [self._reach_shell(i) for i in range(gsn.hand.n_fingers)]
         hand = gsn.hand
@@ -410,6 +415,8 @@ class GraspSampler:
         try:
             if pose is None and self._pending is not None:
                 for x, valid in self._pending:
+                    if self.deadline.expired():
+                        return out
                     self.stats.attempts += 1
                     budget -= 1
                     if valid:
