@@ -84,19 +84,15 @@ class ContactPaths:
             (see :attr:`fallback`) or a finger's two contacts have no geodesic
             between them.
         """
-        if self._geo is None:
+        curves = self.paths(ca, cb)
+        if curves is None:
             return None
-        n = len(ca.points)
-        pts = np.empty((n, 3))
-        nrm = np.empty((n, 3))
-        try:
-            for f in range(n):
-                path = self._geo.path(ca.points[f], cb.points[f])
-                if path.length <= 0.0:  # a finger that stays put keeps its contact
-                    pts[f], nrm[f] = ca.points[f], ca.normals_out[f]
-                else:
-                    pts[f], _, nrm[f] = path.at(t)
-        except GeodesicError:
-            return None
+        pts = np.empty((len(curves), 3))
+        nrm = np.empty((len(curves), 3))
+        for f, path in enumerate(curves):
+            if path.length <= 0.0:  # a finger that stays put keeps its contact
+                pts[f], nrm[f] = ca.points[f], ca.normals_out[f]
+            else:
+                pts[f], _, nrm[f] = path.at(t)
         self.calls += 1
         return GraspContacts(pts, nrm)
