@@ -1,5 +1,7 @@
 """Section VI motions: contacts along surface geodesics, fingers by IK, every state valid."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -7,13 +9,16 @@ from dexplan.exceptions import InvalidInputError
 from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.context import build_context
 from dexplan.planning.geodesic_motion import (
+    GeodesicFallback,
     GeodesicMotionSettings,
     MotionFailure,
     geodesic_motion,
 )
 from dexplan.planning.gsn import POSE_DIM, GraspSubspace
+from dexplan.planning.ompl import PlanningProblem
+from dexplan.planning.queries import query_problem
 from dexplan.planning.reduction import grasp_from_state
-from dexplan.planning.roadmap import pose_distances
+from dexplan.planning.roadmap import constraint_spec, geodesic_fallback, gsn_problem, pose_distances
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
 from dexplan.scenario import default_scenario, load_scenario
@@ -105,3 +110,51 @@ def test_free_fingers_are_refused(motions) -> None:
     checker = GraspValidity(gsk, ctx.world, ctx.validity.settings)
     with pytest.raises(InvalidInputError, match="contact fingers"):
         geodesic_motion(ctx.transitions, checker, paths, a, b)
+
+
+def test_module1_joins_and_densifies_along_the_section_vi_motion(motions) -> None:
+    """An edge only the section VI motion joins: PRM's problem accepts it, its
+    paths follow the motion's states, and the multi-query problem (another
+    process's) densifies it the same way."""
+    ctx, _, found = motions
+    plain = PlanningProblem(constraint_spec(ctx, "projected"), ctx.validity.is_valid)
+    only = [
+        (a, b, m)
+        for a, b, m in found
+        if m.valid and a[3:POSE_DIM] @ b[3:POSE_DIM] >= 0.0 and not plain.check_motion(a, b)
+    ]
+    assert only  # egg seed 1: OMPL's projected motion fails 6 pairs this one joins
+    for a, b, m in only:
+        gsn = gsn_problem(ctx, "PRM", None, "projected", 1)  # a fresh roadmap: a, b not joined
+        assert gsn.check_motion(a, b)
+        assert gsn.fallback_motions == (1, 1, 0)
+        for u, v, states in ((a, b, m.states), (b, a, m.states[::-1])):
+            checked = gsn.check_path(np.stack([u, v]))
+            assert checked.path_valid
+            np.testing.assert_allclose(checked.path[1:-1], states[1:-1], atol=1e-12)
+            np.testing.assert_allclose(checked.path[0], u, atol=1e-12)
+            np.testing.assert_allclose(checked.path[-1], v, atol=1e-12)
+        again = query_problem(ctx).interpolate_path(np.stack([a, b]))
+        np.testing.assert_allclose(again, gsn.check_path(np.stack([a, b])).path, atol=1e-12)
+
+
+def test_fallback_refuses_a_flipped_quaternion_and_primitives(motions) -> None:
+    ctx, paths, found = motions
+    a, b, _ = next(
+        (a, b, m) for a, b, m in found if m.valid and a[3:POSE_DIM] @ b[3:POSE_DIM] > 0.0
+    )
+    fallback = GeodesicFallback(ctx.transitions, ctx.validity, paths)
+    flipped = b.copy()
+    flipped[3:POSE_DIM] *= -1.0  # the same rotation: the ambient path would jump
+    assert fallback(a, flipped, math.inf) is None
+    assert fallback.failures["sign"] == 1
+    states = fallback(a, b, math.inf)
+    assert states is not None
+    np.testing.assert_array_equal(states[0], a)
+    np.testing.assert_array_equal(states[-1], b)
+    assert fallback(a, b, 0.0) is None  # past its deadline
+    assert fallback.failures["deadline"] == 1
+    sphere = build_context(default_scenario(), seed=1)
+    assert geodesic_fallback(sphere) is None
+    with pytest.raises(InvalidInputError, match="geodesics"):
+        GeodesicFallback(sphere.transitions, sphere.validity, ContactPaths(sphere.obj))

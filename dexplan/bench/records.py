@@ -72,6 +72,7 @@ def fill_stats(rec: dict[str, Any], stats: PlanStats) -> None:
         "graph_nodes",
         "module2_attempts",
         "module2_links",
+        "geodesic_motion_edges",
         "reduction_attempts",
         "regrasps",
         "transfers",

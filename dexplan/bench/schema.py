@@ -114,6 +114,7 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     ("graph_nodes", "INTEGER"),  # nodes of the transfer/regrasp plan graph
     ("module2_attempts", "INTEGER"),
     ("module2_links", "INTEGER"),
+    ("geodesic_motion_edges", "INTEGER"),  # module-1 edges joined by the section VI motion
     ("reduction_attempts", "INTEGER"),
     ("reduction_method", "ENUM"),  # REDUCTION_METHODS
     ("regrasps", "INTEGER"),

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import enum
 import math
+import time
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +38,18 @@ from dexplan.planning.validity import GraspValidity
 from dexplan.pose import interpolate_pose, inverse_transform_points, quat_angle, quat_to_matrix
 from dexplan.typing import FloatArray
 
-__all__ = ["GeodesicMotion", "GeodesicMotionSettings", "MotionFailure", "geodesic_motion"]
+__all__ = [
+    "GeodesicFallback",
+    "GeodesicMotion",
+    "GeodesicMotionSettings",
+    "MotionFailure",
+    "geodesic_motion",
+]
+
+END_JOINT_TOLERANCE = 1e-6
+"""Largest joint gap (rad) between a motion's last IK state and ``b``: past it
+the motion ended on another IK branch than ``b``'s (a :class:`GeodesicFallback`
+then does not join the states)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +78,7 @@ class MotionFailure(enum.Enum):
     IK = "ik"  # no IK solution for a fingertip centre (out of reach, or not converged)
     JOINT_JUMP = "joint_jump"  # an IK branch change (past max_splits halvings)
     INVALID = "invalid"  # a state the validity checker rejects (see detail)
+    DEADLINE = "deadline"  # the caller's deadline passed before the motion's end
 
 
 @dataclass(frozen=True)
@@ -95,6 +109,8 @@ def geodesic_motion(
     a: FloatArray,
     b: FloatArray,
     settings: GeodesicMotionSettings | None = None,
+    *,
+    deadline: float = math.inf,
 ) -> GeodesicMotion:
     """The section VI motion between GSn states ``a`` and ``b: (7 + nq,)``.
 
@@ -106,7 +122,8 @@ def geodesic_motion(
     ``b``'s. The last state reaches ``b``'s object pose (its quaternion may
     be ``-b``'s, the same rotation) and fingertip centres; its joints are
     the IK's, equal to ``b``'s when ``b`` lies on the branch the motion
-    followed.
+    followed. Past ``deadline`` (``time.perf_counter()``) the motion stops
+    with :attr:`MotionFailure.DEADLINE`.
 
     Raises:
         InvalidInputError: the subspace has free fingers (this moves every
@@ -170,14 +187,103 @@ def geodesic_motion(
                 return GeodesicMotion(empty, MotionFailure.JOINT_JUMP)
             mid = 0.5 * (t0 + t1)
             return advance(t0, mid, depth + 1) or advance(mid, t1, depth + 1)
-        verdict = validity.check(x)
-        if not verdict.valid:
-            return GeodesicMotion(empty, MotionFailure.INVALID, str(verdict.reason))
         out.append(x)
         return None
 
+    # the states first (IK only, cheap), then the validity checker on them in
+    # bisection order, as OMPL's motion validators: an invalid stretch is met early
     for k in range(1, n + 1):
+        if time.perf_counter() >= deadline:
+            return GeodesicMotion(empty, MotionFailure.DEADLINE)
         failed = advance((k - 1) / n, k / n, 0)
         if failed is not None:
             return failed
+    for i in bisection_order(len(out) - 1):
+        if time.perf_counter() >= deadline:
+            return GeodesicMotion(empty, MotionFailure.DEADLINE)
+        verdict = validity.check(out[i + 1])
+        if not verdict.valid:
+            return GeodesicMotion(empty, MotionFailure.INVALID, str(verdict.reason))
     return GeodesicMotion(np.array(out))
+
+
+def bisection_order(n: int) -> list[int]:
+    """``0 .. n-1`` in bisection order (the last, the middle, then the quarters, ...).
+
+    ``bisection_order(7) == [6, 2, 0, 4, 1, 3, 5]``: a motion's states
+    checked in this order meet an invalid stretch after few checks.
+    """
+    if n <= 0:
+        return []
+    order = [n - 1]
+    seen = {n - 1}
+    queue = [(0, n - 1)]  # half-open index ranges still to split
+    while queue:
+        nxt: list[tuple[int, int]] = []
+        for lo, hi in queue:
+            if lo >= hi:
+                continue
+            mid = (lo + hi - 1) // 2 if hi - lo > 1 else lo
+            if mid not in seen:
+                seen.add(mid)
+                order.append(mid)
+            nxt.extend([(lo, mid), (mid + 1, hi)])
+        queue = nxt
+    return order
+
+
+class GeodesicFallback:
+    """The section VI motion as module 1's second motion (OMPL's ``motion_fallback``).
+
+    Called where OMPL's projected motion between two roadmap states is
+    invalid (:class:`~dexplan.planning.ompl.motions.FallbackMotions`): the
+    paper's motion joins them when it is valid, starts at ``a`` and ends at
+    ``b`` exactly (same quaternion sign, the IK's last joints within
+    :data:`END_JOINT_TOLERANCE` of ``b``'s; the ends are then ``a`` and
+    ``b`` themselves).
+
+    Args:
+        trans: the transitions (hand and object).
+        validity: GSn's validity checker.
+        paths: the object's geodesic contact paths (active: a mesh).
+        settings: the motion's steps.
+
+    Attributes:
+        failures: why calls did not join their states, counted (``"sign"``:
+            the quaternions' signs differ, so the ambient path would jump;
+            ``"branch"``: it ended on another IK branch; else a
+            :class:`MotionFailure` value).
+    """
+
+    def __init__(
+        self,
+        trans: Transitions,
+        validity: GraspValidity,
+        paths: ContactPaths,
+        settings: GeodesicMotionSettings | None = None,
+    ) -> None:
+        if not paths.active:
+            raise InvalidInputError(f"no surface geodesics: {paths.fallback}")
+        self._trans = trans
+        self._validity = validity
+        self._paths = paths
+        self._settings = settings
+        self.failures: Counter[str] = Counter()
+
+    def __call__(self, a: FloatArray, b: FloatArray, deadline: float) -> FloatArray | None:
+        """``(K, 7 + nq)`` valid states from ``a`` to ``b`` (both exactly), or None."""
+        if float(a[3:POSE_DIM] @ b[3:POSE_DIM]) < 0.0:
+            self.failures["sign"] += 1
+            return None
+        motion = geodesic_motion(
+            self._trans, self._validity, self._paths, a, b, self._settings, deadline=deadline
+        )
+        if motion.failure is not None:
+            self.failures[motion.failure.value] += 1
+            return None
+        states = motion.states.copy()
+        if float(np.max(np.abs(states[-1][POSE_DIM:] - b[POSE_DIM:]))) > END_JOINT_TOLERANCE:
+            self.failures["branch"] += 1
+            return None
+        states[0], states[-1] = a, b
+        return states

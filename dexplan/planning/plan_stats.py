@@ -28,6 +28,9 @@ class PlanStats:
         components: GSn connected components; components_after_links: after
             module-2 links merged some.
         module2_attempts, module2_links, module2_time_s: module 2's work.
+        geodesic_motion_attempts, geodesic_motion_edges: module 1's section
+            VI motions (meshes, PRM family) tried where OMPL's motion failed,
+            and the roadmap edges they joined.
         goal_samples: valid states the goal sampler returned.
         reduction_method: ``gaits`` or ``edges`` (the one that made the plan).
         reduction_attempts: reduction attempts made (of the last GSn path).
@@ -63,6 +66,8 @@ class PlanStats:
     module2_attempts: int = 0
     module2_links: int = 0
     module2_time_s: float = 0.0
+    geodesic_motion_attempts: int = 0
+    geodesic_motion_edges: int = 0
     goal_samples: int | None = None
     reduction_method: str | None = None
     reduction_attempts: int | None = None

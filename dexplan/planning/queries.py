@@ -29,6 +29,7 @@ from dexplan.planning.roadmap import (
     GsnResult,
     Roadmap,
     constraint_spec,
+    geodesic_fallback,
     link_query,
     object_move_free,
     pose_distances,
@@ -54,9 +55,20 @@ near the table or the post has few, and the sampler finds them rarely.
 
 
 def query_problem(ctx: PlanningContext, space: str = "projected") -> PlanningProblem:
-    """The OMPL space a query's GSn motions are checked in (no planner run)."""
+    """The OMPL space a query's GSn motions are checked in (no planner run).
+
+    On meshes its motions are module 1's (:func:`~dexplan.planning.roadmap.geodesic_fallback`):
+    the section VI motion where OMPL's fails, each check a function of its
+    two states (``fallback_merges_only=False``: build tasks in any worker
+    agree), so that a roadmap edge the fallback joined is densified along it.
+    """
     return PlanningProblem(
-        constraint_spec(ctx, space), ctx.validity.is_valid, planner="PRM", seed=None
+        constraint_spec(ctx, space),
+        ctx.validity.is_valid,
+        planner="PRM",
+        seed=None,
+        motion_fallback=geodesic_fallback(ctx),
+        fallback_merges_only=False,
     )
 
 

@@ -36,7 +36,9 @@ from scipy.sparse.csgraph import dijkstra
 from dexplan.exceptions import InvalidInputError, RoadmapFileError, shorten
 from dexplan.files import atomic_output
 from dexplan.planning.chart import ChartProblem, ContactChart
+from dexplan.planning.contact_paths import ContactPaths
 from dexplan.planning.context import PlanningContext
+from dexplan.planning.geodesic_motion import GeodesicFallback
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import (
     MULTI_QUERY_PLANNERS,
@@ -333,6 +335,9 @@ ROUND_MILESTONES = 4
 CHART_RANGE = 0.5
 """Default ``range`` of tree planners on the contact chart (planning units)."""
 
+GEODESIC_MOTIONS = True
+"""Whether module 1 on meshes adds the section VI motion to OMPL's (:func:`geodesic_fallback`)."""
+
 R_N_SAMPLERS = frozenset({"BITstar", "InformedRRTstar", "SORRTstar"})
 """Planners whose informed samplers treat the space as R^n (no projection): they
 get the chart without unit-sphere rows, where every point of the bounds is a state."""
@@ -467,6 +472,9 @@ def explore_gsn(
                 "components": roadmap.components()[0],
             }
         )
+        if isinstance(problem, PlanningProblem):
+            tried, joined, _ = problem.fallback_motions
+            stats.update(geodesic_motion_attempts=tried, geodesic_motion_edges=joined)
         names = ("rounds", "gsn_rounds"), ("nodes", "roadmap_nodes"), ("edges", "roadmap_edges")
         report("module1", {k: int(stats[v]) for k, v in (*names, ("components", "components"))})
         if path is not None:
@@ -530,7 +538,11 @@ def gsn_problem(
     space: str,
     seed: int,
 ) -> PlanningProblem:
-    """The OMPL problem over GSn: the constraint, the validity checker and the RLG sampler."""
+    """The OMPL problem over GSn: the constraint, the validity checker and the RLG sampler.
+
+    On meshes the PRM family joins milestones with the paper's section VI
+    motion where OMPL's projected one fails (:func:`geodesic_fallback`).
+    """
     return PlanningProblem(
         constraint_spec(ctx, space),
         ctx.validity.is_valid,
@@ -540,7 +552,20 @@ def gsn_problem(
         check_sampled_states=False,  # the sampler returns checked states
         projection=orientation_projection(),
         seed=seed,
+        motion_fallback=geodesic_fallback(ctx) if planner in MULTI_QUERY_PLANNERS else None,
     )
+
+
+def geodesic_fallback(ctx: PlanningContext) -> GeodesicFallback | None:
+    """Module 1's second GSn motion on a mesh: contacts along surface geodesics, or None.
+
+    None for the primitives and meshes without geodesics (the projected
+    motion is then the only one), and when :data:`GEODESIC_MOTIONS` is off.
+    """
+    if not GEODESIC_MOTIONS:
+        return None
+    paths = ContactPaths(ctx.obj)
+    return GeodesicFallback(ctx.transitions, ctx.validity, paths) if paths.active else None
 
 
 def _query_problem(

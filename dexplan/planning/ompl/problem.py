@@ -10,9 +10,11 @@ re-checks paths in travel direction and reads the planner's graph
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -31,6 +33,7 @@ from dexplan.planning.ompl.callbacks import (
     make_validity,
     termination,
 )
+from dexplan.planning.ompl.motions import FallbackMotions, MotionFallback
 from dexplan.planning.ompl.registry import (
     FIRST_SOLUTION_PLANNERS,
     MULTI_QUERY_PLANNERS,
@@ -105,6 +108,15 @@ class PlanningProblem:
             (turn off when the sampler already does).
         projection: grid projection for the KPIECE family (ignored by others).
         seed: see Determinism; None leaves OMPL's seed alone.
+        motion_fallback: a second motion between two states, tried where
+            OMPL's discrete geodesic is invalid
+            (:data:`~dexplan.planning.ompl.motions.MotionFallback`); the PRM
+            family only (the tree planners check motions through OMPL's
+            3-argument form). Paths through an edge it joined are densified
+            along its states.
+        fallback_merges_only: try the fallback only between states that the
+            motions accepted so far do not join (see
+            :class:`~dexplan.planning.ompl.motions.FallbackMotions`).
 
     Raises:
         PlannerError: unknown planner, unknown parameter or rejected value.
@@ -124,12 +136,24 @@ class PlanningProblem:
         check_sampled_states: bool = True,
         projection: ProjectionSpec | None = None,
         seed: int | None = None,
+        motion_fallback: MotionFallback | None = None,
+        fallback_merges_only: bool = True,
     ) -> None:
         if not isinstance(constraint, ConstraintSpec):
             raise InvalidInputError(f"constraint must be a ConstraintSpec, got {constraint!r}")
         if not callable(is_valid):
             raise InvalidInputError(f"is_valid must be callable, got {is_valid!r}")
         check_planner_name(planner)
+        if motion_fallback is not None:
+            if not callable(motion_fallback):
+                raise InvalidInputError(
+                    f"motion_fallback must be callable, got {motion_fallback!r}"
+                )
+            if planner not in MULTI_QUERY_PLANNERS:
+                raise InvalidInputError(
+                    f"motion_fallback is for the PRM family "
+                    f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {planner}"
+                )
         if seed is not None:
             seed = as_int(seed, "seed", 0)
         self._spec = constraint
@@ -154,6 +178,17 @@ class PlanningProblem:
         si.setup()
         self._css = css
         self._si = si
+        self._motions: FallbackMotions | None = None
+        if motion_fallback is not None:
+            self._motions = FallbackMotions(
+                si,
+                motion_fallback,
+                constraint,
+                self._frame,
+                self._sink,
+                merges_only=bool(fallback_merges_only),
+            )
+            si.setMotionValidator(self._motions)  # kept referenced by self._motions
         self._projection = (
             make_projection(projection, css, self._frame, self._sink)
             if projection is not None
@@ -411,7 +446,10 @@ class PlanningProblem:
             def reached() -> bool:
                 return sink.error is not None or planner.milestoneCount() >= target
 
-        with self._sink.watching(termination(limit, stop=reached)) as ptc:
+        with (
+            self._sink.watching(termination(limit, stop=reached)) as ptc,
+            self._motion_deadline(limit),
+        ):
             self._planner.growRoadmapPtc(ptc)
         self._raise_callback_error()
         return int(self._planner.milestoneCount())
@@ -472,7 +510,7 @@ class PlanningProblem:
             self._planner = self._new_planner()
             self._planner.setup()
         self._planner_used = True
-        with self._sink.watching(termination(limit, budget)) as ptc:
+        with self._sink.watching(termination(limit, budget)) as ptc, self._motion_deadline(limit):
             status = self._planner.solve(ptc)
         self._raise_callback_error()
         name = STATUS_NAMES.get(status.getStatus().value, "unknown")
@@ -499,6 +537,24 @@ class PlanningProblem:
             message=status.asString(),
         )
 
+    @contextmanager
+    def _motion_deadline(self, limit: float) -> Iterator[None]:
+        """The motion fallback stops trying ``limit`` seconds from now, until the block ends."""
+        if self._motions is None:
+            yield
+            return
+        self._motions.start(limit)
+        try:
+            yield
+        finally:
+            self._motions.stop()
+
+    @property
+    def fallback_motions(self) -> tuple[int, int, int]:
+        """``(attempts, joined, skipped)`` of the motion fallback (zeros without one)."""
+        m = self._motions
+        return (0, 0, 0) if m is None else (m.attempts, m.joined, m.skipped)
+
     def _no_path(self, status: str, t0: float, message: str) -> SolveResult:
         """Return the :class:`SolveResult` of a solve started at ``t0`` without a path."""
         return SolveResult(
@@ -513,7 +569,16 @@ class PlanningProblem:
         )
 
     def _geodesic(self, a: Any, b: Any) -> list[FloatArray]:
-        """Planning-coordinate states of the discrete geodesic a -> b (a and b included)."""
+        """Planning-coordinate states of the motion a -> b (a and b included).
+
+        The fallback's recorded states where it joined the edge, else OMPL's
+        discrete geodesic.
+        """
+        if self._motions is not None:
+            read = self._frame.read
+            dense = self._motions.recorded(read(a), read(b))
+            if dense is not None:
+                return list(dense)
         segment = og.PathGeometric(self._si, a, b)
         segment.interpolate()
         read = self._frame.read
@@ -610,11 +675,13 @@ class PlanningProblem:
         return path
 
     def interpolate_path(self, waypoints: object) -> FloatArray:
-        """Densify a path of ambient states along the space's discrete geodesics, unchecked.
+        """Densify a path of ambient states along the space's motions, unchecked.
 
         For paths whose motions were checked already (a roadmap's edges): each
-        segment ``i -> i+1`` is OMPL's ``PathGeometric.interpolate`` of it, no
-        validity check is made (use :meth:`check_path` for that).
+        segment ``i -> i+1`` is OMPL's ``PathGeometric.interpolate`` of it, or,
+        with a motion fallback, the fallback's states where OMPL's motion is
+        invalid and the fallback joins the segment (recorded, or joined again);
+        no other validity check is made (use :meth:`check_path` for that).
 
         Args:
             waypoints: ``(M, n)`` ambient states, M >= 1.
@@ -626,11 +693,27 @@ class PlanningProblem:
             InvalidInputError: wrong shape or non-finite values.
         """
         path = self._geometric_path(waypoints)
+        if self._motions is not None:
+            return self._interpolate_with_fallback(path)
         path.interpolate()
         read = self._frame.read
         ys = np.array([read(path.getState(i)) for i in range(path.getStateCount())])
         self._raise_callback_error()
         return self._frame.to_x(ys.reshape(-1, self._spec.ambient_dim))
+
+    def _interpolate_with_fallback(self, path: Any) -> FloatArray:
+        """:meth:`interpolate_path` where a motion fallback may have joined segments."""
+        motions = self._motions
+        assert motions is not None
+        read = self._frame.read
+        states = [path.getState(i) for i in range(path.getStateCount())]
+        dense = [read(states[0])]
+        for a, b in itertools.pairwise(states):
+            joined = motions.states(read(a), read(b))
+            piece = list(joined) if joined is not None else self._geodesic(a, b)
+            dense.extend(piece[1:])
+        self._raise_callback_error()
+        return self._frame.to_x(np.array(dense).reshape(-1, self._spec.ambient_dim))
 
     def _states_ok(self, ys: FloatArray) -> bool:
         """Whether every planning-coordinate state is on the manifold, in bounds, valid."""
