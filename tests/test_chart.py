@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from dexplan.exceptions import InvalidInputError
-from dexplan.planning.chart import ChartProblem, ContactChart
+from dexplan.planning.chart import ChartProblem, ContactChart, DirectionCaps
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
 from dexplan.planning.ompl import RoadmapData
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap import GsnQuery, chart_problem, explore_gsn
+from dexplan.planning.roadmap import CAPPED_PLANNERS, GsnQuery, chart_problem, explore_gsn
 from dexplan.scenario import builtin_scenario_path, load_scenario
 
 
@@ -201,3 +201,50 @@ def test_a_start_the_chart_cannot_represent_falls_back_to_the_ambient_space(cube
     off = x0.copy()
     off[POSE_DIM] += 0.05  # a fingertip off the offset surface: not a chart state
     assert chart_problem(ctx, "RRTConnect", None, "projected", 1, off) is None
+
+
+def test_direction_caps_round_trip_and_bound_the_directions(cube) -> None:
+    """A capped chart stores each direction in its cap's frame: the box bounds are the cap."""
+    ctx, chart = cube
+    xs = [x for x in (ctx.sampler.sample() for _ in range(200)) if x is not None][:12]
+    k = chart.k
+    dirs = np.array([chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3) for x in xs])
+    centres = dirs.mean(axis=0)
+    centres /= np.linalg.norm(centres, axis=1, keepdims=True)
+    angle = np.radians(75.0)
+    caps = DirectionCaps(centres, angle)
+    frames = caps.frames()
+    for f, c in zip(frames, centres, strict=True):
+        np.testing.assert_allclose(f.T @ f, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(f[:, 2], c, atol=1e-12)
+        assert np.linalg.det(f) > 0.0
+    capped = ContactChart(ctx.gsn, ctx.validity.is_valid, caps=caps)
+    inside = 0
+    for x, d in zip(xs, dirs, strict=True):
+        within = bool(np.all(np.einsum("kj,kj->k", d, centres) >= np.cos(angle)))
+        assert capped.represents(x) == within
+        inside += within
+        np.testing.assert_allclose(capped.to_ambient(capped.to_chart(x)), x, atol=1e-9)
+    assert inside >= 6
+    # mapped uniform states of the capped chart keep every direction in its cap
+    for y in _random_chart_states(capped, 400, 2):
+        x = capped.to_ambient(y)
+        if x is not None:
+            d = chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3)
+            assert np.all(np.einsum("kj,kj->k", d, centres) >= np.cos(np.radians(80.0)))
+    with pytest.raises(InvalidInputError, match="caps"):
+        ContactChart(ctx.gsn, ctx.validity.is_valid, caps=DirectionCaps(centres[:2], angle))
+    with pytest.raises(InvalidInputError, match="caps"):
+        ContactChart(ctx.gsn, ctx.validity.is_valid, caps=DirectionCaps(centres, 0.0))
+
+
+def test_batch_and_informed_planners_get_a_capped_chart(cube) -> None:
+    ctx, _ = cube
+    x0 = start_state(ctx)
+    assert x0 is not None
+    for planner in CAPPED_PLANNERS:
+        problem = chart_problem(ctx, planner, None, "projected", 1, x0)
+        assert problem is not None and problem.chart.caps is not None
+        assert problem.chart.represents(x0)
+    problem = chart_problem(ctx, "RRTConnect", None, "projected", 1, x0)
+    assert problem is not None and problem.chart.caps is None

@@ -71,7 +71,14 @@ from dexplan.planning.ompl import (
 from dexplan.pose import quat_to_matrix
 from dexplan.typing import FloatArray
 
-__all__ = ["GOAL_POOL", "RAY_ITERATIONS", "RAY_TOLERANCE", "ChartProblem", "ContactChart"]
+__all__ = [
+    "GOAL_POOL",
+    "RAY_ITERATIONS",
+    "RAY_TOLERANCE",
+    "ChartProblem",
+    "ContactChart",
+    "DirectionCaps",
+]
 
 RAY_ITERATIONS = 40
 """Newton/bisection steps allowed to find one fingertip centre on a ray."""
@@ -95,6 +102,35 @@ _MIN_NORM = 1e-3
 """Quaternions and directions shorter than this do not map (no direction)."""
 
 
+@dataclasses.dataclass(frozen=True)
+class DirectionCaps:
+    """Each contact finger's chart direction kept within a spherical cap.
+
+    A chart direction is then stored in the cap's own frame (its axis the
+    third coordinate), so the chart's box bounds are exactly the cap (for
+    unit directions: ``e_z >= cos(half_angle)``).
+
+    Attributes:
+        centres: ``(k, 3)`` unit axes of the caps, in the chart's direction
+            frame (world when ``world_directions``), one per contact finger.
+        half_angle: the caps' half angle (rad), in (0, pi].
+    """
+
+    centres: FloatArray
+    half_angle: float
+
+    def frames(self) -> FloatArray:
+        """``(k, 3, 3)`` rotations whose third column is each cap's axis."""
+        out = np.empty((len(self.centres), 3, 3))
+        for i, z in enumerate(self.centres):
+            z = z / np.linalg.norm(z)
+            helper = np.eye(3)[int(np.argmin(np.abs(z)))]
+            x = np.cross(helper, z)
+            x /= np.linalg.norm(x)
+            out[i] = np.column_stack([x, np.cross(z, x), z])
+        return out
+
+
 class ContactChart:
     """The contact chart of a grasp subspace: chart states ``y`` <-> ambient states ``x``.
 
@@ -108,6 +144,8 @@ class ContactChart:
             fixed direction under an object rotation slides the contact and
             keeps the finger in place; False: in the object frame (a fixed
             direction is a rigid transfer).
+        caps: keep each contact finger's direction within a cap (see
+            :class:`DirectionCaps`), or None for the whole sphere.
 
     Raises:
         InvalidInputError: the object-frame origin is not inside the object (rays
@@ -122,6 +160,7 @@ class ContactChart:
         *,
         spheres: bool = True,
         world_directions: bool = True,
+        caps: DirectionCaps | None = None,
     ) -> None:
         if not self.applies(gsn):
             raise InvalidInputError("the object-frame origin is not inside the object")
@@ -143,6 +182,15 @@ class ContactChart:
         self._neutral = np.asarray(hand.neutral, dtype=np.float64)
         self._cache: dict[bytes, FloatArray | None] = {}
         self.stats = {"maps": 0, "ray_failures": 0, "ik_failures": 0}
+        self.caps = caps
+        self._frames: FloatArray | None = None
+        if caps is not None:
+            if np.shape(caps.centres) != (self.k, 3) or not 0.0 < caps.half_angle <= math.pi:
+                raise InvalidInputError(
+                    f"caps need ({self.k}, 3) centres and a half angle in (0, pi], got "
+                    f"{np.shape(caps.centres)} and {caps.half_angle!r}"
+                )
+            self._frames = caps.frames()
 
     @staticmethod
     def applies(gsn: GraspSubspace) -> bool:
@@ -153,9 +201,16 @@ class ContactChart:
     def bounds(self) -> tuple[FloatArray, FloatArray]:
         """``(lower, upper)`` of chart states: the GSn bounds of the pose and free joints."""
         g, hand = self.gsn, self.gsn.hand
-        ones = np.full(3 * self.k, _SPHERE_BOUND if self.spheres else 1.0)
-        lo = np.concatenate([g.lower[:POSE_DIM], -ones, hand.lower[self._free_q], [-_PIN_BOUND]])
-        up = np.concatenate([g.upper[:POSE_DIM], ones, hand.upper[self._free_q], [_PIN_BOUND]])
+        one = _SPHERE_BOUND if self.spheres else 1.0
+        d_lo, d_up = np.full(3 * self.k, -one), np.full(3 * self.k, one)
+        if self.caps is not None:  # the cap's frame: |e_x|, |e_y| <= sin, e_z >= cos
+            angle = self.caps.half_angle
+            side = one * (math.sin(angle) if angle < 0.5 * math.pi else 1.0)
+            cap_lo = np.tile([-side, -side, math.cos(angle)], self.k)
+            cap_up = np.tile([side, side, one], self.k)
+            d_lo, d_up = cap_lo, cap_up
+        lo = np.concatenate([g.lower[:POSE_DIM], d_lo, hand.lower[self._free_q], [-_PIN_BOUND]])
+        up = np.concatenate([g.upper[:POSE_DIM], d_up, hand.upper[self._free_q], [_PIN_BOUND]])
         if self.spheres:
             lo[3:POSE_DIM], up[3:POSE_DIM] = -_SPHERE_BOUND, _SPHERE_BOUND
         return lo, up
@@ -260,6 +315,8 @@ class ContactChart:
         quat = y[3:POSE_DIM] / qn
         R = quat_to_matrix(quat)
         dirs = d / dn[:, None]
+        if self._frames is not None:
+            dirs = np.einsum("kij,kj->ki", self._frames, dirs)
         tips = self.tip_centres(dirs @ R if self.world_directions else dirs)
         if tips is None:
             return None
@@ -283,9 +340,19 @@ class ContactChart:
         else:
             tips = self.gsn.fingertips_object_frame(x)[list(self.contact_ids)]
         dirs = tips / np.linalg.norm(tips, axis=1, keepdims=True)
+        if self._frames is not None:
+            dirs = np.einsum("kji,kj->ki", self._frames, dirs)
         quat = x[3:POSE_DIM] / np.linalg.norm(x[3:POSE_DIM])
         free = x[POSE_DIM:][self._free_q]
         return np.concatenate([x[:3], quat, dirs.reshape(-1), free, [0.0]])
+
+    def represents(self, x: FloatArray, tol: float = 1e-7) -> bool:
+        """Whether ambient ``x`` round-trips within ``tol`` and its chart state is in bounds."""
+        if self.round_trip_error(x) > tol:
+            return False
+        lo, up = self.bounds()
+        y = self.to_chart(x)
+        return bool(np.all(y >= lo) and np.all(y <= up))
 
     def round_trip_error(self, x: FloatArray) -> float:
         """Largest coordinate change of ``x -> to_chart -> to_ambient`` (inf when it fails)."""
