@@ -205,7 +205,8 @@ def test_a_start_the_chart_cannot_represent_falls_back_to_the_ambient_space(cube
 
 def test_direction_caps_round_trip_and_bound_the_directions(cube) -> None:
     """A capped chart stores each direction in its cap's frame: the box bounds are the cap."""
-    ctx, chart = cube
+    ctx = build_context(load_scenario(builtin_scenario_path("cube_obstacle")), seed=3)
+    chart = ContactChart(ctx.gsn, ctx.validity.is_valid)  # own sampler: the module's stays put
     xs = [x for x in (ctx.sampler.sample() for _ in range(200)) if x is not None][:12]
     k = chart.k
     dirs = np.array([chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3) for x in xs])
@@ -226,16 +227,26 @@ def test_direction_caps_round_trip_and_bound_the_directions(cube) -> None:
         inside += within
         np.testing.assert_allclose(capped.to_ambient(capped.to_chart(x)), x, atol=1e-9)
     assert inside >= 6
-    # mapped uniform states of the capped chart keep every direction in its cap
+    # mapped uniform box states of the capped chart keep every direction within
+    # atan(sqrt(2) tan 75 deg) = 79.3 deg of its axis (the box's corners)
+    mapped = 0
     for y in _random_chart_states(capped, 400, 2):
         x = capped.to_ambient(y)
         if x is not None:
+            mapped += 1
             d = chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3)
             assert np.all(np.einsum("kj,kj->k", d, centres) >= np.cos(np.radians(80.0)))
+    assert mapped >= 20
     with pytest.raises(InvalidInputError, match="caps"):
         ContactChart(ctx.gsn, ctx.validity.is_valid, caps=DirectionCaps(centres[:2], angle))
     with pytest.raises(InvalidInputError, match="caps"):
         ContactChart(ctx.gsn, ctx.validity.is_valid, caps=DirectionCaps(centres, 0.0))
+    with pytest.raises(InvalidInputError, match="caps"):  # R^n boxes must avoid the origin
+        ContactChart(
+            ctx.gsn, ctx.validity.is_valid, spheres=False, caps=DirectionCaps(centres, 1.6)
+        )
+    with pytest.raises(InvalidInputError, match="caps"):
+        ContactChart(ctx.gsn, ctx.validity.is_valid, caps=DirectionCaps(0.0 * centres, angle))
 
 
 def test_batch_and_informed_planners_get_a_capped_chart(cube) -> None:

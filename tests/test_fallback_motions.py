@@ -99,9 +99,9 @@ def test_fallback_states_off_the_manifold_do_not_join():
 @pytest.mark.parametrize(
     ("answer", "needle"),
     [
-        (lambda a, b: np.zeros((2, 2)), "shape"),
+        (lambda a, b: np.zeros((2, 2)), "returned shape"),
         (lambda a, b: np.stack([a, a]), "start and end"),
-        (lambda a, b: np.stack([a, np.full(3, np.nan)]), "non-finite"),
+        (lambda a, b: np.stack([a, np.full(3, np.nan)]), "non-finite states"),
     ],
 )
 def test_malformed_fallback_answers_raise(answer, needle):
@@ -117,3 +117,54 @@ def test_fallback_refused_for_tree_planners_and_non_callables():
         )
     with pytest.raises(InvalidInputError, match="callable"):
         PlanningProblem(make_spec(), is_valid, planner="PRM", motion_fallback=3)
+
+
+def test_fallback_calls_are_budgeted_in_checks_not_time():
+    """Fallback calls at most a tenth of the motion checks (the first free):
+    the same calls whatever the clock, so a seed keeps its roadmap."""
+    fallback = RoundTheWindow()
+    p = problem(fallback, fallback_merges_only=False)
+    assert p.check_motion(A, B)  # the first call is free
+    c = np.array([0.0, 0.6, -0.8])
+    d = np.array([0.0, 0.6, 0.8])  # c -> d crosses the band at x = 0: OMPL's motion fails
+    assert not p.check_motion(c, d)  # 2 checks, 1 call: no budget left
+    assert fallback.calls == 1 and p.fallback_motions == (1, 1, 1)
+    for _ in range(8):
+        assert p.check_motion(A, c)  # OMPL's motions earn budget
+    assert p.check_motion(c, d)  # 11 checks: a second call
+    assert fallback.calls == 2
+
+
+def test_densify_only_problem_keeps_checks_ompl_s():
+    fallback = RoundTheWindow()
+    p = problem(fallback, fallback_checks=False)
+    assert not p.check_motion(A, B)
+    assert fallback.calls == 0
+    dense = p.interpolate_path(np.stack([A, B]))
+    assert fallback.calls == 1
+    assert min(dense[:, 0]) < -0.99  # round the window
+    np.testing.assert_allclose(dense[0], A, atol=1e-12)
+    np.testing.assert_allclose(dense[-1], B, atol=1e-12)
+
+
+def test_fallback_states_are_found_through_ambient_round_trips():
+    """Roadmap vertices come back through ambient coordinates (y * inv * scale):
+    the record still answers for them, and the fallback is not called again."""
+    fallback = RoundTheWindow()
+    spec = make_spec(scale=np.array([1.0 / 3.0, 7.0, 0.3]))
+    p = PlanningProblem(spec, is_valid, planner="PRM", motion_fallback=fallback)
+    assert p.check_motion(A, B)
+    a2 = (A * spec.scale) * (1.0 / spec.scale)  # a vertex as planner_data() gives it
+    assert np.any(a2 * spec.scale != A * spec.scale)  # a few ulps off OMPL's coordinates
+    checked = p.check_path(np.stack([a2, B]))
+    assert checked.path_valid and min(checked.path[:, 0]) < -0.99
+    assert fallback.calls == 1
+
+
+def test_clear_forgets_the_fallback_motions():
+    fallback = RoundTheWindow()
+    p = problem(fallback)
+    assert p.check_motion(A, B)
+    p.clear()
+    assert p.check_motion(A, B)
+    assert fallback.calls == 2

@@ -158,3 +158,32 @@ def test_fallback_refuses_a_flipped_quaternion_and_primitives(motions) -> None:
     assert geodesic_fallback(sphere) is None
     with pytest.raises(InvalidInputError, match="geodesics"):
         GeodesicFallback(sphere.transitions, sphere.validity, ContactPaths(sphere.obj))
+
+
+def test_prm_roadmap_with_geodesic_motions_is_the_same_for_a_seed() -> None:
+    """The fallback's budget is counted in motion checks, not time: one seed, one roadmap."""
+
+    def grow():
+        ctx = build_context(load_scenario(EGG), seed=4)
+        problem = gsn_problem(ctx, "PRM", None, "projected", 4)
+        problem.grow_roadmap(120.0, max_milestones=24)
+        return problem.planner_data(), problem.fallback_motions
+
+    (one, counts_one), (two, counts_two) = grow(), grow()
+    assert counts_one[0] >= 1  # the fallback was tried
+    assert counts_one == counts_two
+    np.testing.assert_array_equal(one.vertices, two.vertices)
+    np.testing.assert_array_equal(one.edges, two.edges)
+
+
+def test_a_dropped_problem_frees_its_fallback_motions() -> None:
+    import gc
+    import weakref
+
+    ctx = build_context(load_scenario(EGG), seed=1)
+    problem = gsn_problem(ctx, "PRM", None, "projected", 1)
+    motions = weakref.ref(problem._motions)
+    problem.grow_roadmap(60.0, max_milestones=2)
+    del problem
+    gc.collect()
+    assert motions() is None

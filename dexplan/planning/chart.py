@@ -102,13 +102,16 @@ _MIN_NORM = 1e-3
 """Quaternions and directions shorter than this do not map (no direction)."""
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class DirectionCaps:
     """Each contact finger's chart direction kept within a spherical cap.
 
     A chart direction is then stored in the cap's own frame (its axis the
-    third coordinate), so the chart's box bounds are exactly the cap (for
-    unit directions: ``e_z >= cos(half_angle)``).
+    third coordinate) and bounded by the box ``|e_x|, |e_y| <= sin a``,
+    ``e_z >= cos a``: exactly the cap for the unit directions of a chart
+    with sphere rows; a chart without them (R^n samplers) normalises box
+    points, whose directions reach ``atan(sqrt(2) tan a)`` from the axis
+    (79 degrees for 75).
 
     Attributes:
         centres: ``(k, 3)`` unit axes of the caps, in the chart's direction
@@ -185,10 +188,16 @@ class ContactChart:
         self.caps = caps
         self._frames: FloatArray | None = None
         if caps is not None:
-            if np.shape(caps.centres) != (self.k, 3) or not 0.0 < caps.half_angle <= math.pi:
+            top = math.pi if self.spheres else 0.5 * math.pi  # R^n: the box must avoid 0
+            if (
+                np.shape(caps.centres) != (self.k, 3)
+                or not np.all(np.isfinite(caps.centres))
+                or np.any(np.linalg.norm(caps.centres, axis=1) < 0.5)
+                or not 0.0 < caps.half_angle <= top
+            ):
                 raise InvalidInputError(
-                    f"caps need ({self.k}, 3) centres and a half angle in (0, pi], got "
-                    f"{np.shape(caps.centres)} and {caps.half_angle!r}"
+                    f"caps need ({self.k}, 3) finite unit centres and a half angle in "
+                    f"(0, {top:.4g}], got {np.shape(caps.centres)} and {caps.half_angle!r}"
                 )
             self._frames = caps.frames()
 

@@ -57,10 +57,12 @@ near the table or the post has few, and the sampler finds them rarely.
 def query_problem(ctx: PlanningContext, space: str = "projected") -> PlanningProblem:
     """The OMPL space a query's GSn motions are checked in (no planner run).
 
-    On meshes its motions are module 1's (:func:`~dexplan.planning.roadmap.geodesic_fallback`):
-    the section VI motion where OMPL's fails, each check a function of its
-    two states (``fallback_merges_only=False``: build tasks in any worker
-    agree), so that a roadmap edge the fallback joined is densified along it.
+    Its motion checks are OMPL's (cheap enough for build tasks and joins,
+    and a function of their two states, so workers agree); on meshes
+    :meth:`~PlanningProblem.interpolate_path` densifies a roadmap edge that
+    OMPL's motion does not join along module 1's section VI motion
+    (:func:`~dexplan.planning.roadmap.geodesic_fallback`), which joined it
+    when the roadmap grew.
     """
     return PlanningProblem(
         constraint_spec(ctx, space),
@@ -68,7 +70,7 @@ def query_problem(ctx: PlanningContext, space: str = "projected") -> PlanningPro
         planner="PRM",
         seed=None,
         motion_fallback=geodesic_fallback(ctx),
-        fallback_merges_only=False,
+        fallback_checks=False,
     )
 
 

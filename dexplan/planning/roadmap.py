@@ -561,9 +561,14 @@ def geodesic_fallback(ctx: PlanningContext) -> GeodesicFallback | None:
     """Module 1's second GSn motion on a mesh: contacts along surface geodesics, or None.
 
     None for the primitives and meshes without geodesics (the projected
-    motion is then the only one), and when :data:`GEODESIC_MOTIONS` is off.
+    motion is then the only one), for hands with redundant fingers (more
+    than 3 joints: their IK's free joint is tabulated, so the motion would
+    end beside ``b``'s joints, not on them, and never join), and when
+    :data:`GEODESIC_MOTIONS` is off.
     """
     if not GEODESIC_MOTIONS:
+        return None
+    if any(len(ix) > 3 for ix in ctx.hand.finger_q_index):
         return None
     paths = ContactPaths(ctx.obj)
     return GeodesicFallback(ctx.transitions, ctx.validity, paths) if paths.active else None
@@ -622,9 +627,10 @@ def chart_problem(
         return None
     if planner in CAPPED_PLANNERS:
         caps = direction_caps(ctx, chart, start, CAP_HALF_ANGLE)
-        capped = ContactChart(ctx.gsn, ctx.validity.is_valid, spheres=spheres, caps=caps)
-        if capped.represents(start):
-            chart = capped
+        if caps is not None:
+            capped = ContactChart(ctx.gsn, ctx.validity.is_valid, spheres=spheres, caps=caps)
+            if capped.represents(start):
+                chart = capped
     problem = PlanningProblem(
         chart.constraint_spec(1.0 / (2.0 * ctx.obj.characteristic_length), space),
         chart.is_valid_chart,
@@ -658,12 +664,14 @@ CAP_SAMPLES = 16
 
 def direction_caps(
     ctx: PlanningContext, chart: ContactChart, start: FloatArray, half_angle: float
-) -> DirectionCaps:
+) -> DirectionCaps | None:
     """Caps about each finger's mean chart direction, over the start and RLG states.
 
     The mean of the start's directions and those of up to
     :data:`CAP_SAMPLES` states of the RLG sampler (valid grasps anywhere in
     the workspace): where the hand's fingers touch objects in this scene.
+    None when a finger's directions scatter so that their mean is shorter
+    than 0.2 (no cap about it would keep its states).
     """
     states = [start]
     for _ in range(4 * CAP_SAMPLES):
@@ -675,7 +683,10 @@ def direction_caps(
     k = chart.k
     dirs = np.array([chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3) for x in states])
     mean = dirs.mean(axis=0)
-    return DirectionCaps(mean / np.linalg.norm(mean, axis=1, keepdims=True), half_angle)
+    length = np.linalg.norm(mean, axis=1, keepdims=True)
+    if np.any(length < 0.2):
+        return None
+    return DirectionCaps(mean / length, half_angle)
 
 
 def _module1_round(

@@ -13,23 +13,28 @@ fallback cannot join them; ``deadline`` is the running solve's end
 layer passes the paper's section VI motion on meshes (contacts along surface
 geodesics, :mod:`dexplan.planning.geodesic_motion`).
 
-:class:`FallbackMotions` is then the space information's motion validator: an
-``ob.MotionValidator`` subclass whose ``checkMotion(s1, s2)`` asks the space's
-own validator (a ``ConstrainedMotionValidator``, kept from
-``si.getMotionValidator()``) and then the fallback. The states of every motion
-the fallback joined are recorded, so the densification of a path through that
-edge follows them (:meth:`FallbackMotions.states`); an edge met without a
-record (a roadmap built in another process, or loaded) is joined again, the
-fallback being deterministic.
+:class:`FallbackMotions` holds the fallback, the record of the motions it
+joined and the bookkeeping that bounds its cost. Installed as the space
+information's motion validator (an ``ob.MotionValidator`` subclass given to
+``si.setMotionValidator``), its ``checkMotion(s1, s2)`` asks the space's own
+validator (a ``ConstrainedMotionValidator``, kept from
+``si.getMotionValidator()``) and then the fallback. Paths through an edge
+the fallback joined are densified along its recorded states
+(:meth:`FallbackMotions.states`); an edge met without a record (a roadmap
+built in another process, or loaded) is joined again, the fallback being a
+function of its two states.
 
-Binding facts (ompl 2.0.1 wheel, measured, docs/meshes.md): the wheel calls a
-Python ``ob.MotionValidator`` given to ``si.setMotionValidator`` (PRM's
-``growRoadmap`` 145 times in 3 s on the egg, single-threaded); it does not
-call Python overrides of the state space's ``interpolate``, so the dense
-states of a fallback motion come from the record, not from OMPL. The
-3-argument ``checkMotion(s1, s2, last_valid)`` (the tree planners') stays the
-space's own: only the PRM family, which calls the 2-argument one, is given a
-fallback.
+Binding facts (ompl 2.0.1 wheel, nanobind; measured, docs/meshes.md): the
+wheel calls a Python ``ob.MotionValidator`` given to ``si.setMotionValidator``
+(PRM's ``growRoadmap`` 145 times in 3 s on the egg, single-threaded); its
+trampoline answers the 3-argument ``checkMotion(s1, s2, last_valid)`` with
+the 2-argument Python method and leaves ``last_valid`` unset, so planners
+that read it (RRT, RRTConnect, the KPIECE family) must not get a fallback;
+the PRM family calls the 2-argument form only. The wheel does not call
+Python overrides of the state space's ``interpolate``, so the dense states
+of a fallback motion come from the record, not from OMPL. The validator
+keeps no reference to the space information: the C++ side owns the Python
+object (a cycle through C++ would never be collected).
 """
 
 from __future__ import annotations
@@ -57,13 +62,25 @@ MotionFallback = Callable[[FloatArray, FloatArray, float], Any]
 END_TOLERANCE = 1e-9
 """Largest planning-coordinate gap between a fallback motion's ends and its states."""
 
+KEY_DECIMALS = 10
+"""States are recorded by their planning coordinates rounded to this many
+decimals: a roadmap vertex read back through ambient coordinates
+(``y * inv * scale``) differs from OMPL's own by a few ulps."""
+
+
+def state_key(y: FloatArray) -> bytes:
+    """The record's key of a planning-coordinate state."""
+    return np.round(y, KEY_DECIMALS).tobytes()
+
 
 class FallbackMotions(ob.MotionValidator):
     """The space's motion validator, then a fallback motion; joined motions recorded.
 
     Args:
         si: the space information (its current validator becomes the first one
-            asked; install this one with ``si.setMotionValidator``).
+            asked; install this one with ``si.setMotionValidator``). Not kept.
+        alloc_state: ``() -> state`` of the space (for :meth:`states` and
+            :meth:`check`, which start from coordinates).
         fallback: see :data:`MotionFallback`.
         spec: the constraint (its function, tolerance and bounds check the
             fallback's states).
@@ -75,74 +92,82 @@ class FallbackMotions(ob.MotionValidator):
             components, which is what it adds to a roadmap's connectivity.
             Makes an answer depend on the calls before it; turn off where a
             motion check must be a function of its two states.
-        share: during a solve, the fallback is not called while the time it
-            took exceeds this fraction of the solve's time so far (it
-            costs tens of milliseconds a call and rarely joins what OMPL's
-            motion does not: its cost stays bounded).
+        calls_per_check: the fallback is called only while its calls so far
+            are at most this fraction of the motion checks answered (the
+            first call is free): it costs tens of milliseconds a call and
+            rarely joins what OMPL's motion does not. Counted in work, not
+            time, so a seed still gives one roadmap.
 
     Attributes:
+        checks: motion checks answered (either kind).
         attempts: fallback calls made.
-        joined: fallback calls that joined their states.
-        skipped: calls left out for the time share.
+        joined: motions the fallback joined and this validator recorded.
+        skipped: fallback calls left out for ``calls_per_check``.
     """
 
     def __init__(
         self,
         si: Any,
+        alloc_state: Callable[[], Any],
         fallback: MotionFallback,
         spec: ConstraintSpec,
         frame: Frame,
         sink: ErrorSink,
         *,
         merges_only: bool,
-        share: float = 0.25,
+        calls_per_check: float = 0.1,
     ) -> None:
         super().__init__(si)
-        self._si = si
         self._original = si.getMotionValidator()
+        self._alloc_state = alloc_state
         self._fallback = fallback
         self._spec = spec
         self._frame = frame
         self._sink = sink
         self._merges_only = merges_only
+        self._calls_per_check = float(calls_per_check)
         self._lo = frame.to_y(spec.lower)
         self._up = frame.to_y(spec.upper)
         self._record: dict[tuple[bytes, bytes], FloatArray] = {}
         self._parent: dict[bytes, bytes] = {}
-        self._share = share
+        self.checks = 0
         self.attempts = 0
         self.joined = 0
         self.skipped = 0
         self._deadline = math.inf
-        self._started: float | None = None
-        self._spent = 0.0
 
     def start(self, seconds: float) -> None:
-        """A solve of ``seconds`` starts: no fallback past its end, its time share counted."""
-        now = time.perf_counter()
-        self._deadline = now + seconds
-        self._started = now
-        self._spent = 0.0
+        """A solve of ``seconds`` starts: no fallback past its end."""
+        self._deadline = time.perf_counter() + seconds
 
     def stop(self) -> None:
-        """The solve ended: the fallback is tried without deadline or share."""
+        """The solve ended: the fallback has no deadline."""
         self._deadline = math.inf
-        self._started = None
+
+    def clear(self) -> None:
+        """Forget the record, the union-find and the counts (the roadmap was cleared)."""
+        self._record.clear()
+        self._parent.clear()
+        self.checks = self.attempts = self.joined = self.skipped = 0
 
     # ------------------------------------------------------------ OMPL's calls
 
-    def checkMotion(self, s1: Any, s2: Any, *last_valid: Any) -> bool:  # noqa: N802
-        """OMPL's motion check: the space's own motion, else the fallback's."""
-        if last_valid:  # the tree planners' form: the space's own motion only
-            return bool(self._original.checkMotion(s1, s2, *last_valid))
+    def checkMotion(self, s1: Any, s2: Any, *_last_valid: Any) -> bool:  # noqa: N802
+        """OMPL's motion check: the space's own motion, else the fallback's.
+
+        (The 3-argument form reaches here too, see the module notes: only the
+        PRM family, which never uses it, gets this validator.)
+        """
         if self._sink.error is not None:
             return False
         try:
-            if self._original.checkMotion(s1, s2):
-                read = self._frame.read
-                self._union(read(s1).tobytes(), read(s2).tobytes())
-                return True
+            self.checks += 1
             read = self._frame.read
+            if self._original.checkMotion(s1, s2):
+                self._union(state_key(read(s1)), state_key(read(s2)))
+                return True
+            if self._sink.error is not None:  # the validity callback raised
+                return False
             return self._check_fallback(read(s1), read(s2))
         except Exception as exc:  # must not unwind through C++: recorded, re-raised
             self._sink.record(exc)
@@ -150,31 +175,15 @@ class FallbackMotions(ob.MotionValidator):
 
     # ------------------------------------------------------------ Python side
 
-    def check(self, ya: FloatArray, yb: FloatArray) -> bool:
-        """Whether ``ya -> yb`` (planning ``(n,)``) is a valid motion, either kind."""
-        if self._original_ok(ya, yb):
-            self._union(ya.tobytes(), yb.tobytes())
-            return True
-        return self._check_fallback(ya, yb)
-
-    def _check_fallback(self, ya: FloatArray, yb: FloatArray) -> bool:
-        """Whether the fallback joins ``ya -> yb`` (recorded, or joined now)."""
-        ka, kb = ya.tobytes(), yb.tobytes()
-        if self._recorded(ka, kb) is not None:
-            self._union(ka, kb)
-            return True
-        if self._merges_only and self._find(ka) == self._find(kb):
-            return False
-        return self._join(ya, yb) is not None
-
     def states(self, ya: FloatArray, yb: FloatArray) -> FloatArray | None:
         """The fallback's planning-coordinate ``(K, n)`` states of ``ya -> yb``, or None.
 
-        None when the space's own motion is valid (OMPL's interpolation then
-        densifies the edge) or when neither motion joins the states. Recorded
-        motions are returned as recorded (reversed for ``yb -> ya``).
+        A recorded motion first (reversed for ``yb -> ya``); else None when
+        the space's own motion is valid (OMPL's interpolation then densifies
+        the edge); else the fallback's motion, joined now (no budget: a path
+        is being densified), or None when it does not join the states.
         """
-        recorded = self._recorded(ya.tobytes(), yb.tobytes())
+        recorded = self.recorded(ya, yb)
         if recorded is not None:
             return recorded
         if self._original_ok(ya, yb):
@@ -183,7 +192,12 @@ class FallbackMotions(ob.MotionValidator):
 
     def recorded(self, ya: FloatArray, yb: FloatArray) -> FloatArray | None:
         """The recorded fallback states of ``ya -> yb`` (planning), or None (no call)."""
-        return self._recorded(ya.tobytes(), yb.tobytes())
+        ka, kb = state_key(ya), state_key(yb)
+        got = self._record.get((ka, kb))
+        if got is not None:
+            return got
+        back = self._record.get((kb, ka))
+        return None if back is None else back[::-1]
 
     @property
     def record_size(self) -> int:
@@ -192,42 +206,40 @@ class FallbackMotions(ob.MotionValidator):
 
     # ------------------------------------------------------------ helpers
 
+    def _check_fallback(self, ya: FloatArray, yb: FloatArray) -> bool:
+        """Whether the fallback joins ``ya -> yb`` (recorded, or joined now, budget allowing)."""
+        ka, kb = state_key(ya), state_key(yb)
+        if self.recorded(ya, yb) is not None:
+            self._union(ka, kb)
+            return True
+        if self._merges_only and self._find(ka) == self._find(kb):
+            return False
+        if self.attempts > self._calls_per_check * self.checks:
+            self.skipped += 1
+            return False
+        return self._join(ya, yb) is not None
+
     def _original_ok(self, ya: FloatArray, yb: FloatArray) -> bool:
-        si = self._si
-        a, b = si.allocState(), si.allocState()
+        a, b = self._alloc_state(), self._alloc_state()
         a.copy(ya.tolist())
         b.copy(yb.tolist())
         return bool(self._original.checkMotion(a, b))
 
-    def _recorded(self, ka: bytes, kb: bytes) -> FloatArray | None:
-        got = self._record.get((ka, kb))
-        if got is not None:
-            return got
-        back = self._record.get((kb, ka))
-        return None if back is None else back[::-1]
-
     def _join(self, ya: FloatArray, yb: FloatArray) -> FloatArray | None:
         """Call the fallback; check, record and return its planning states, or None."""
-        now = time.perf_counter()
-        if now >= self._deadline:
-            return None
-        if self._started is not None and self._spent > self._share * (now - self._started):
-            self.skipped += 1
+        if time.perf_counter() >= self._deadline:
             return None
         self.attempts += 1
         frame = self._frame
-        try:
-            got = self._fallback(frame.to_x(ya), frame.to_x(yb), self._deadline)
-        finally:
-            self._spent += time.perf_counter() - now
+        got = self._fallback(frame.to_x(ya), frame.to_x(yb), self._deadline)
         if got is None:
             return None
         xs = np.asarray(got, dtype=np.float64)
         n = frame.n
-        if xs.ndim != 2 or xs.shape[1] != n or xs.shape[0] < 2 or not np.all(np.isfinite(xs)):
-            raise PlannerError(
-                f"a motion fallback returned shape {xs.shape} (need (K >= 2, {n})) or non-finite"
-            )
+        if xs.ndim != 2 or xs.shape[1] != n or xs.shape[0] < 2:
+            raise PlannerError(f"a motion fallback returned shape {xs.shape}, need (K >= 2, {n})")
+        if not np.all(np.isfinite(xs)):
+            raise PlannerError("a motion fallback returned non-finite states")
         ys = np.array(frame.to_y(xs), dtype=np.float64)
         ends = max(float(np.max(np.abs(ys[0] - ya))), float(np.max(np.abs(ys[-1] - yb))))
         if ends > END_TOLERANCE:
@@ -237,9 +249,10 @@ class FallbackMotions(ob.MotionValidator):
             )
         if not self._on_manifold(xs, ys):
             return None
-        ys[0], ys[-1] = ya, yb  # exactly the roadmap's states
-        self._record[(ya.tobytes(), yb.tobytes())] = ys
-        self._union(ya.tobytes(), yb.tobytes())
+        ys[0], ys[-1] = ya, yb  # exactly the states asked about
+        ka, kb = state_key(ya), state_key(yb)
+        self._record[(ka, kb)] = ys
+        self._union(ka, kb)
         self.joined += 1
         return ys
 

@@ -111,12 +111,18 @@ class PlanningProblem:
         motion_fallback: a second motion between two states, tried where
             OMPL's discrete geodesic is invalid
             (:data:`~dexplan.planning.ompl.motions.MotionFallback`); the PRM
-            family only (the tree planners check motions through OMPL's
-            3-argument form). Paths through an edge it joined are densified
-            along its states.
+            family only (tree planners also call the 3-argument
+            ``checkMotion``, whose last valid state a Python validator cannot
+            set in this binding). Paths through an edge it joined are
+            densified along its states.
         fallback_merges_only: try the fallback only between states that the
             motions accepted so far do not join (see
             :class:`~dexplan.planning.ompl.motions.FallbackMotions`).
+        fallback_checks: motion checks (the planner's, :meth:`check_motion`,
+            :meth:`check_path`) try the fallback; False keeps them OMPL's and
+            uses the fallback only to densify, in :meth:`interpolate_path`,
+            edges OMPL's motion does not join (checks then stay cheap and a
+            function of their two states).
 
     Raises:
         PlannerError: unknown planner, unknown parameter or rejected value.
@@ -138,6 +144,7 @@ class PlanningProblem:
         seed: int | None = None,
         motion_fallback: MotionFallback | None = None,
         fallback_merges_only: bool = True,
+        fallback_checks: bool = True,
     ) -> None:
         if not isinstance(constraint, ConstraintSpec):
             raise InvalidInputError(f"constraint must be a ConstraintSpec, got {constraint!r}")
@@ -182,13 +189,15 @@ class PlanningProblem:
         if motion_fallback is not None:
             self._motions = FallbackMotions(
                 si,
+                css.allocState,
                 motion_fallback,
                 constraint,
                 self._frame,
                 self._sink,
                 merges_only=bool(fallback_merges_only),
             )
-            si.setMotionValidator(self._motions)  # kept referenced by self._motions
+            if fallback_checks:
+                si.setMotionValidator(self._motions)
         self._projection = (
             make_projection(projection, css, self._frame, self._sink)
             if projection is not None
@@ -472,7 +481,8 @@ class PlanningProblem:
                 planners only (the PRM family checks the condition from a
                 second thread; use :meth:`grow_roadmap` with ``max_milestones``).
             interpolate: densify the path along the space's discrete geodesics
-                (steps <= ``lambda_ * delta`` in planning units).
+                (steps <= ``lambda_ * delta`` in planning units; an edge the
+                motion fallback joined follows its states).
             check_path: re-check the path in travel direction (motions, constraint,
                 bounds, validity); with False, ``path_valid`` is False.
 
@@ -634,8 +644,9 @@ class PlanningProblem:
         """Re-check (and densify) any path of ambient states in travel direction.
 
         Each segment ``i -> i+1`` must be a valid motion along the space's discrete
-        geodesic; when only the reverse motion is valid (projection is
-        direction-dependent) the reversed reverse geodesic replaces it. Every
+        geodesic (or the motion fallback's, densified along its states); when
+        only the reverse motion is valid (projection is direction-dependent)
+        the reversed reverse geodesic replaces it. Every
         resulting state must satisfy the constraint within tolerance, the bounds and
         ``is_valid``.
 
@@ -755,9 +766,11 @@ class PlanningProblem:
         )
 
     def clear(self) -> None:
-        """Forget everything the planner built (roadmap, trees, atlas charts)."""
+        """Forget everything the planner built (roadmap, trees, atlas charts, fallback motions)."""
         self._planner.clear()
         self._css.clear()
+        if self._motions is not None:
+            self._motions.clear()
         self._query_dirty = True
 
     def project(self, x: object) -> FloatArray | None:
@@ -774,7 +787,11 @@ class PlanningProblem:
         return self._frame.to_x(y) if ok else None
 
     def check_motion(self, a: object, b: object) -> bool:
-        """Whether the discrete geodesic from ``a`` to ``b`` (ambient ``(n,)``) is valid."""
+        """Whether the motion from ``a`` to ``b`` (ambient ``(n,)``) is valid.
+
+        OMPL's discrete geodesic, or with a motion fallback (and
+        ``fallback_checks``) the fallback's motion where that one is invalid.
+        """
         ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
         yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
         ok = bool(self._si.checkMotion(self._alloc(ya), self._alloc(yb)))
