@@ -111,6 +111,21 @@ def test_planner_data_of_prm():
     assert labels[data.start_ids[0]] == labels[data.goal_ids[0]]
 
 
+def test_fmt_samples_it_never_connected_are_not_starts():
+    """FMT marks every parent-less motion a start vertex; only the start is one."""
+    problem = PlanningProblem(
+        make_spec(), is_valid, planner="FMT", params={"num_samples": 60}, seed=3
+    )
+    problem.set_start(SOUTH)
+    problem.set_goal(north_goal(np.random.default_rng(3)))
+    problem.solve(5.0, max_iterations=80)  # the batch (about 70 draws), a few expansions
+    data = problem.planner_data()
+    labels, _ = connected_components(data.num_vertices, data.edges)
+    assert len(set(labels.tolist())) > 1  # samples FMT left unconnected exist
+    assert data.start_ids.size == 1
+    np.testing.assert_allclose(data.vertices[data.start_ids[0]], SOUTH, atol=1e-12)
+
+
 @pytest.mark.timeout(60)
 def test_multi_query_reuses_the_prm_roadmap():
     rng = np.random.default_rng(7)

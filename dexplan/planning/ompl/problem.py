@@ -745,7 +745,14 @@ class PlanningProblem:
     # ----------------------------------------------------------------- data
 
     def planner_data(self) -> RoadmapData:
-        """Return the planner's current graph (roadmap or trees) in ambient coordinates."""
+        """Return the planner's current graph (roadmap or trees) in ambient coordinates.
+
+        Start ids are the vertices that are the query's start states: FMT
+        reports every sample it never connected as a start vertex
+        (``FMT::getPlannerData`` marks each parent-less motion so), and a
+        caller taking those for starts would link the start to its own
+        copies (module 2 did, on every FMT query).
+        """
         pd = ob.PlannerData(self._si)
         self._planner.getPlannerData(pd)
         n = self._spec.ambient_dim
@@ -760,6 +767,10 @@ class PlanningProblem:
         starts = np.array(
             [pd.getStartIndex(k) for k in range(pd.numStartVertices())], dtype=np.int64
         )
+        if len(starts) and self._starts:
+            given = self._frame.to_y(np.array(self._starts))
+            gap = np.abs(vertices[starts][:, None, :] - given[None, :, :]).max(axis=2).min(axis=1)
+            starts = starts[gap <= 1e-9 * (1.0 + np.abs(given).max())]
         goals = np.array([pd.getGoalIndex(k) for k in range(pd.numGoalVertices())], dtype=np.int64)
         return RoadmapData(
             vertices=self._frame.to_x(vertices), edges=edges, start_ids=starts, goal_ids=goals
