@@ -28,6 +28,8 @@ class PlanStats:
         components: GSn connected components; components_after_links: after
             module-2 links merged some.
         module2_attempts, module2_links, module2_time_s: module 2's work.
+        module2_waypoints: RLG states module 2 added as vertices when it had
+            no link to try (an obstacle blocking every straight move).
         geodesic_motion_attempts, geodesic_motion_edges: module 1's section
             VI motions (meshes, PRM family) tried where OMPL's motion failed,
             and the roadmap edges they joined.
@@ -66,6 +68,7 @@ class PlanStats:
     module2_attempts: int = 0
     module2_links: int = 0
     module2_time_s: float = 0.0
+    module2_waypoints: int = 0
     geodesic_motion_attempts: int = 0
     geodesic_motion_edges: int = 0
     goal_samples: int | None = None

@@ -64,6 +64,10 @@ from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
 #: Share of the time left that one module-2 pass of a single query may use.
+MODULE2_WAYPOINTS = 16
+"""RLG states a single query's module 2 adds once when it has no link to try
+(:func:`link_query`'s ``waypoints``)."""
+
 MODULE2_SHARE = 0.3
 
 
@@ -529,6 +533,7 @@ def _module2_pass(
         max_attempts=4,
         geodesic=geodesic,
         links=links,
+        waypoints=MODULE2_WAYPOINTS,
     )
 
 
@@ -818,6 +823,7 @@ def link_query(
     max_attempts: int | None = None,
     geodesic: Geodesic | None = None,
     links: list[LinkReduction] | None = None,
+    waypoints: int = 0,
 ) -> GsnResult:
     """Module 2: join the start's component to the goal region with links, then search.
 
@@ -835,6 +841,14 @@ def link_query(
     the cube in seconds). Links into the goal region end on
     ``query.goal_pose`` when given. Successful links are appended to
     ``links`` (the result carries them all).
+
+    When no candidate can be tried (no other vertex, or the object alone
+    cannot move straight to any: an obstacle in the way) and ``waypoints``
+    is positive, up to that many RLG states join the roadmap once, as
+    vertices of their own, so that links can go round the obstacle through
+    their object poses (BFMT's roadmap holds only its trees, often just the
+    start: on cube_post the straight turn is blocked by the post and module
+    2 had nothing else to link to).
     """
     links = [] if links is None else links
     t0 = time.perf_counter()
@@ -846,6 +860,7 @@ def link_query(
     goal_set = set(goals)
     path_ids = None
     attempts = 0
+    seeded = waypoints <= 0
     while time.perf_counter() < deadline:
         path_ids = roadmap.shortest_path(start, goals) if goals else None
         if path_ids is not None:
@@ -853,8 +868,7 @@ def link_query(
         if not goals:
             break
         src, dst, order = _link_candidates(roadmap, start, goals)
-        if len(dst) == 0:
-            break
+        tried = attempts
         linked = False
         for flat in order:
             if max_attempts is not None and attempts >= max_attempts:
@@ -880,6 +894,12 @@ def link_query(
                 break
             if time.perf_counter() >= deadline:
                 break
+        budget_left = max_attempts is None or attempts < max_attempts
+        if not linked and attempts == tried and budget_left and not seeded:
+            seeded = True  # nothing could be tried: waypoints round the obstacle, once
+            added = _add_waypoints(ctx, roadmap, waypoints, deadline)
+            stats["module2_waypoints"] = stats.get("module2_waypoints", 0) + added
+            continue
         if not linked:
             break
     if path_ids is None and goals:
@@ -896,6 +916,19 @@ def link_query(
 
 #: Other start grasps a module-2 attempt may regrasp onto before its gaits.
 OTHER_GRASPS = 8
+
+
+def _add_waypoints(ctx: PlanningContext, roadmap: Roadmap, count: int, deadline: float) -> int:
+    """Add up to ``count`` RLG states to the roadmap as vertices; return how many."""
+    added = 0
+    for _ in range(4 * count):
+        if added >= count or time.perf_counter() >= deadline:
+            break
+        x = ctx.sampler.sample()
+        if x is not None:
+            roadmap.add_vertex(x)
+            added += 1
+    return added
 
 
 def _other_grasps(ctx: PlanningContext, x: FloatArray, attempt: int) -> list[FloatArray]:
