@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+import dexplan.planning.roadmap as rm
 from dexplan.exceptions import InvalidInputError
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn import POSE_DIM
@@ -22,7 +23,7 @@ from dexplan.planning.roadmap import (
 from dexplan.planning.transitions import densify_poses
 from dexplan.planning.validity import GraspValidity
 from dexplan.pose import quat_angle
-from dexplan.scenario import default_scenario
+from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -292,3 +293,37 @@ def test_a_link_via_another_start_grasp_regrasps_onto_it_first(scenario) -> None
     np.testing.assert_allclose(reached.points, target.points, atol=1e-6)
     for a, b in itertools.pairwise(segs):
         np.testing.assert_allclose(b.start.q, a.end.q, atol=1e-12)
+
+
+@pytest.mark.timeout(300)
+def test_module2_goes_round_an_obstacle_through_waypoints() -> None:
+    """cube_post with a roadmap of the start alone (as BFMT leaves it): the
+    straight turn hits the post, so without waypoints module 2 tries nothing;
+    with them it adds RLG states once and links through their poses."""
+    scen = load_scenario(builtin_scenario_path("suite/cube_post"))
+    results = {}
+    for waypoints in (0, rm.MODULE2_WAYPOINTS):
+        ctx = build_context(scen, seed=2)
+        x0 = start_state(ctx)
+        assert x0 is not None
+        roadmap = Roadmap(x0[None, :], np.zeros((0, 2), int), np.zeros((0, 2), int), "BFMT", "k")
+        query = GsnQuery(
+            x0,
+            lambda x: goal_reached(scen, x[:POSE_DIM]),
+            lambda ctx=ctx: ctx.sampler.sample_at_pose(scen.goal.object_pose_xyzquat),
+            goal_pose=scen.goal.object_pose_xyzquat,
+        )
+        assert not rm.object_move_free(ctx, x0, np.r_[scen.goal.object_pose_xyzquat, x0[7:]])
+        stats = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
+        res = link_query(
+            ctx, roadmap, query, 0, time.perf_counter() + 240.0, stats, waypoints=waypoints
+        )
+        results[waypoints] = (res, stats)
+    res, stats = results[0]
+    assert res.path is None and stats["module2_attempts"] == 0
+    assert "module2_waypoints" not in stats
+    res, stats = results[rm.MODULE2_WAYPOINTS]
+    assert 0 < stats["module2_waypoints"] <= rm.MODULE2_WAYPOINTS
+    assert stats["module2_attempts"] >= 2 and stats["module2_links"] >= 2
+    assert res.path is not None  # seed 2: round the post in two links or more
+    assert goal_reached(scen, res.path[-1][:POSE_DIM])[0]
