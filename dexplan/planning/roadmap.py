@@ -66,7 +66,20 @@ from dexplan.typing import FloatArray
 #: Share of the time left that one module-2 pass of a single query may use.
 MODULE2_WAYPOINTS = 16
 """RLG states a single query's module 2 adds once when it has no link to try
-(:func:`link_query`'s ``waypoints``)."""
+(:func:`link_query`'s ``waypoints``), for :data:`WAYPOINT_PLANNERS`."""
+
+WAYPOINT_PLANNERS = frozenset({"BFMT"})
+"""Planners whose module 2 gets waypoints.
+
+BFMT's planner data holds only its two trees (no sample it left
+unconnected), on cube_post none at all: with the straight turn blocked by
+the post, module 2 had nothing to link (0/10, every run 0 attempts).
+Measured for every planner (the eighth session's sweep, cut after 676
+runs): waypoints made BFMT solve cube_post, but for the others they
+replaced the next round's growth with detours through random poses:
+more regrasps (PRM seed 1: 13), and failures where there were none
+(RRTConnect seed 4 no GSn path, InformedRRTstar and SORRTstar seed 1
+reductions failed)."""
 
 MODULE2_SHARE = 0.3
 
@@ -492,7 +505,15 @@ def explore_gsn(
             continue
         start = starts[0] if starts else roadmap.add_vertex(query.start)
         linked = _module2_pass(
-            ctx, roadmap, query, start, deadline, stats, _geodesic(problem), links
+            ctx,
+            roadmap,
+            query,
+            start,
+            deadline,
+            stats,
+            _geodesic(problem),
+            links,
+            MODULE2_WAYPOINTS if planner in WAYPOINT_PLANNERS else 0,
         )
         stats["gsn_time_s"] = time.perf_counter() - t0
         report(
@@ -512,6 +533,7 @@ def _module2_pass(
     stats: dict[str, Any],
     geodesic: Geodesic,
     links: list[LinkReduction],
+    waypoints: int = 0,
 ) -> GsnResult:
     """Module 2 of a single query: a few links from the start's component towards the goal.
 
@@ -533,7 +555,7 @@ def _module2_pass(
         max_attempts=4,
         geodesic=geodesic,
         links=links,
-        waypoints=MODULE2_WAYPOINTS,
+        waypoints=waypoints,
     )
 
 
