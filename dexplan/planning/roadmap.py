@@ -63,7 +63,6 @@ from dexplan.scenario import scenario_description
 from dexplan.segments import Segment
 from dexplan.typing import FloatArray
 
-#: Share of the time left that one module-2 pass of a single query may use.
 MODULE2_WAYPOINTS = 16
 """RLG states a single query's module 2 adds once when it has no link to try
 (:func:`link_query`'s ``waypoints``), for :data:`WAYPOINT_PLANNERS`."""
@@ -81,6 +80,7 @@ more regrasps (PRM seed 1: 13), and failures where there were none
 (RRTConnect seed 4 no GSn path, InformedRRTstar and SORRTstar seed 1
 reductions failed)."""
 
+#: Share of the time left that one module-2 pass of a single query may use.
 MODULE2_SHARE = 0.3
 
 
@@ -700,13 +700,7 @@ def direction_caps(
     None when a finger's directions scatter so that their mean is shorter
     than 0.2 (no cap about it would keep its states).
     """
-    states = [start]
-    for _ in range(4 * CAP_SAMPLES):
-        if len(states) > CAP_SAMPLES or ctx.deadline.expired():
-            break
-        x = ctx.sampler.sample()
-        if x is not None:
-            states.append(x)
+    states = [start, *rlg_states(ctx, CAP_SAMPLES, ctx.deadline.at)]
     k = chart.k
     dirs = np.array([chart.to_chart(x)[POSE_DIM : POSE_DIM + 3 * k].reshape(k, 3) for x in states])
     mean = dirs.mean(axis=0)
@@ -919,8 +913,10 @@ def link_query(
         budget_left = max_attempts is None or attempts < max_attempts
         if not linked and attempts == tried and budget_left and not seeded:
             seeded = True  # nothing could be tried: waypoints round the obstacle, once
-            added = _add_waypoints(ctx, roadmap, waypoints, deadline)
-            stats["module2_waypoints"] = stats.get("module2_waypoints", 0) + added
+            added = rlg_states(ctx, waypoints, deadline)
+            for x in added:
+                roadmap.add_vertex(x)
+            stats["module2_waypoints"] = stats.get("module2_waypoints", 0) + len(added)
             continue
         if not linked:
             break
@@ -940,17 +936,21 @@ def link_query(
 OTHER_GRASPS = 8
 
 
-def _add_waypoints(ctx: PlanningContext, roadmap: Roadmap, count: int, deadline: float) -> int:
-    """Add up to ``count`` RLG states to the roadmap as vertices; return how many."""
-    added = 0
+def rlg_states(ctx: PlanningContext, count: int, deadline: float) -> list[FloatArray]:
+    """Up to ``count`` valid GSn states ``(7 + nq,)`` of the RLG sampler.
+
+    At most ``4 * count`` draws, none at or past ``deadline``
+    (``time.perf_counter()``); used for the chart's caps and module 2's
+    waypoints.
+    """
+    out: list[FloatArray] = []
     for _ in range(4 * count):
-        if added >= count or time.perf_counter() >= deadline:
+        if len(out) >= count or time.perf_counter() >= deadline:
             break
         x = ctx.sampler.sample()
         if x is not None:
-            roadmap.add_vertex(x)
-            added += 1
-    return added
+            out.append(x)
+    return out
 
 
 def _other_grasps(ctx: PlanningContext, x: FloatArray, attempt: int) -> list[FloatArray]:

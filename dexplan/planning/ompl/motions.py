@@ -199,11 +199,6 @@ class FallbackMotions(ob.MotionValidator):
         back = self._record.get((kb, ka))
         return None if back is None else back[::-1]
 
-    @property
-    def record_size(self) -> int:
-        """Motions the fallback joined and this validator keeps."""
-        return len(self._record)
-
     # ------------------------------------------------------------ helpers
 
     def _check_fallback(self, ya: FloatArray, yb: FloatArray) -> bool:

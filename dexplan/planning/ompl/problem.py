@@ -589,6 +589,10 @@ class PlanningProblem:
             dense = self._motions.recorded(read(a), read(b))
             if dense is not None:
                 return list(dense)
+        return self._discrete_geodesic(a, b)
+
+    def _discrete_geodesic(self, a: Any, b: Any) -> list[FloatArray]:
+        """Planning-coordinate states of OMPL's discrete geodesic a -> b (a and b included)."""
         segment = og.PathGeometric(self._si, a, b)
         segment.interpolate()
         read = self._frame.read
@@ -720,8 +724,8 @@ class PlanningProblem:
         states = [path.getState(i) for i in range(path.getStateCount())]
         dense = [read(states[0])]
         for a, b in itertools.pairwise(states):
-            joined = motions.states(read(a), read(b))
-            piece = list(joined) if joined is not None else self._geodesic(a, b)
+            joined = motions.states(read(a), read(b))  # a record first, then OMPL's motion
+            piece = list(joined) if joined is not None else self._discrete_geodesic(a, b)
             dense.extend(piece[1:])
         self._raise_callback_error()
         return self._frame.to_x(np.array(dense).reshape(-1, self._spec.ambient_dim))
