@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from dexplan.exceptions import DexplanError
+from dexplan.core.errors import DexplanError
 
 __version__ = "0.1.0"
 

@@ -27,16 +27,27 @@ from typing import Any
 
 import numpy as np
 
-from dexplan.hand import Hand
-from dexplan.plan_file import VerifyReport, build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.core.segments import Segment
+from dexplan.model.hand.hand import Hand
+from dexplan.model.scenario.scenario import GoalSpec, Scenario, default_scenario, load_scenario
+from dexplan.planfile.document import (
+    VerifyReport,
+    build_plan_document,
+    read_plan,
+    verify_plan,
+    write_plan,
+)
 from dexplan.planning.context import build_hand
-from dexplan.planning.learning import BuildSettings, BuildStats, build_roadmap, learning_context
 from dexplan.planning.planner import PlanResult
 from dexplan.planning.planner import plan as _plan
 from dexplan.planning.progress import PlanStatus, Progress
-from dexplan.planning.roadmap import Roadmap, scenario_key
-from dexplan.scenario import GoalSpec, Scenario, default_scenario, load_scenario
-from dexplan.segments import Segment
+from dexplan.planning.roadmap.learning import (
+    BuildSettings,
+    BuildStats,
+    build_roadmap,
+    learning_context,
+)
+from dexplan.planning.roadmap.roadmap import Roadmap, scenario_key
 
 __all__ = ["Plan", "RoadmapPlanner", "load_scenario", "plan", "verify"]
 
@@ -109,7 +120,7 @@ def plan(
     """Plan a scenario and check the plan with the independent verifier.
 
     Args:
-        scenario: a :class:`~dexplan.scenario.Scenario`, a scenario TOML path,
+        scenario: a :class:`~dexplan.model.scenario.scenario.Scenario`, a scenario TOML path,
             or None for the paper's experiment.
         planner: OMPL planner name (default: the scenario's).
         params: OMPL planner parameters, e.g. ``{"range": 0.05}`` (default:
@@ -192,7 +203,7 @@ class RoadmapPlanner:
         seed: int = 1,
         progress: Progress | None = None,
     ) -> RoadmapPlanner:
-        """Run the learning phase (:func:`~dexplan.planning.learning.build_roadmap`).
+        """Run the learning phase (:func:`~dexplan.planning.roadmap.learning.build_roadmap`).
 
         Give exactly one of ``time_limit`` (s) and ``nodes`` (deterministic for a seed).
 

@@ -21,11 +21,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dexplan import cli
-from dexplan.exceptions import DexplanError
-from dexplan.export import build_trajectory, check_trajectory, trajectory_document
-from dexplan.plan_file import hand_from_plan, read_plan
-from dexplan.replay import replay_plan
+from dexplan.cli import main as cli
+from dexplan.core.errors import DexplanError
+from dexplan.execution.export import build_trajectory, check_trajectory, trajectory_document
+from dexplan.execution.replay.simulation import replay_plan
+from dexplan.planfile.document import hand_from_plan, read_plan
 
 PAPER = str(Path(__file__).resolve().parents[1] / "dexplan/data/scenarios/paper_sphere.toml")
 

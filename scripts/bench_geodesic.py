@@ -1,4 +1,4 @@
-"""Accuracy and cost of dexplan.objects.geodesic on icospheres (radius 4 cm).
+"""Accuracy and cost of dexplan.model.objects.geodesic on icospheres (radius 4 cm).
 
 Random area-uniform point pairs (seed per mesh); the geodesic's length against
 the sphere's great-circle distance, relative to the mean edge length.
@@ -15,8 +15,8 @@ import time
 import numpy as np
 import trimesh
 
-from dexplan.objects import Mesh
-from dexplan.objects.geodesic import MeshGeodesics
+from dexplan.model.objects import Mesh
+from dexplan.model.objects.geodesic import MeshGeodesics
 
 RADIUS = 0.04
 

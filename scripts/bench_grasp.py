@@ -1,4 +1,4 @@
-"""Microbenchmark of dexplan.grasp: median microseconds per call.
+"""Microbenchmark of dexplan.model.grasp: median microseconds per call.
 
 Usage: python scripts/bench_grasp.py [--calls N] [--seed S]
 
@@ -26,7 +26,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from dexplan.grasp import ForceClosure, contact_wrenches
+from dexplan.model.grasp import ForceClosure, contact_wrenches
 
 MU = 0.8
 TS = 0.04

@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
+from dexplan.model.scenario.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
-from dexplan.scenario import default_scenario, load_scenario
 
 
 def main() -> None:

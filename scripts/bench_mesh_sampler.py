@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
-from dexplan.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "dexplan" / "data" / "scenarios" / "paper_sphere.toml"

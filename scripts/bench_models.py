@@ -20,11 +20,11 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
-from dexplan.collision import CollisionWorld
-from dexplan.grasp import force_closure_quality, min_subgrasp_quality
-from dexplan.hand import Hand
-from dexplan.objects import Mesh, Sphere
-from dexplan.planning.gsn import GraspSubspace
+from dexplan.model.collision import CollisionWorld
+from dexplan.model.grasp import force_closure_quality, min_subgrasp_quality
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Mesh, Sphere
+from dexplan.planning.gsn.space import GraspSubspace
 
 
 def bench(fn: Callable[[], object], n: int = 2000, batches: int = 7) -> float:

@@ -1,4 +1,4 @@
-"""Micro-benchmark of dexplan.objects queries (single point, object frame).
+"""Micro-benchmark of dexplan.model.objects queries (single point, object frame).
 
 Prints the median microseconds per call of ``signed_distance_and_gradient`` for
 one (3,) point on each primitive and on icosphere meshes (1280 and 81920
@@ -22,7 +22,7 @@ import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from dexplan.objects import Box, Capsule, Cylinder, Mesh, Shape, Sphere
+from dexplan.model.objects import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 
 
 def call_times(fn: Callable[[np.ndarray], object], points: np.ndarray) -> np.ndarray:

@@ -29,8 +29,8 @@ import statistics
 import time
 from pathlib import Path
 
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
-from dexplan.scenario import load_scenario
 
 DEFAULT = ("dexplan/data/scenarios/paper_sphere.toml", "dexplan/data/scenarios/allegro_sphere.toml")
 

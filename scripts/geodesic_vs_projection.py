@@ -5,7 +5,7 @@ edge is densified with OMPL's projected interpolation (what module 1 and the
 path re-check use, ``PlanningProblem.interpolate_path``) and each contact
 finger's contact trajectory is read off the dense states (closest surface
 point of its fingertip centre, object frame). It is compared with the surface
-geodesic between the edge's end contacts (``dexplan.objects.geodesic``):
+geodesic between the edge's end contacts (``dexplan.model.objects.geodesic``):
 length ratio and largest distance of the trajectory from the geodesic
 polyline.
 
@@ -18,11 +18,11 @@ import sys
 
 import numpy as np
 
-from dexplan.objects.geodesic import surface_geodesics
+from dexplan.model.objects.geodesic import surface_geodesics
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.planner import plan
-from dexplan.planning.queries import query_problem
-from dexplan.scenario import load_scenario
+from dexplan.planning.roadmap.queries import query_problem
 
 
 def _dist_to_polyline(p: np.ndarray, poly: np.ndarray) -> float:

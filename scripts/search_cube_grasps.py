@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.gsn import POSE_DIM
-from dexplan.scenario import load_scenario
+from dexplan.planning.gsn.space import POSE_DIM
 
 PROBE = """
 name = "allegro_cube_probe"

@@ -9,14 +9,14 @@ pose (as PRM connects milestones), and checks both motions on every pair:
 
 - projected: ``PlanningProblem.check_motion`` (OMPL's discrete geodesic);
 - section VI: pose slerp, contacts at the same arc-length fraction of their
-  geodesics (``dexplan.objects.geodesic``), closed-form finger IK to the
+  geodesics (``dexplan.model.objects.geodesic``), closed-form finger IK to the
   fingertip centres (branch nearest the previous step), every state through
   the validity checker; steps of at most 2 mm of contact travel, 2 mm of
   object translation and 0.02 rad of rotation, halved (up to 5 times) while a
   joint moves more than 0.05 rad in one (else it fails: a branch jump).
 
 It reports how many pairs each motion joins, and why section VI motions fail.
-The section VI motion is :func:`dexplan.planning.geodesic_motion.geodesic_motion`;
+The section VI motion is :func:`dexplan.planning.local.geodesic_motion.geodesic_motion`;
 the planner does not use it yet: this measures whether a Python
 ``ob.MotionValidator`` along these motions (which the ompl 2.0.1 wheel does
 call, docs/meshes.md) would join more of the roadmap.
@@ -31,12 +31,12 @@ import sys
 
 import numpy as np
 
-from dexplan.planning.contact_paths import ContactPaths
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.geodesic_motion import MotionFailure, geodesic_motion
-from dexplan.planning.queries import query_problem
-from dexplan.planning.roadmap import pose_distances
-from dexplan.scenario import load_scenario
+from dexplan.planning.local.contact_paths import ContactPaths
+from dexplan.planning.local.geodesic_motion import MotionFailure, geodesic_motion
+from dexplan.planning.roadmap.queries import query_problem
+from dexplan.planning.roadmap.roadmap import pose_distances
 
 
 def main() -> None:

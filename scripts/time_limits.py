@@ -50,13 +50,21 @@ time_limit = 30.0
 
 
 def allegro_urdf() -> Path:
-    from dexplan.hand import example_robot_data_file
+    from dexplan.model.hand.hand import example_robot_data_file
 
     return example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
 
 
 def run(scenario: Path, limit: float, planner: str) -> tuple[float, float, int]:
-    cmd = [sys.executable, "-m", "dexplan.cli", "plan", str(scenario), "--time-limit", str(limit)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "dexplan.cli",
+        "plan",
+        str(scenario),
+        "--time-limit",
+        str(limit),
+    ]
     cmd += ["--planner", planner, "-q", "-o", str(scenario.with_suffix(".json"))]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)

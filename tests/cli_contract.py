@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from pathlib import Path
 
-from dexplan import cli
+from dexplan.cli import main as cli
 
 MAX_LINE = 400  # characters: values are shortened, never echoed whole
 

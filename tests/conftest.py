@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, settings
 
-from dexplan.hand import Hand
+from dexplan.model.hand.hand import Hand
 
 settings.register_profile(
     "default",
@@ -46,7 +46,7 @@ def paper_plan(tmp_path_factory: pytest.TempPathFactory) -> Callable[[int, Path]
     export, forces, timing and replay tests read the same plans); every caller gets
     its own copy, so that files it writes beside the plan stay its own.
     """
-    from dexplan import cli
+    from dexplan.cli import main as cli
 
     made: dict[int, Path] = {}
 

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from dexplan.model.scenario.scenario import parse_scenario
 from dexplan.planning.context import build_context
-from dexplan.scenario import parse_scenario
 
 # the index distal link (box) 2 mm inside a 5 cm cube: coal without contacts
 # stopped seeing it after the pair had been queried at other index postures

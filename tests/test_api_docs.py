@@ -12,18 +12,18 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_plan_stays_the_function_after_the_api_is_loaded() -> None:
-    # the plan-file module is dexplan.plan_file: no submodule shadows the front
+    # the plan-file module is dexplan.planfile.document: no submodule shadows the front
     # door's dexplan.plan, in whatever order things are imported
     code = textwrap.dedent(
         """
         import types
-        import dexplan.api, dexplan.plan_file, dexplan.planning.planner
+        import dexplan.api, dexplan.planfile.document, dexplan.planning.planner
         import dexplan
         dexplan.load_scenario
         for name in ("plan", "verify", "load_scenario", "Plan"):
             value = getattr(dexplan, name)
             assert callable(value) and not isinstance(value, types.ModuleType), name
-        from dexplan.plan_file import read_plan  # the plan-file module is still importable
+        from dexplan.planfile.document import read_plan  # the plan-file module is still importable
         assert callable(read_plan)
         """
     )
@@ -49,10 +49,10 @@ def test_api_page_names_every_status_stage_field_and_exception() -> None:
     import dataclasses
     import inspect
 
-    from dexplan import exceptions
-    from dexplan.planning.plan_stats import PlanStats
+    from dexplan.core import errors as exceptions
     from dexplan.planning.planner import PlanResult
     from dexplan.planning.progress import PlanStatus, ProgressEvent, Stage
+    from dexplan.planning.stats import PlanStats
 
     names = [m.name for m in PlanStatus] + [m.value for m in PlanStatus]
     names += [m.name for m in Stage]

@@ -30,8 +30,8 @@ from dexplan.bench import (
     write_csv,
 )
 from dexplan.bench.records import empty_record, set_status
-from dexplan.exceptions import InvalidInputError, PlannerError, ScenarioError
-from dexplan.scenario import builtin_scenario_path, load_scenario
+from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
+from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 OMPL_STATS = None

@@ -5,14 +5,14 @@ import time
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.planning.chart import ChartProblem, ContactChart, DirectionCaps
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.gsn.chart import ChartProblem, ContactChart, DirectionCaps
+from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import RoadmapData
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap import CAPPED_PLANNERS, GsnQuery, chart_problem, explore_gsn
-from dexplan.scenario import builtin_scenario_path, load_scenario
+from dexplan.planning.roadmap.roadmap import CAPPED_PLANNERS, GsnQuery, chart_problem, explore_gsn
 
 
 @pytest.fixture(scope="module")

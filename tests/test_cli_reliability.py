@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 from cli_contract import assert_bad_input, run_cli
 
-from dexplan import bench, cli
+from dexplan import bench
+from dexplan.cli import main as cli
+from dexplan.model.scenario.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.deadline import Deadline
+from dexplan.planning.local.reduction import grasp_from_state, reduce_object_path
 from dexplan.planning.planner import plan, start_state
 from dexplan.planning.progress import PlanStatus
-from dexplan.planning.reduction import grasp_from_state, reduce_object_path
-from dexplan.scenario import default_scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 UNSOLVABLE = ROOT / "tests" / "data" / "unsolvable_lid.toml"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from dexplan import cli
+from dexplan.cli import main as cli
 
 
 @pytest.mark.parametrize(

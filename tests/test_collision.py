@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from dexplan.collision import CONTACT_PENETRATION_TOL, CollisionWorld, Obstacle
-from dexplan.exceptions import InvalidInputError
-from dexplan.hand import Hand
-from dexplan.objects import Box, Sphere
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.collision import CONTACT_PENETRATION_TOL, CollisionWorld, Obstacle
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Box, Sphere
 
 CENTRE = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0])
 
@@ -104,9 +104,9 @@ def test_pair_subset_answers_as_its_pairs_one_by_one() -> None:
     """``pairs_collide`` over a subset of pairs agrees with checking them one at a time."""
     import pinocchio as pin
 
-    from dexplan.collision import pose_to_se3
+    from dexplan.model.collision import pose_to_se3
+    from dexplan.model.scenario.scenario import load_scenario
     from dexplan.planning.context import build_context
-    from dexplan.scenario import load_scenario
 
     ctx = build_context(load_scenario("dexplan/data/scenarios/allegro_sphere.toml"), seed=1)
     world, hand = ctx.world, ctx.hand

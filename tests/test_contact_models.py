@@ -25,8 +25,8 @@ from test_grasp import (
     torque_scale,
 )
 
-from dexplan.exceptions import InvalidInputError, PlanFileError, ScenarioError
-from dexplan.grasp import (
+from dexplan.core.errors import InvalidInputError, PlanFileError, ScenarioError
+from dexplan.model.grasp import (
     MAX_TORSION,
     ForceClosure,
     contact_wrenches,
@@ -37,12 +37,12 @@ from dexplan.grasp import (
     min_subgrasp_quality,
     soft_finger_facets,
 )
-from dexplan.plan_file import build_plan_document, read_plan, verify_plan, write_plan
-from dexplan.plan_schema import validate_plan
+from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
+from dexplan.planfile.document import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.planfile.schema import validate_plan
 from dexplan.planning.context import build_context, build_hand
+from dexplan.planning.gsn.validity import ValiditySettings, let_go_problem
 from dexplan.planning.planner import plan
-from dexplan.planning.validity import ValiditySettings, let_go_problem
-from dexplan.scenario import builtin_scenario_path, load_scenario
 
 EDGES = 8
 SCENARIOS = builtin_scenario_path().parent

@@ -8,22 +8,22 @@ import types
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.objects import Mesh, Sphere
-from dexplan.objects.geodesic import surface_geodesics
-from dexplan.plan_file import build_plan_document, verify_plan
-from dexplan.planning.contact_paths import ContactPaths
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.objects import Mesh, Sphere
+from dexplan.model.objects.geodesic import surface_geodesics
+from dexplan.model.scenario.scenario import load_scenario
+from dexplan.planfile.document import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
-from dexplan.planning.gsn import POSE_DIM
-from dexplan.planning.planner import start_state
-from dexplan.planning.reduction import (
+from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.contact_paths import ContactPaths
+from dexplan.planning.local.reduction import (
     ReductionSettings,
     _EdgeReducer,
     grasp_from_state,
     reduce_gsn_path,
 )
-from dexplan.planning.transitions import GraspContacts
-from dexplan.scenario import load_scenario
+from dexplan.planning.local.transitions import GraspContacts
+from dexplan.planning.planner import start_state
 
 EGG = "dexplan/data/scenarios/suite/egg_tilt90.toml"
 
@@ -169,7 +169,7 @@ def test_failed_first_interpolation_is_undone(egg, egg_edge) -> None:
 
 
 def test_geodesic_retry_skipped_on_primitives() -> None:
-    from dexplan.scenario import default_scenario
+    from dexplan.model.scenario.scenario import default_scenario
 
     scenario = default_scenario()
     ctx = build_context(scenario, seed=1)

@@ -10,10 +10,10 @@ import numpy as np
 from cli_contract import run_cli
 
 from dexplan import api
-from dexplan import plan_file as plan_module
+from dexplan.planfile import document as plan_module
 from dexplan.planning.diagnostics import Rejections
-from dexplan.planning.sampler import SamplerStats
-from dexplan.planning.validity import KEPT_PER_REASON, REASONS, ValidityStats
+from dexplan.planning.gsn.sampler import SamplerStats
+from dexplan.planning.gsn.validity import KEPT_PER_REASON, REASONS, ValidityStats
 
 ROOT = Path(__file__).resolve().parents[1]
 UNSOLVABLE = ROOT / "tests" / "data" / "unsolvable_lid.toml"

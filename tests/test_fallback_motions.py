@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from toy_sphere import is_valid, make_spec, sphere_f
 
-from dexplan.exceptions import InvalidInputError, PlannerError
+from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.planning.ompl import PlanningProblem
 
 A = np.array([1.0, 0.0, -0.3]) / np.linalg.norm([1.0, 0.0, -0.3])

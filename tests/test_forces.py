@@ -1,4 +1,4 @@
-"""Grip forces (dexplan.forces): inside the cones, balancing the weight, with J^T f torques."""
+"""Grip forces (dexplan.execution.forces): inside the cones, balancing the weight, J^T f torques."""
 
 import copy
 
@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan.forces import ForceSettings, GripForceError, plan_waypoint_forces
-from dexplan.plan_file import hand_from_plan, read_plan
+from dexplan.execution.forces import ForceSettings, GripForceError, plan_waypoint_forces
+from dexplan.planfile.document import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,7 @@ def test_holds_exactly_where_the_forces_stay_within_the_effort_limits(planned, m
     the weight within 1 N m exactly where the least-norm forces that
     ``solve`` finds need at most 1 N m.
     """
-    from dexplan.forces import solver_from_plan
+    from dexplan.execution.forces import solver_from_plan
 
     doc, hand = planned
     solver = solver_from_plan(doc, ForceSettings(mass=mass), hand, ".")
@@ -155,10 +155,10 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
     unable to hold the object at all). box_tilt90 seed 6 lands fingers on edges
     (seed 1 did until the sampler's settings changed; seeds 1-5 now load no edge contact).
     """
-    from dexplan import cli
-    from dexplan.objects.fingertip import fingertip_contact
-    from dexplan.plan_file import models_from_document
-    from dexplan.scenario import builtin_scenario_path
+    from dexplan.cli import main as cli
+    from dexplan.model.objects.fingertip import fingertip_contact
+    from dexplan.model.scenario.scenario import builtin_scenario_path
+    from dexplan.planfile.document import models_from_document
 
     path = tmp_path / "plan.json"
     scenario = builtin_scenario_path("suite/box_tilt90")

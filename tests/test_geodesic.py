@@ -1,4 +1,4 @@
-"""Tests of dexplan.objects.geodesic: surface geodesics on meshes (potpourri3d)."""
+"""Tests of dexplan.model.objects.geodesic: surface geodesics on meshes (potpourri3d)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from dexplan.exceptions import DexplanError, GeodesicError, MeshError
-from dexplan.objects import BUILTIN_MESH_DIR, Mesh
-from dexplan.objects.geodesic import MeshGeodesics, SurfacePath, surface_geodesics
+from dexplan.core.errors import DexplanError, GeodesicError, MeshError
+from dexplan.model.objects import BUILTIN_MESH_DIR, Mesh
+from dexplan.model.objects.geodesic import MeshGeodesics, SurfacePath, surface_geodesics
 
 RADIUS = 0.04
 

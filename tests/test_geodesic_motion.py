@@ -5,23 +5,28 @@ import math
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.planning.contact_paths import ContactPaths
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import quat_angle
+from dexplan.model.scenario.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.geodesic_motion import (
+from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
+from dexplan.planning.gsn.validity import GraspValidity
+from dexplan.planning.local.contact_paths import ContactPaths
+from dexplan.planning.local.geodesic_motion import (
     GeodesicFallback,
     GeodesicMotionSettings,
     MotionFailure,
     geodesic_motion,
 )
-from dexplan.planning.gsn import POSE_DIM, GraspSubspace
+from dexplan.planning.local.reduction import grasp_from_state
 from dexplan.planning.ompl import PlanningProblem
-from dexplan.planning.queries import query_problem
-from dexplan.planning.reduction import grasp_from_state
-from dexplan.planning.roadmap import constraint_spec, geodesic_fallback, gsn_problem, pose_distances
-from dexplan.planning.validity import GraspValidity
-from dexplan.pose import quat_angle
-from dexplan.scenario import default_scenario, load_scenario
+from dexplan.planning.roadmap.queries import query_problem
+from dexplan.planning.roadmap.roadmap import (
+    constraint_spec,
+    geodesic_fallback,
+    gsn_problem,
+    pose_distances,
+)
 
 EGG = "dexplan/data/scenarios/suite/egg_tilt90.toml"
 

@@ -1,7 +1,7 @@
 """Force closure against independent references (scipy qhull hull and HiGHS LPs).
 
 The references rebuild the linearized cones, the edge wrenches, the hull and the
-12-direction LP here, from the definitions, without dexplan.grasp's solver. The
+12-direction LP here, from the definitions, without dexplan.model.grasp's solver. The
 pyramid orientation (tangent basis) is part of the model: the reference uses the
 same documented basis (Duff et al. 2017), re-implemented here and checked against
 ``friction_cone_edges``.
@@ -15,8 +15,8 @@ import pytest
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.grasp import (
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.grasp import (
     ForceClosure,
     contact_wrenches,
     force_closure_quality,

@@ -1,4 +1,4 @@
-"""The batched subgrasp quality (dexplan.grasp.batch) against the scalar method, grasp by grasp.
+"""The batched subgrasp quality (dexplan.model.grasp.batch) against the scalar one, per grasp.
 
 The scalar method is tested against independent references in test_grasp.py;
 here every batch value must be the scalar value (same decision at the margin,
@@ -10,8 +10,8 @@ only the pair solver decides.
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.grasp import ForceClosure, min_subgrasp_quality, min_subgrasp_quality_batch
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.grasp import ForceClosure, min_subgrasp_quality, min_subgrasp_quality_batch
 
 TETRA = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=float) / np.sqrt(3)
 

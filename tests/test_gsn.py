@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.hand import Hand
-from dexplan.objects import Box, Sphere
-from dexplan.planning.gsn import GraspSubspace
-from dexplan.pose import random_quaternion
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import random_quaternion
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Box, Sphere
+from dexplan.planning.gsn.space import GraspSubspace
 
 
 def _gsn(hand: Hand, obj, mask=None) -> GraspSubspace:

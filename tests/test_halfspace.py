@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dexplan.grasp import force_closure_quality, min_subgrasp_quality
-from dexplan.grasp.halfspace import cannot_be_force_closure
+from dexplan.model.grasp import force_closure_quality, min_subgrasp_quality
+from dexplan.model.grasp.halfspace import cannot_be_force_closure
 
 
 def _random_normals(rng: np.random.Generator, m: int, k: int) -> np.ndarray:

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from dexplan.exceptions import DexplanError, InvalidInputError, ModelError
-from dexplan.hand import Hand
+from dexplan.core.errors import DexplanError, InvalidInputError, ModelError
+from dexplan.model.hand.hand import Hand
 
 
 @pytest.fixture(scope="module")

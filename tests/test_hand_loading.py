@@ -13,13 +13,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan import hand as hand_module
-from dexplan.collision import CollisionWorld
-from dexplan.exceptions import DependencyError, ModelError
-from dexplan.hand import ALLEGRO_TIPS, Hand, example_robot_data_file
-from dexplan.native_output import captured_stderr
-from dexplan.objects.primitives import Sphere
-from dexplan.urdf import MOUNT_LINK, mount_urdf
+from dexplan.core.errors import DependencyError, ModelError
+from dexplan.core.native_output import captured_stderr
+from dexplan.model.collision import CollisionWorld
+from dexplan.model.hand import hand as hand_module
+from dexplan.model.hand.hand import ALLEGRO_TIPS, Hand, example_robot_data_file
+from dexplan.model.hand.urdf import MOUNT_LINK, mount_urdf
+from dexplan.model.objects.primitives import Sphere
 
 #: MEASURED.md: a valid fingertip-only grasp of a R 6 cm sphere at (0.09, 0, -0.01)
 #: in palm_link (right hand), joints in Pinocchio order.

@@ -1,10 +1,10 @@
-"""Vectorised and closed-form finger IK (dexplan.ik) against forward kinematics."""
+"""Vectorised and closed-form finger IK (dexplan.model.hand.ik) against forward kinematics."""
 
 import numpy as np
 import pytest
 
-from dexplan.hand import Hand
-from dexplan.ik import (
+from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.ik import (
     TRACK_RESOLUTION,
     FingerChain,
     SplitFingerIK,

@@ -12,10 +12,10 @@ import pytest
 
 import dexplan
 from dexplan.api import RoadmapPlanner
-from dexplan.goals import load_goals, parse_goals, random_goals
-from dexplan.planning.learning import BuildSettings
-from dexplan.planning.roadmap_file import read_roadmap_arrays
-from dexplan.scenario import GoalSpec, load_scenario
+from dexplan.model.scenario.goals import load_goals, parse_goals, random_goals
+from dexplan.model.scenario.scenario import GoalSpec, load_scenario
+from dexplan.planning.roadmap.file import read_roadmap_arrays
+from dexplan.planning.roadmap.learning import BuildSettings
 from tests.cli_contract import assert_bad_input, run_cli
 
 DATA = Path(dexplan.__file__).resolve().parent / "data" / "scenarios"
@@ -31,7 +31,7 @@ def _yaw(deg: float) -> list[float]:
 @pytest.fixture(scope="module")
 def roadmap_file(tmp_path_factory) -> Path:
     """A small paper_sphere roadmap, built by the CLI (deterministic: --nodes)."""
-    from dexplan import cli
+    from dexplan.cli import main as cli
 
     out = tmp_path_factory.mktemp("rm") / "rm.npz"
     assert cli.run(["roadmap", "build", str(PAPER), "--nodes", "16", "-o", str(out), "-q"]) == 0
@@ -216,9 +216,9 @@ def test_api_build_save_load_query(tmp_path: Path) -> None:
 
 
 def test_build_settings_need_one_budget() -> None:
-    with pytest.raises(dexplan.exceptions.InvalidInputError, match="exactly one"):
+    with pytest.raises(dexplan.core.errors.InvalidInputError, match="exactly one"):
         BuildSettings(time_limit=1.0, nodes=10)
-    with pytest.raises(dexplan.exceptions.InvalidInputError, match="exactly one"):
+    with pytest.raises(dexplan.core.errors.InvalidInputError, match="exactly one"):
         BuildSettings()
 
 

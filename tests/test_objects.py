@@ -1,4 +1,4 @@
-"""Tests of dexplan.objects: SDF, gradients, closest points, sampling, meshes, I/O."""
+"""Tests of dexplan.model.objects: SDF, gradients, closest points, sampling, meshes, I/O."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import pytest
 import trimesh
 from scipy import stats
 
-from dexplan.exceptions import DexplanError, InvalidInputError, MeshError
-from dexplan.objects import (
+from dexplan.core.errors import DexplanError, InvalidInputError, MeshError
+from dexplan.model.objects import (
     BUILTIN_MESH_DIR,
     Box,
     Capsule,
@@ -799,8 +799,8 @@ def test_large_mesh_matches_brute_force_and_is_fast() -> None:
 
 
 def test_box_edge_samples_lie_on_edges_with_normals_in_their_cone() -> None:
-    from dexplan.objects.primitives import EDGE_NORMAL_MIN
-    from dexplan.plan_verify import TIP_DISTANCE_TOL
+    from dexplan.model.objects.primitives import EDGE_NORMAL_MIN
+    from dexplan.planfile.verify import TIP_DISTANCE_TOL
 
     box = Box([0.06, 0.04, 0.045])
     pts, normals = box.sample_edges(3000, np.random.default_rng(4))

@@ -18,7 +18,7 @@ from toy_sphere import (
     uniform_sphere_sampler,
 )
 
-from dexplan.exceptions import PlannerError
+from dexplan.core.errors import PlannerError
 from dexplan.planning.ompl import PlanningProblem
 
 

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError, PlannerError
+from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.planning.ompl import plan_joint_path
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from toy_sphere import is_valid, make_spec
 
-from dexplan.exceptions import PlannerError
+from dexplan.core.errors import PlannerError
 from dexplan.planning.ompl import (
     MULTI_QUERY_PLANNERS,
     PLANNERS,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
 from dexplan.planning.ompl import get_log_level, set_log_level
 
 

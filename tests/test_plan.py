@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dexplan.exceptions import PlanFileError
-from dexplan.plan_file import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.core.errors import PlanFileError
+from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.planfile.document import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import plan
-from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_planner_plan_passes_verify(solved) -> None:
 
 def test_planner_document_is_well_formed(solved) -> None:
     """Every field the planner writes is one the format knows (plan_schema)."""
-    from dexplan.plan_schema import validate_plan
+    from dexplan.planfile.schema import validate_plan
 
     _, _, doc = solved
     validate_plan(doc)
@@ -151,7 +151,7 @@ def test_same_seed_same_plan_with_an_obstacle(planner: str) -> None:
 
 def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
     from dexplan.planning.context import build_context
-    from dexplan.planning.roadmap import Roadmap, scenario_key
+    from dexplan.planning.roadmap.roadmap import Roadmap, scenario_key
 
     scenario, result, _ = solved
     path = tmp_path / "rm.npz"
@@ -170,8 +170,8 @@ def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
 
 def _follows_all_the_way(ctx, x: np.ndarray) -> bool:
     """Whether the grasp ``x`` follows the scenario's straight move to the goal (IK-only)."""
-    from dexplan.planning.reduction import grasp_follow
-    from dexplan.planning.transitions import densify_poses
+    from dexplan.planning.local.reduction import grasp_follow
+    from dexplan.planning.local.transitions import densify_poses
 
     sc, st = ctx.scenario, ctx.transitions.settings
     pose, goal = sc.start.object_pose_xyzquat, sc.goal.object_pose_xyzquat
@@ -239,7 +239,7 @@ def test_start_q_a_little_off_the_surface_is_moved_onto_it(tmp_path) -> None:
 
 def test_joint_travel_sums_every_joint_change() -> None:
     """``joint_travel``: the L1 length of the hand's joint path over all segments."""
-    from dexplan.segments import Segment, Waypoint, joint_travel
+    from dexplan.core.segments import Segment, Waypoint, joint_travel
 
     pose = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0])
     c = (np.zeros(3),)

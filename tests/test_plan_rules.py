@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-import dexplan.plan_verify as plan_verify
-from dexplan.plan_file import RULES as REEXPORTED
-from dexplan.plan_verify import RULES
+import dexplan.planfile.verify as plan_verify
+from dexplan.planfile.document import RULES as REEXPORTED
+from dexplan.planfile.verify import RULES
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "plan_format.md"

@@ -2,7 +2,7 @@
 
 Every test goes through the command line in this process (``cli.run``) on a
 file, so the whole path is covered: read (JSON, nesting, size), structure
-(:mod:`dexplan.plan_schema`), models (the URDF), rules (the verifier). The
+(:mod:`dexplan.planfile.schema`), models (the URDF), rules (the verifier). The
 valid plan is made by hand (no planning): a transfer turning the sphere by
 0.09 rad, a regrasp of finger 0, and a transfer turning it on to 0.18 rad.
 """
@@ -23,10 +23,10 @@ from cli_contract import assert_bad_input, run_cli
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
-from dexplan import plan_schema
-from dexplan.hand import Hand
-from dexplan.plan_file import hand_table, read_plan, verify_plan
-from dexplan.pose import quat_from_axis_angle, transform_points
+from dexplan.core.pose import quat_from_axis_angle, transform_points
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile import schema as plan_schema
+from dexplan.planfile.document import hand_table, read_plan, verify_plan
 
 RADIUS = 0.04
 CENTER = np.array([0.0, 0.0, 0.1])
@@ -443,7 +443,7 @@ def test_huge_integer_literal_is_not_json_we_read(capfd, tmp_path: Path, plan: d
 
 
 def test_in_memory_documents_are_validated(plan: dict) -> None:
-    from dexplan.exceptions import PlanFileError
+    from dexplan.core.errors import PlanFileError
 
     plan["segments"][0]["waypoints"][0]["q"][0] = math.nan
     with pytest.raises(PlanFileError, match=r"segments\[0\]\.waypoints\[0\]\.q\[0\]"):

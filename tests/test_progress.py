@@ -6,8 +6,8 @@ import json
 
 from dexplan import bench
 from dexplan.api import plan
+from dexplan.model.scenario.scenario import default_scenario
 from dexplan.planning.progress import PlanStatus, ProgressEvent, Stage
-from dexplan.scenario import default_scenario
 
 
 def test_status_is_its_string_in_json_and_comparisons():
@@ -41,8 +41,8 @@ def test_a_solved_query_reports_each_stage_in_order():
 def test_plan_stats_round_trip_and_refuse_unknown_figures():
     import pytest
 
-    from dexplan.exceptions import DexplanError
-    from dexplan.planning.plan_stats import PlanStats
+    from dexplan.core.errors import DexplanError
+    from dexplan.planning.stats import PlanStats
 
     st = PlanStats.from_mapping(
         {"planner": "PRM", "seed": 1, "time_limit": 30.0, "regrasps": 7, "local_landing_checks": 9}

@@ -1,9 +1,9 @@
-"""Reach voxels (dexplan.reach): reachable fingertip centres are inside, far ones outside."""
+"""Reach voxels (dexplan.model.hand.reach): reachable fingertip centres inside, far ones out."""
 
 import numpy as np
 import pytest
 
-from dexplan.hand import Hand
+from dexplan.model.hand.hand import Hand
 
 
 @pytest.mark.parametrize("name", ["paper", "allegro", "three_finger"])

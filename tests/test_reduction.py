@@ -6,15 +6,15 @@ import itertools
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.plan_file import build_plan_document, verify_plan
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import inverse_transform_points, quat_angle
+from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.planfile.document import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
-from dexplan.planning.gsn import POSE_DIM
+from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
+from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.planner import plan, start_state
-from dexplan.planning.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
-from dexplan.planning.transitions import densify_poses
-from dexplan.pose import inverse_transform_points, quat_angle
-from dexplan.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -182,8 +182,8 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
 ) -> None:
     """A regrasp search that finds nothing runs again ``regrasp_retries`` times, then the
     gaits go back ``backtracks`` times (to the latest checkpoint: ``backtrack_steps`` 0)."""
-    from dexplan.planning import reduction
-    from dexplan.planning.transitions import densify_poses
+    from dexplan.planning.local import reduction
+    from dexplan.planning.local.transitions import densify_poses
 
     x0, xg = start_and_goal
     ctx = build_context(scenario, seed=1)
@@ -216,7 +216,7 @@ def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
 ) -> None:
     """The look-ahead: with no landing of its own, the blocking finger waits for a
     neighbour's move after which it has one (``can_land``), before any move at all."""
-    from dexplan.planning import reduction
+    from dexplan.planning.local import reduction
 
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
     ctx = build_context(scenario, seed=1)
@@ -265,8 +265,8 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
     """``max_blind`` moves of other fingers without a landing for the blocking one
     end the attempt (the planner retries afresh); other regrasps count towards
     ``max_stall`` only."""
-    from dexplan.planning import reduction
-    from dexplan.segments import Segment, Waypoint
+    from dexplan.core.segments import Segment, Waypoint
+    from dexplan.planning.local import reduction
 
     x0, xg = start_and_goal
     ctx = build_context(scenario, seed=1)
@@ -321,8 +321,8 @@ def test_stuck_gaits_go_back_to_an_earlier_transfer_and_carry_on(
     scenario, start_and_goal, monkeypatch
 ) -> None:
     """A regrasp search that finds nothing once: the gaits resume from an earlier checkpoint."""
-    from dexplan.planning import reduction as red_mod
-    from dexplan.planning.reduction import reduce_object_path
+    from dexplan.planning.local import reduction as red_mod
+    from dexplan.planning.local.reduction import reduce_object_path
 
     x0, _ = start_and_goal
     ctx = build_context(scenario, seed=1)
@@ -369,7 +369,7 @@ def test_densified_quaternions_keep_their_sign() -> None:
     verifier compares poses as written: a regrasp at ``-q`` after a transfer
     ending at ``q`` broke continuity in an edge-by-edge plan).
     """
-    from dexplan.pose import quat_from_axis_angle
+    from dexplan.core.pose import quat_from_axis_angle
 
     q1 = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), 0.6)
     q2 = quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), 0.9)

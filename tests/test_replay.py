@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from cli_contract import assert_bad_input, run_cli
 
-from dexplan.exceptions import DependencyError
-from dexplan.plan_file import hand_from_plan, read_plan, write_plan
+from dexplan.core.errors import DependencyError
+from dexplan.planfile.document import hand_from_plan, read_plan, write_plan
 
 mujoco = pytest.importorskip("mujoco")
 
-from dexplan.replay import build_mjcf, replay_plan, require_mujoco  # noqa: E402
+from dexplan.execution.replay.simulation import build_mjcf, replay_plan, require_mujoco  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Object-pose feedback of the replay (dexplan.replay_control): targets and the plan's tip slip."""
+"""Object-pose feedback of the replay (dexplan.execution.replay.control): targets, tip slip."""
 
 import copy
 
@@ -6,9 +6,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan.export import build_trajectory
-from dexplan.plan_file import hand_from_plan, read_plan
-from dexplan.replay_control import ObjectFeedback, planned_tip_slip, pose_se3
+from dexplan.execution.export import build_trajectory
+from dexplan.execution.replay.control import ObjectFeedback, planned_tip_slip, pose_se3
+from dexplan.planfile.document import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")
@@ -67,8 +67,8 @@ def test_transfers_ask_the_rigid_tips_to_slide(planned) -> None:
 
 
 def test_a_free_tip_is_kept_off_the_object_until_it_lands(planned) -> None:
-    from dexplan.forces import ForceSettings, solver_from_plan
-    from dexplan.replay_control import CLEARANCE, LAND_TIME
+    from dexplan.execution.forces import ForceSettings, solver_from_plan
+    from dexplan.execution.replay.control import CLEARANCE, LAND_TIME
 
     doc, hand = planned
     traj = build_trajectory(_first_transfer(doc), hand=hand)
@@ -82,7 +82,7 @@ def test_a_free_tip_is_kept_off_the_object_until_it_lands(planned) -> None:
 
 
 def test_next_hold_times() -> None:
-    from dexplan.replay_control import _next_hold_times
+    from dexplan.execution.replay.control import _next_hold_times
 
     t = np.array([0.0, 1.0, 2.0, 3.0])
     holding = np.array([[True, False], [False, False], [False, True], [True, False]])

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from dexplan.grasp import CONTACT_MODELS
-from dexplan.hand import BUILTIN_HANDS
-from dexplan.objects.factory import SHAPE_FIELDS, SHAPE_KINDS
+from dexplan.model.grasp import CONTACT_MODELS
+from dexplan.model.hand.hand import BUILTIN_HANDS
+from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS
+from dexplan.model.scenario.scenario import OBSTACLE_OWN_FIELDS, SCENARIO_FIELDS, SPACES
 from dexplan.planning.ompl import available_planners
-from dexplan.scenario import OBSTACLE_OWN_FIELDS, SCENARIO_FIELDS, SPACES
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "scenario.md"
 
@@ -94,9 +94,9 @@ def test_the_parser_checks_tables_against_the_field_table() -> None:
     # every unknown-field check of a named table takes its fields from there
     import ast
 
-    import dexplan.scenario
+    import dexplan.model.scenario.scenario
 
-    tree = ast.parse(Path(dexplan.scenario.__file__).read_text())
+    tree = ast.parse(Path(dexplan.model.scenario.scenario.__file__).read_text())
     calls = [
         node
         for node in ast.walk(tree)

@@ -19,10 +19,10 @@ from cli_contract import assert_bad_input, run_cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dexplan.exceptions import ScenarioError
-from dexplan.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
-from dexplan.objects import SHAPE_KINDS
-from dexplan.scenario import (
+from dexplan.core.errors import ScenarioError
+from dexplan.model.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
+from dexplan.model.objects import SHAPE_KINDS
+from dexplan.model.scenario.scenario import (
     MAX_HALF_EXTENT,
     MAX_JOINTS,
     MAX_POSITION,
@@ -207,7 +207,7 @@ def test_unknown_fields_in_every_table(capfd, tmp_path: Path, old, new, names) -
 
 
 def test_unknown_mesh_field(capfd, tmp_path: Path) -> None:
-    from dexplan.objects import BUILTIN_MESH_DIR
+    from dexplan.model.objects import BUILTIN_MESH_DIR
 
     mesh = "shape = 'mesh'\npath = '%s'\nscale = 0.5\nsha = 'ab'" % (BUILTIN_MESH_DIR / "cup.obj")
     _plan_text(capfd, tmp_path, _edit('shape = "sphere"\nradius = 0.04', mesh), ["object.sha"])

@@ -2,11 +2,11 @@
 
 import numpy as np
 
+from dexplan.model.scenario.scenario import default_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.reduction import grasp_from_state
-from dexplan.planning.smoothing import merge_regrasps
-from dexplan.planning.transitions import GraspContacts, densify_poses
-from dexplan.scenario import default_scenario
+from dexplan.planning.local.reduction import grasp_from_state
+from dexplan.planning.local.smoothing import merge_regrasps
+from dexplan.planning.local.transitions import GraspContacts, densify_poses
 
 
 def test_merged_regrasp_keeps_the_stated_contacts() -> None:

@@ -15,11 +15,11 @@ from dexplan.bench.tasks import (
     scenario_planners,
     validate_sweep,
 )
-from dexplan.exceptions import ScenarioError
-from dexplan.objects import Mesh, shape_from_dict
+from dexplan.core.errors import ScenarioError
+from dexplan.core.pose import quat_angle
+from dexplan.model.objects import Mesh, shape_from_dict
+from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.ompl import available_planners
-from dexplan.pose import quat_angle
-from dexplan.scenario import load_scenario
 
 SUITE = Path(__file__).resolve().parents[1] / "dexplan" / "data" / "scenarios" / "suite"
 

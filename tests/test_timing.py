@@ -1,16 +1,16 @@
-"""Time parameterisation (dexplan.timing): toppra's profile respects every limit."""
+"""Time parameterisation (dexplan.execution.timing): toppra's profile respects every limit."""
 
 import numpy as np
 import pytest
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.plan_file import hand_from_plan, read_plan
-from dexplan.timing import (
+from dexplan.core.errors import InvalidInputError
+from dexplan.execution.timing import (
     DEFAULT_JOINT_VELOCITY,
     TimingLimits,
     joint_velocity_limits,
     time_plan,
 )
+from dexplan.planfile.document import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")

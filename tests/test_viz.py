@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dexplan.exceptions import DependencyError
-from dexplan.hand import Hand
-from dexplan.plan_file import hand_table
-from dexplan.pose import quat_from_axis_angle, transform_points
+from dexplan.core.errors import DependencyError
+from dexplan.core.pose import quat_from_axis_angle, transform_points
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile.document import hand_table
 
 RADIUS = 0.04
 CENTER = np.array([0.0, 0.0, 0.1])
@@ -104,9 +104,9 @@ def make_plan_doc(hand: Hand) -> dict:
 def make_roadmap(doc: dict):
     """Vertices from the plan's waypoints plus a detached pair: 3 GSn components, 1 link."""
     try:
-        from dexplan.planning.roadmap import Roadmap
+        from dexplan.planning.roadmap.roadmap import Roadmap
     except ImportError as exc:  # the planning stack is not importable yet
-        pytest.skip(f"dexplan.planning.roadmap unavailable: {exc}")
+        pytest.skip(f"dexplan.planning.roadmap.roadmap unavailable: {exc}")
     wps = [w for s in doc["segments"] for w in s["waypoints"]]
     V = np.array([w["object_pose_xyzquat"] + w["q"] for w in wps[:7]])
     edges = np.array([[0, 1], [1, 2], [2, 3], [4, 5]], dtype=np.int64)
@@ -165,8 +165,9 @@ def test_core_modules_do_not_import_rerun() -> None:
     import subprocess
 
     code = (
-        "import sys; import dexplan.plan_file, dexplan.viz, dexplan.hand, dexplan.objects, "
-        "dexplan.cli; "
+        "import sys; import dexplan.planfile.document, dexplan.viz, dexplan.model.hand.hand, "
+        "dexplan.model.objects, "
+        "dexplan.cli.main; "
         "sys.exit(1 if 'rerun' in sys.modules else 0)"
     )
     root = Path(__file__).resolve().parents[1]
@@ -184,7 +185,7 @@ def plan_doc(paper_hand: Hand) -> dict:
 
 @pytest.fixture()
 def fc_stub(monkeypatch: pytest.MonkeyPatch) -> bool:
-    """Use dexplan.grasp when it exists, else stand-in qualities (True when real)."""
+    """Use dexplan.model.grasp when it exists, else stand-in qualities (True when real)."""
     from dexplan.viz import contacts
 
     if contacts.fc_functions() is not None:
@@ -202,7 +203,7 @@ def fc_stub(monkeypatch: pytest.MonkeyPatch) -> bool:
 
 def test_synthetic_plan_is_consistent(paper_hand: Hand, plan_doc: dict) -> None:
     """The test plan itself: fingertips on the sphere, regrasp only moves finger 0."""
-    from dexplan.plan_file import segments_from_dicts
+    from dexplan.planfile.document import segments_from_dicts
 
     r = RADIUS + paper_hand.fingertip_radius
     for seg in segments_from_dicts(plan_doc["segments"]):
@@ -355,7 +356,7 @@ def test_record_roadmap_alone_and_with_scene(tmp_path: Path, plan_doc: dict) -> 
 
 
 def test_write_recording_from_files(tmp_path: Path, plan_doc: dict, fc_stub) -> None:
-    from dexplan.plan_file import write_plan
+    from dexplan.planfile.document import write_plan
     from dexplan.viz import write_recording
 
     plan_path = tmp_path / "plan.json"
@@ -380,8 +381,8 @@ def test_write_recording_from_files(tmp_path: Path, plan_doc: dict, fc_stub) -> 
 
 
 def test_mesh_object_and_bad_inputs(tmp_path: Path, plan_doc: dict, fc_stub) -> None:
-    from dexplan.exceptions import InvalidInputError, PlanFileError
-    from dexplan.objects import BUILTIN_MESH_DIR
+    from dexplan.core.errors import InvalidInputError, PlanFileError
+    from dexplan.model.objects import BUILTIN_MESH_DIR
     from dexplan.viz import record_plan, show
 
     doc = dict(plan_doc)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from dexplan.hand import Hand
+from dexplan.model.hand.hand import Hand
 from dexplan.viz.visuals import hand_package_dirs, visual_geometry
 
 

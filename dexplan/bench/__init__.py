@@ -56,7 +56,10 @@ from dexplan.bench.tasks import (
     validate_sweep,
 )
 from dexplan.bench.worker import execute_run
-from dexplan.scenario import scenario_description, scenario_hash  # the one scenario identity
+from dexplan.model.scenario.scenario import (
+    scenario_description,
+    scenario_hash,
+)  # the one scenario identity
 
 __all__ = [
     "CSV_COLUMNS",

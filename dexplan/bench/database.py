@@ -28,8 +28,8 @@ from dexplan.bench.schema import (
     SCHEMA,
     VIEWS,
 )
-from dexplan.exceptions import InvalidInputError
-from dexplan.scenario import Scenario, scenario_description
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.scenario.scenario import Scenario, scenario_description
 
 _NOT_PLANNING = frozenset({"bench", "cli", "viz"})
 """Top-level modules and packages of dexplan that no plan depends on."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from dexplan.exceptions import DependencyError
+from dexplan.core.errors import DependencyError
 
 
 def _import_extra(module: str, message: str) -> ModuleType:

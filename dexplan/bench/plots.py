@@ -10,7 +10,7 @@ from typing import Any
 
 from dexplan.bench.extras import require_matplotlib
 from dexplan.bench.schema import DEFAULT_BASELINE, PLOT_NAMES
-from dexplan.files import atomic_output
+from dexplan.core.files import atomic_output
 
 #: Widest row of box-plot panels (inches) before they wrap to a new row.
 _ROW_WIDTH = 24.0

@@ -16,7 +16,7 @@ from typing import Any
 
 from dexplan.bench.schema import CSV_COLUMNS, OMPL_STATUS_OF, PLAN_STATUSES, REDUCTION_METHODS
 from dexplan.bench.tasks import RunTask
-from dexplan.planning.plan_stats import PlanStats
+from dexplan.planning.stats import PlanStats
 
 
 def empty_record(task: RunTask) -> dict[str, Any]:

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from dexplan.bench.schema import CSV_COLUMNS, DEFAULT_BASELINE
-from dexplan.files import atomic_output
+from dexplan.core.files import atomic_output
 
 
 def _median(values: Iterable[Any]) -> float:

@@ -28,7 +28,7 @@ from dexplan.bench.extras import require_ray
 from dexplan.bench.records import failure_record
 from dexplan.bench.tasks import RunTask
 from dexplan.bench.worker import PRELOAD, child_main, execute_run
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
 
 
 @dataclass(frozen=True)

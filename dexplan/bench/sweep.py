@@ -50,8 +50,8 @@ from dexplan.bench.tasks import (
     scenario_planners,
     validate_sweep,
 )
-from dexplan.exceptions import InvalidInputError
-from dexplan.scenario import Scenario
+from dexplan.core.errors import InvalidInputError
+from dexplan.model.scenario.scenario import Scenario
 
 
 @dataclass

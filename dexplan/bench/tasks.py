@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dexplan.bench.schema import DEFAULT_BASELINE
-from dexplan.exceptions import InvalidInputError, PlannerError, ScenarioError
-from dexplan.scenario import (
+from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
+from dexplan.model.scenario.scenario import (
     Scenario,
     builtin_scenario_path,
     load_scenario,

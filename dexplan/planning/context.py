@@ -11,17 +11,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dexplan.collision import CollisionWorld, Obstacle
-from dexplan.exceptions import DexplanError, ScenarioError
-from dexplan.grip import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
-from dexplan.hand import Hand
-from dexplan.objects import Shape, shape_from_dict
+from dexplan.core.errors import DexplanError, ScenarioError
+from dexplan.model.collision import CollisionWorld, Obstacle
+from dexplan.model.grasp.grip import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Shape, shape_from_dict
+from dexplan.model.scenario.scenario import Scenario
 from dexplan.planning.deadline import Deadline
-from dexplan.planning.gsn import GraspSubspace
-from dexplan.planning.sampler import GraspSampler, SamplerSettings
-from dexplan.planning.transitions import Transitions, TransitionSettings
-from dexplan.planning.validity import GraspValidity, ValiditySettings, let_go_problem
-from dexplan.scenario import Scenario
+from dexplan.planning.gsn.sampler import GraspSampler, SamplerSettings
+from dexplan.planning.gsn.space import GraspSubspace
+from dexplan.planning.gsn.validity import GraspValidity, ValiditySettings, let_go_problem
+from dexplan.planning.local.transitions import Transitions, TransitionSettings
 
 
 @dataclass
@@ -101,7 +101,7 @@ def validity_settings(scenario: Scenario, n_fingers: int) -> ValiditySettings:
     Raises:
         ScenarioError: no (n-1)-finger subgrasp of an ``n_fingers`` hand can be
             force closure under the scenario's contact model, e.g. 3 fingers with
-            point contacts (:func:`~dexplan.planning.validity.let_go_problem`).
+            point contacts (:func:`~dexplan.planning.gsn.validity.let_go_problem`).
     """
     vset = ValiditySettings(
         mu=scenario.mu,

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from dexplan.planning.sampler import SamplerStats
-from dexplan.planning.validity import RejectedSample, ValidityStats
+from dexplan.planning.gsn.sampler import SamplerStats
+from dexplan.planning.gsn.validity import RejectedSample, ValidityStats
 
 
 @dataclass(frozen=True)

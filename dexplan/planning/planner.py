@@ -2,7 +2,7 @@
 
 A query runs in three stages:
 
-1. **Module 1** (:mod:`dexplan.planning.roadmap`): an OMPL planner explores
+1. **Module 1** (:mod:`dexplan.planning.roadmap.roadmap`): an OMPL planner explores
    GSn from the start state towards the goal region (single query), or a
    loaded roadmap answers the query (multi query).
 2. **Module 2**: when start and goal are in different GSn components, the
@@ -25,29 +25,29 @@ from typing import Any
 
 import numpy as np
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.hand import Hand
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import quat_angle
+from dexplan.core.segments import Segment, count_kinds, joint_travel, object_path_length
+from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
+from dexplan.model.scenario.scenario import Scenario
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
-from dexplan.planning.gsn import POSE_DIM
-from dexplan.planning.ompl import check_planner
-from dexplan.planning.plan_stats import PlanStats
-from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
-from dexplan.planning.queries import answer_query
-from dexplan.planning.reduction import (
+from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.reduction import (
     ReductionResult,
     grasp_follow,
     grasp_from_state,
     reduce_gsn_path,
     reduce_object_path,
 )
-from dexplan.planning.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn
-from dexplan.planning.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
-from dexplan.planning.transitions import densify_poses
-from dexplan.pose import quat_angle
-from dexplan.scenario import Scenario
-from dexplan.segments import Segment, count_kinds, joint_travel, object_path_length
-from dexplan.typing import FloatArray
+from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
+from dexplan.planning.local.transitions import densify_poses
+from dexplan.planning.ompl import check_planner
+from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
+from dexplan.planning.roadmap.queries import answer_query
+from dexplan.planning.roadmap.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn
+from dexplan.planning.stats import PlanStats
 
 Verifier = Callable[["PlanResult"], Sequence[str]]
 """Checks a finished plan; returns its violations (empty: the plan is valid)."""
@@ -181,7 +181,7 @@ def start_state(
     A sampled start grasp is the first valid grasp found at the start pose,
     unless it cannot follow the object's straight move to the goal pose
     all the way and one of ``candidates - 1`` more, drawn from ``rng``, can
-    (:func:`~dexplan.planning.reduction.grasp_follow`, IK-only: every finger
+    (:func:`~dexplan.planning.local.reduction.grasp_follow`, IK-only: every finger
     reaches its contact at every pose within the joint margin): then the
     first of those. Every finger a transfer cannot follow costs a regrasp;
     on box_tilt90 some start grasps turn the box with none and others need
@@ -272,9 +272,9 @@ def plan(
         progress: called with a :class:`ProgressEvent` at each stage.
         reduction: how the GSn path becomes transfers and regrasps: ``gaits``
             (follow the object trajectory with finger gaits,
-            :func:`~dexplan.planning.reduction.reduce_object_path`), ``edges``
+            :func:`~dexplan.planning.local.reduction.reduce_object_path`), ``edges``
             (the reduction property edge by edge with bisection,
-            :func:`~dexplan.planning.reduction.reduce_gsn_path`) or ``auto``
+            :func:`~dexplan.planning.local.reduction.reduce_gsn_path`) or ``auto``
             (gaits, then edges when gaits fail).
         verify: the independent check of the finished plan (the plan-file
             verifier, which lives in a layer below planning: the caller passes

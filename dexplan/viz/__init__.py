@@ -3,7 +3,7 @@
 This package is the only part of dexplan that imports ``rerun``, and it does
 so lazily, inside functions: the planner, the plan files and the CLI work
 without rerun-sdk, and asking for a recording without it raises
-:class:`~dexplan.exceptions.DependencyError` naming the extra to install.
+:class:`~dexplan.core.errors.DependencyError` naming the extra to install.
 
 Three entry points write ``.rrd`` files that the Rerun viewer opens directly:
 

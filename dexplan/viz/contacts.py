@@ -3,7 +3,7 @@
 Per ``plan_step``: each holding finger's contact point and its linearized
 friction cone (with the torsion ring for soft contacts), and the force-closure
 quality of the holding grasp and the minimum over its subgrasps
-(:mod:`dexplan.grasp`), all sent as columns.
+(:mod:`dexplan.model.grasp`), all sent as columns.
 """
 
 from __future__ import annotations
@@ -14,12 +14,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import DexplanError
-from dexplan.typing import FloatArray
+from dexplan.core.errors import DexplanError
+from dexplan.core.typing import FloatArray
 from dexplan.viz.session import finger_color, plan_index, rerun_module, rgba, set_step
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.segments import Segment
+    from dexplan.core.segments import Segment
     from dexplan.viz.scene import Scene
 
 
@@ -63,12 +63,9 @@ def _contact_strips(
 
 # ---------------------------------------------------------- force closure
 def fc_functions() -> tuple[Any, Any] | None:
-    """``(force_closure_quality, min_subgrasp_quality)``, or None without :mod:`dexplan.grasp`."""
+    """``(force_closure_quality, min_subgrasp_quality)``, or None without the grasp models."""
     try:
-        from dexplan.grasp import (
-            force_closure_quality,
-            min_subgrasp_quality,
-        )
+        from dexplan.model.grasp import force_closure_quality, min_subgrasp_quality
     except ImportError:
         return None
     return force_closure_quality, min_subgrasp_quality
@@ -123,8 +120,8 @@ def _contact_series(
     scene: Scene, segments: Sequence[Segment], fc: tuple[Any, Any] | None
 ) -> _ContactSeries:
     """Contact points, cone strips and FC values at every waypoint of the plan."""
-    from dexplan.plan_file import fingertip_contact
-    from dexplan.pose import inverse_transform_points, transform_points
+    from dexplan.core.pose import inverse_transform_points, transform_points
+    from dexplan.planfile.document import fingertip_contact
 
     hand, obj = scene.hand, scene.obj
     assert hand is not None and obj is not None
@@ -201,7 +198,7 @@ def _log_styles(rec: Any, n: int, have_fc: bool) -> None:
         rec.log(
             "plan/segment",
             rr.TextLog(
-                "force-closure quality not recorded: dexplan.grasp is unavailable",
+                "force-closure quality not recorded: dexplan.model.grasp is unavailable",
                 level=rr.TextLogLevel.WARN,
             ),
             static=True,

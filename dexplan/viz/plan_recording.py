@@ -24,8 +24,8 @@ from dexplan.viz.session import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.planning.roadmap import Roadmap
-    from dexplan.segments import Segment
+    from dexplan.core.segments import Segment
+    from dexplan.planning.roadmap.roadmap import Roadmap
     from dexplan.viz.scene import HandLayout, Scene
 
 _TRANSFER_COLOR = [70, 130, 220, 255]
@@ -55,8 +55,8 @@ def record_plan(
     3D view, the FC plot, mode lanes and the segment log.
 
     Args:
-        doc: the plan document (as from :func:`dexplan.plan_file.read_plan` or
-            :func:`dexplan.plan_file.build_plan_document`).
+        doc: the plan document (as from :func:`dexplan.planfile.document.read_plan` or
+            :func:`dexplan.planfile.document.build_plan_document`).
         path: output ``.rrd`` file.
         roadmap: the GSn roadmap the plan came from, drawn statically.
         base_dir: folder relative mesh paths resolve against (the plan's).
@@ -69,7 +69,7 @@ def record_plan(
 
     """
     rr = rerun_module()
-    from dexplan.plan_file import segments_from_dicts
+    from dexplan.planfile.document import segments_from_dicts
 
     scene = scene_from_doc(doc, Path(base_dir))  # validates the document
     segments = segments_from_dicts(doc["segments"])

@@ -16,7 +16,7 @@ from dexplan.viz.session import REJECTED_SAMPLE, recording, rerun_module
 def record_rejections(samples: Sequence[Any], path: str | Path, *, scenario: Any) -> int:
     """Write a Rerun recording of states the validity checker rejected (``--debug-rrd``).
 
-    Each sample (a :class:`~dexplan.planning.validity.RejectedSample`) is one
+    Each sample (a :class:`~dexplan.planning.gsn.validity.RejectedSample`) is one
     step of the ``rejected_sample`` timeline: the hand and the object at that
     state, with its reason and detail (the colliding pair, the force-closure
     quality) as a text entry, so the user sees why the sampler's states fail.
@@ -24,7 +24,7 @@ def record_rejections(samples: Sequence[Any], path: str | Path, *, scenario: Any
     Args:
         samples: the rejected states, e.g. ``PlanResult.rejections.samples``.
         path: output ``.rrd`` file.
-        scenario: the :class:`~dexplan.scenario.Scenario` they belong to.
+        scenario: the :class:`~dexplan.model.scenario.scenario.Scenario` they belong to.
 
     Returns:
         The number of samples recorded.

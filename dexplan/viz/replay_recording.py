@@ -29,11 +29,13 @@ _OBSTACLE = (150, 150, 150, 120)
 def record_replay(
     doc: Mapping[str, Any], result: Any, path: str | Path, *, base_dir: str | Path = "."
 ) -> Path:
-    """Write a recording of a plan and its :class:`~dexplan.replay.ReplayResult`.
+    """Write a recording of a plan and its replay's result.
+
+    The result is a :class:`~dexplan.execution.replay.simulation.ReplayResult`.
 
     Args:
         doc: the validated plan.
-        result: what :func:`dexplan.replay.replay_plan` returned.
+        result: what :func:`dexplan.execution.replay.simulation.replay_plan` returned.
         path: the ``.rrd`` file (written atomically).
         base_dir: the plan's folder (mesh paths).
 
@@ -41,7 +43,7 @@ def record_replay(
         ``path``.
     """
     rr = rerun_module()
-    from dexplan.plan_file import hand_from_plan, shape_of
+    from dexplan.planfile.document import hand_from_plan, shape_of
 
     base_dir = Path(base_dir)
     hand = hand_from_plan(doc["hand"])

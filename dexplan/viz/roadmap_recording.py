@@ -9,14 +9,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import PlanFileError
-from dexplan.typing import FloatArray
+from dexplan.core.errors import PlanFileError
+from dexplan.core.typing import FloatArray
 from dexplan.viz.blueprints import roadmap_blueprint
 from dexplan.viz.scene import Scene, log_scene_static, scene_from, send_configurations
 from dexplan.viz.session import COMPONENTS, LINK_COLOR, ROADMAP_NODE, recording, rerun_module, rgba
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.planning.roadmap import Roadmap
+    from dexplan.planning.roadmap.roadmap import Roadmap
     from dexplan.viz.scene import HandLayout
 
 
@@ -248,7 +248,7 @@ def record_roadmap(
     properties); the same graph in orientation space under ``orientation``
     (nodes at the object's rotation vector, :func:`log_orientations`).
 
-    With ``scene`` (a plan document or a :class:`~dexplan.scenario.Scenario`)
+    With ``scene`` (a plan document or a :class:`~dexplan.model.scenario.scenario.Scenario`)
     the hand geometry, object, goal and obstacles are drawn too, and with
     ``browse_nodes`` every node's configuration (object pose and hand links)
     is put on a ``roadmap_node`` sequence timeline, one step per vertex.

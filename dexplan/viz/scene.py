@@ -1,7 +1,7 @@
 """The scene of a recording: hand, object, goal and obstacles, static and per configuration.
 
 The models are rebuilt from a ``dexplan-plan/1`` document or a
-:class:`~dexplan.scenario.Scenario` (:class:`Scene`); the hand's link
+:class:`~dexplan.model.scenario.scenario.Scenario` (:class:`Scene`); the hand's link
 geometry, the object, goal and obstacles are logged once, statically
 (:func:`log_scene_static`), and configurations (object pose and every moving
 link's pose) as columns on a timeline (:func:`send_configurations`).
@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import PlanFileError
-from dexplan.typing import FloatArray
+from dexplan.core.errors import PlanFileError
+from dexplan.core.typing import FloatArray
 from dexplan.viz.session import (
     GOAL,
     GREY,
@@ -33,8 +33,8 @@ from dexplan.viz.shapes import coal_archetype, shape_archetype
 from dexplan.viz.visuals import hand_package_dirs, visual_geometry
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.hand import Hand
-    from dexplan.objects import Shape
+    from dexplan.model.hand.hand import Hand
+    from dexplan.model.objects import Shape
 
 
 @dataclass
@@ -64,7 +64,7 @@ class HandLayout:
 # ------------------------------------------------------------------ models
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
     """The hand of a plan document (meshes found beside it or in example-robot-data)."""
-    from dexplan.plan_file import hand_from_plan
+    from dexplan.planfile.document import hand_from_plan
 
     return hand_from_plan(h, hand_package_dirs(base_dir))
 
@@ -82,7 +82,7 @@ def obstacles_from_dicts(
     Returns:
         One triple per entry, in order.
     """
-    from dexplan.plan_file import shape_of
+    from dexplan.planfile.document import shape_of
 
     out = []
     for k, ob in enumerate(items):
@@ -97,11 +97,11 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
 
     Raises:
         PlanFileError: the document is malformed (the message names the
-            field; :func:`dexplan.plan_schema.validate_plan`) or its hand does
+            field; :func:`dexplan.planfile.schema.validate_plan`) or its hand does
             not build.
     """
-    from dexplan.plan_file import models_from_document
-    from dexplan.plan_schema import validate_plan
+    from dexplan.planfile.document import models_from_document
+    from dexplan.planfile.schema import validate_plan
 
     validate_plan(doc, base_dir)
     m = models_from_document(doc, base_dir, hand=_hand_from_doc(doc["hand"], base_dir))
@@ -122,8 +122,8 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
 
 
 def scene_from_scenario(scenario: Any) -> Scene:
-    """Hand, object and obstacles of a :class:`~dexplan.scenario.Scenario`."""
-    from dexplan.objects import shape_from_dict
+    """Hand, object and obstacles of a :class:`~dexplan.model.scenario.scenario.Scenario`."""
+    from dexplan.model.objects import shape_from_dict
     from dexplan.planning.context import build_hand
 
     base = Path(scenario.base_dir)

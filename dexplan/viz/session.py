@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import DependencyError
-from dexplan.files import atomic_output
+from dexplan.core.errors import DependencyError
+from dexplan.core.files import atomic_output
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from types import ModuleType

@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dexplan.exceptions import InvalidInputError
-from dexplan.typing import FloatArray
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.typing import FloatArray
 from dexplan.viz.session import rerun_module, rgba
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.objects import Shape
+    from dexplan.model.objects import Shape
 
 
 def mesh_archetype(vertices: FloatArray, faces: np.ndarray, color: Sequence[int]) -> Any:
@@ -37,7 +37,7 @@ def shape_archetype(shape: Shape, color: Sequence[int], *, wireframe: bool = Fal
         InvalidInputError: the shape is of no known kind.
     """
     rr = rerun_module()
-    from dexplan.objects import Box, Capsule, Cylinder, Mesh, Sphere
+    from dexplan.model.objects import Box, Capsule, Cylinder, Mesh, Sphere
 
     fill = rr.components.FillMode.MajorWireframe if wireframe else rr.components.FillMode.Solid
     c = [rgba(color)]

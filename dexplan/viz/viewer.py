@@ -12,13 +12,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
-from dexplan.exceptions import DependencyError, DexplanError, PlanFileError
+from dexplan.core.errors import DependencyError, DexplanError, PlanFileError
 from dexplan.viz.plan_recording import record_plan
 from dexplan.viz.roadmap_recording import record_roadmap
 from dexplan.viz.session import require_rerun
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.planning.roadmap import Roadmap
+    from dexplan.planning.roadmap.roadmap import Roadmap
 
 _NO_DISPLAY = (
     "cannot open the Rerun viewer: no display (DISPLAY/WAYLAND_DISPLAY unset); "
@@ -57,8 +57,8 @@ def write_recording(
         PlanFileError: unreadable plan or roadmap file.
 
     """
-    from dexplan.plan_file import read_plan
-    from dexplan.planning.roadmap import Roadmap
+    from dexplan.planfile.document import read_plan
+    from dexplan.planning.roadmap.roadmap import Roadmap
 
     require_rerun()
     path = Path(path)

@@ -18,10 +18,10 @@ import contextlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dexplan.exceptions import DependencyError
+from dexplan.core.errors import DependencyError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.hand import Hand
+    from dexplan.model.hand.hand import Hand
 
 
 def hand_package_dirs(base_dir: Path) -> list[str | Path]:
@@ -30,7 +30,7 @@ def hand_package_dirs(base_dir: Path) -> list[str | Path]:
     ``base_dir`` (the plan's folder), then example-robot-data's ``share``
     folder when installed (the Allegro hands' ``package://`` meshes).
     """
-    from dexplan.hand import example_robot_data_share
+    from dexplan.model.hand.hand import example_robot_data_share
 
     dirs: list[str | Path] = [base_dir]
     with contextlib.suppress(DependencyError):  # no Allegro meshes to find then
@@ -51,7 +51,7 @@ def visual_geometry(hand: Hand) -> Any | None:
     """
     import pinocchio as pin
 
-    from dexplan.native_output import captured_stderr
+    from dexplan.core.native_output import captured_stderr
 
     if "<visual" not in hand.urdf_xml:
         return None

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
 
 __all__ = ["as_int", "as_pos"]
 

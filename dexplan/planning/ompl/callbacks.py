@@ -5,7 +5,7 @@
   (:func:`make_sampler_allocator`; used by the PRM family only: tree planners
   draw from the space's own sampler, uniform ambient states then projected,
   and the wheel offers no hook to replace it, see
-  :mod:`dexplan.planning.chart` for how dexplan's tree planners get GSn
+  :mod:`dexplan.planning.gsn.chart` for how dexplan's tree planners get GSn
   states anyway);
 - a :class:`GoalSpec` (distance, threshold, optional sampler) becomes a goal region
   (:func:`make_goal_region`), or a single goal state given to
@@ -15,7 +15,7 @@
 
 A callback never lets an exception unwind through OMPL's C++ frames: it records it
 in the :class:`ErrorSink`, answers "invalid" and terminates the running solve; the
-caller re-raises it as a :class:`~dexplan.exceptions.PlannerError`.
+caller re-raises it as a :class:`~dexplan.core.errors.PlannerError`.
 
 Binding facts (ompl 2.0.1 PyPI wheel, nanobind):
 
@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from ompl import base as ob
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int
-from dexplan.typing import FloatArray
 
 if TYPE_CHECKING:
     from dexplan.planning.ompl.spaces import ConstraintSpec, Frame

@@ -17,14 +17,14 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from dexplan.exceptions import InvalidInputError, PlannerError
+from dexplan.core.errors import InvalidInputError, PlannerError
+from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import ErrorSink, make_validity, termination
 from dexplan.planning.ompl.registry import MULTI_QUERY_PLANNERS, PLANNERS, check_planner_name
 from dexplan.planning.ompl.results import STATUS_NAMES
 from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
 from dexplan.planning.ompl.spaces import Frame, real_vector_space
-from dexplan.typing import FloatArray
 
 __all__ = ["plan_joint_path"]
 

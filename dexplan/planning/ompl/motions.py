@@ -11,7 +11,7 @@ second motion, tried when that one is invalid::
 fallback cannot join them; ``deadline`` is the running solve's end
 (``time.perf_counter()``; ``math.inf`` outside a solve). dexplan's planning
 layer passes the paper's section VI motion on meshes (contacts along surface
-geodesics, :mod:`dexplan.planning.geodesic_motion`).
+geodesics, :mod:`dexplan.planning.local.geodesic_motion`).
 
 :class:`FallbackMotions` holds the fallback, the record of the motions it
 joined and the bookkeeping that bounds its cost. Installed as the space
@@ -47,8 +47,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from ompl import base as ob
 
-from dexplan.exceptions import PlannerError
-from dexplan.typing import FloatArray
+from dexplan.core.errors import PlannerError
+from dexplan.core.typing import FloatArray
 
 if TYPE_CHECKING:
     from dexplan.planning.ompl.callbacks import ErrorSink

@@ -21,7 +21,8 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from dexplan.exceptions import InvalidInputError, PlannerError
+from dexplan.core.errors import InvalidInputError, PlannerError
+from dexplan.core.typing import FloatArray, as_vector
 from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import (
     Accept,
@@ -56,7 +57,6 @@ from dexplan.planning.ompl.spaces import (
     make_constraint,
     make_projection,
 )
-from dexplan.typing import FloatArray, as_vector
 
 __all__ = ["PlanningProblem"]
 

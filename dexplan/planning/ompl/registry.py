@@ -20,7 +20,7 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from dexplan.exceptions import PlannerError
+from dexplan.core.errors import PlannerError
 from dexplan.planning.ompl.spaces import real_vector_space
 
 __all__ = [

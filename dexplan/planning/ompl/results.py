@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from dexplan.typing import FloatArray, IntArray
+from dexplan.core.typing import FloatArray, IntArray
 
 __all__ = ["STATUS_NAMES", "PathCheck", "RoadmapData", "SolveResult"]
 

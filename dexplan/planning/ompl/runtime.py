@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from ompl import util as ou
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
 
 __all__ = ["derived_seed", "get_log_level", "reseed_ompl", "set_log_level"]
 

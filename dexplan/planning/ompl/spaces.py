@@ -38,10 +38,10 @@ from typing import Any, Literal
 import numpy as np
 from ompl import base as ob
 
-from dexplan.exceptions import InvalidInputError
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.typing import FloatArray, as_vector
 from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import ErrorSink
-from dexplan.typing import FloatArray, as_vector
 
 __all__ = [
     "ATLAS_SETTERS",

@@ -1,0 +1,6 @@
+"""The ``dexplan`` command line."""
+
+__all__ = [
+    "main",
+    "roadmap",
+]

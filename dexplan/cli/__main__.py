@@ -1,0 +1,5 @@
+"""``python -m dexplan.cli``: the ``dexplan`` command."""
+
+from dexplan.cli.main import main
+
+main()

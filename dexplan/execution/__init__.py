@@ -1,0 +1,8 @@
+"""Executing a plan: time parameterisation, grip forces, trajectory export, replay."""
+
+__all__ = [
+    "export",
+    "forces",
+    "replay",
+    "timing",
+]

@@ -1,0 +1,280 @@
+"""Object-pose feedback for the physics replay: the fingertip targets.
+
+The replay itself is :mod:`dexplan.execution.replay.simulation`.
+
+The plan keeps every contact fixed on the object during a transfer while the
+rigid fingertip sphere (radius ``r``) turns with its link, so the tip's
+material point at the contact would have to slide on the object by
+``r (w_object - w_link) x n``. Friction resists that: in physics the tips
+roll, the contacts move on the object and, driven open loop by the planned
+joints, the object turns less than planned (paper_sphere seed 1: a third of
+each transfer's rotation, dropped after 9 s). A robot executing such a plan
+tracks the object and corrects its fingers; :class:`ObjectFeedback` does the
+same, every :data:`CONTROL_PERIOD`:
+
+- a *holding* finger (in contact in the plan at this sample) aims its tip
+  centre at ``T p_tip``, where ``p_tip`` is its measured tip centre and ``T``
+  the transform from the measured to the planned object pose: the finger keeps
+  the contact where it actually is on the object (wherever rolling moved it)
+  and carries it to where the plan wants the object now;
+- a *free* finger (a regrasp's moving finger) aims at its planned tip moved
+  by the inverse transform (it lands on the planned contact of the object
+  where the object actually is), plus the offset it had when it let go (the
+  contact had rolled away from the planned one), fading out as the plan lifts
+  the tip :data:`LIFT_BLEND` away.
+
+A tip displacement goes to the finger's joints through one damped least
+squares step on its position Jacobian, from the measured joints (the loop
+closes every period; at most :data:`MAX_JOINT_STEP`), or, for a free finger
+once its offset has faded, from the planned joints (no tracking lag: a
+lagging tip cuts the corner of a regrasp's path and lands early). The
+grip-force feed-forward ``J^T f`` is kept; the errors reported stay those of
+the measured object against the plan.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.core.typing import FloatArray
+
+__all__ = [
+    "CONTROL_PERIOD",
+    "FORCE_EVERY",
+    "LIFT_BLEND",
+    "ObjectFeedback",
+    "planned_tip_slip",
+    "pose_se3",
+]
+
+#: Feedback update period (s); the grip forces are recomputed every FORCE_EVERY updates.
+CONTROL_PERIOD = 0.005
+FORCE_EVERY = 10
+#: A released finger's offset from the plan fades out as the plan lifts its tip this far (m).
+LIFT_BLEND = 0.01
+#: A free finger's tip kept this far off the object (m) until LAND_TIME (s) before it lands
+#: (planned regrasp paths may graze the object: paper_sphere seed 6 passes 0.04 mm from it).
+CLEARANCE = 0.002
+LAND_TIME = 0.4
+#: Pull of a redundant finger's null space toward the planned joints (per update).
+NULL_GAIN = 0.1
+#: Largest tip correction (m) and joint step (rad) per update; the damping of the
+#: least squares step (m): near full extension a finger's joint steps blow up.
+MAX_CORRECTION = 0.02
+MAX_JOINT_STEP = 0.05
+_DAMPING = 5e-3
+
+
+def pose_se3(p: FloatArray) -> pin.SE3:
+    """SE3 of a pose ``[x, y, z, qx, qy, qz, qw]``."""
+    q = pin.Quaternion(float(p[6]), float(p[3]), float(p[4]), float(p[5])).normalized()
+    return pin.SE3(q.toRotationMatrix(), np.asarray(p[:3], dtype=float))
+
+
+def _dls(J: FloatArray, dx: FloatArray) -> FloatArray:
+    """Damped least squares joint step (at most MAX_JOINT_STEP) for a tip displacement ``dx``."""
+    dq = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), dx)
+    big = float(np.abs(dq).max(initial=0.0))
+    return dq if big <= MAX_JOINT_STEP else dq * (MAX_JOINT_STEP / big)
+
+
+def _clip(dx: FloatArray) -> FloatArray:
+    n = float(np.linalg.norm(dx))
+    return dx if n <= MAX_CORRECTION else dx * (MAX_CORRECTION / n)
+
+
+class ObjectFeedback:
+    """Joint targets that carry the measured object onto the plan (``n`` fingers).
+
+    Args:
+        hand: the plan's :class:`~dexplan.model.hand.hand.Hand`.
+        traj: the sampled trajectory (:class:`dexplan.execution.export.Trajectory`).
+        solver: the plan's :class:`~dexplan.execution.forces.GripForceSolver` (the
+            replay's gravity): the feed-forward forces are recomputed at the
+            measured contacts; None keeps the planned ones.
+    """
+
+    def __init__(self, hand: Any, traj: Any, solver: Any = None) -> None:
+        self.hand = hand
+        self.traj, self.solver = traj, solver
+        self.holding = ~np.isnan(traj.forces[:, :, 0])
+        self.loaded = self.holding & (np.linalg.norm(np.nan_to_num(traj.forces), axis=2) > 0)
+        holding = self.holding
+        self.idx = [np.asarray(ix, dtype=int) for ix in hand.finger_q_index]
+        self.lower, self.upper = np.asarray(hand.lower), np.asarray(hand.upper)
+        n = hand.n_fingers
+        #: per finger: its tip's offset from the plan when it let go (object frame),
+        #: the planned tip then (object frame) and how far the plan has lifted it since.
+        self.offset = np.zeros((n, 3))
+        self.release_tip = np.zeros((n, 3))
+        self.lifted = np.zeros(n)
+        self.was_holding = holding[0].copy()
+        self.landing = _next_hold_times(traj.t, holding)
+
+    def targets(
+        self,
+        i: int,
+        q_plan: FloatArray,
+        q_sim: FloatArray,
+        planned_pose: FloatArray,
+        sim_pose: FloatArray,
+    ) -> FloatArray:
+        """Joint targets (nq,) now.
+
+        Args:
+            i: the trajectory sample now lies after.
+            q_plan: (nq,) the planned joints now.
+            q_sim: (nq,) the measured joints.
+            planned_pose: (7,) the planned object pose now, world frame.
+            sim_pose: (7,) the measured object pose, world frame.
+        """
+        Xp, Xm = pose_se3(planned_pose), pose_se3(sim_pose)
+        T = Xp * Xm.inverse()
+        p_sim, J_sim = self.hand.fingertip_jacobians(q_sim)
+        p_plan, J_plan = self.hand.fingertip_jacobians(q_plan)
+        out = np.array(q_plan, dtype=float)
+        for f, ix in enumerate(self.idx):
+            hold = bool(self.holding[i, f])
+            plan_tip = Xp.actInv(p_plan[f])  # object frame
+            if self.was_holding[f] and not hold:  # lets go where rolling took the contact
+                self.offset[f] = Xm.actInv(p_sim[f]) - plan_tip
+                self.release_tip[f] = plan_tip
+                self.lifted[f] = 0.0
+            self.was_holding[f] = hold
+            keep = 1.0
+            if hold:
+                goal = T.act(p_sim[f])
+            else:
+                lift = float(np.linalg.norm(plan_tip - self.release_tip[f]))
+                self.lifted[f] = max(self.lifted[f], lift)
+                keep = max(0.0, 1.0 - self.lifted[f] / LIFT_BLEND)
+                goal = Xm.act(plan_tip + keep * self.offset[f])
+            if keep == 0.0:  # lifted off: the planned joints corrected to first order (no lag)
+                goal = Xm.act(self._clear(plan_tip, float(self.landing[i, f] - self.traj.t[i])))
+                out[ix] = q_plan[ix] + _dls(J_plan[f], _clip(goal - p_plan[f]))
+                continue
+            J = J_sim[f]
+            out[ix] = q_sim[ix] + _dls(J, _clip(goal - p_sim[f]))
+            if len(ix) > 3:  # a redundant finger: its null space toward the plan
+                null = np.eye(len(ix)) - np.linalg.pinv(J) @ J
+                out[ix] += NULL_GAIN * null @ (q_plan[ix] - q_sim[ix])
+        return np.clip(out, self.lower, self.upper)
+
+    def _clear(self, tip: FloatArray, to_landing: float) -> FloatArray:
+        """A free tip centre (object frame) kept :data:`CLEARANCE` off the object until it lands.
+
+        The push along the outward normal fades out between :data:`LAND_TIME`
+        and a quarter of it before the landing.
+        """
+        if self.solver is None:
+            return tip
+        fade = min(1.0, max(0.0, (to_landing - LAND_TIME / 4) / (0.75 * LAND_TIME)))
+        if fade == 0.0:
+            return tip
+        c, n_out = (np.reshape(v, 3) for v in self.solver.obj.closest_point(tip))
+        gap = float(np.dot(tip - c, n_out)) - self.hand.fingertip_radius
+        if gap >= CLEARANCE:
+            return tip
+        return tip + fade * (CLEARANCE - gap) * n_out
+
+    def feed_forward(
+        self, i: int, q_sim: FloatArray, sim_pose: FloatArray, planned: FloatArray
+    ) -> FloatArray:
+        """Joint torques (nq,) of grip forces at the measured contacts.
+
+        The contacts are the object's surface points closest to the measured
+        tip centres, the forces those of the plan's solver there (least norm,
+        in the margin-shrunk cones, balancing the replay's wrench) for the
+        fingers the plan loads at sample ``i``. The planned torques where the
+        solver has none, the plan has none at ``i`` (a tampered plan) or no
+        forces balance at the measured contacts.
+
+        Args:
+            i: the trajectory sample now lies after.
+            q_sim: (nq,) the measured joints.
+            sim_pose: (7,) the measured object pose, world frame.
+            planned: (nq,) the planned feed-forward torques now.
+        """
+        from dexplan.execution.forces import GripForceError
+
+        if self.solver is None or np.isnan(self.traj.margins[i]):
+            return planned
+        Xm = pose_se3(sim_pose)
+        p_sim = self.hand.fingertip_positions(q_sim)
+        contacts: list[FloatArray | None] = []
+        for f in range(self.hand.n_fingers):
+            if not self.holding[i, f]:
+                contacts.append(None)
+                continue
+            c, _ = self.solver.obj.closest_point(Xm.actInv(p_sim[f]))
+            contacts.append(np.asarray(c, dtype=float).reshape(3))
+        try:
+            g = self.solver.solve(q_sim, sim_pose, contacts, tuple(self.loaded[i]))
+        except GripForceError:
+            return planned
+        return np.asarray(g.joint_torques, dtype=float)
+
+
+def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
+    """The sliding each transfer of a plan asks of the rigid fingertips (the open-loop gap).
+
+    Along a transfer the plan keeps each contact fixed on the object while the
+    fingertip sphere turns with its link; the tip's material point at the
+    contact then slides on the object by ``r (w_object - w_link) x n``. This
+    sums its length over each transfer's waypoint steps, with the relative
+    rotation of each step taken in the object frame and ``n`` the outward
+    normal of the plan's object at the contact.
+
+    Args:
+        doc: a validated plan.
+        hand: its :class:`~dexplan.model.hand.hand.Hand`.
+
+    Returns:
+        (transfers, n) slip length (m) per transfer segment and finger (0 for a
+        finger not in contact).
+    """
+    from pathlib import Path
+
+    from dexplan.planfile.document import shape_of
+
+    obj = shape_of(doc["object"], Path("."), "object")
+    r = float(hand.fingertip_radius)
+    rows = []
+    for seg in doc["segments"]:
+        if seg["kind"] != "transfer":
+            continue
+        slip = np.zeros(hand.n_fingers)
+        wps = seg["waypoints"]
+        for a, b in itertools.pairwise(wps):
+            Ta, Tb = _tip_rotations(hand, a["q"]), _tip_rotations(hand, b["q"])
+            Ra = pose_se3(np.asarray(a["object_pose_xyzquat"], dtype=float)).rotation
+            Rb = pose_se3(np.asarray(b["object_pose_xyzquat"], dtype=float)).rotation
+            for f in range(hand.n_fingers):
+                c = a["contacts"][f]
+                if c is None or b["contacts"][f] is None:
+                    continue
+                rel = pin.log3((Rb.T @ Tb[f]) @ (Ra.T @ Ta[f]).T)
+                _, n_out = obj.closest_point(np.asarray(c, dtype=float))
+                slip[f] += r * float(np.linalg.norm(np.cross(rel, np.reshape(n_out, 3))))
+        rows.append(slip)
+    return np.array(rows).reshape(-1, hand.n_fingers)
+
+
+def _tip_rotations(hand: Any, q: Any) -> list[FloatArray]:
+    """World rotation of each fingertip frame (it turns with its link) at ``q``."""
+    pin.framesForwardKinematics(hand.model, hand.data, np.asarray(q, dtype=float))
+    return [hand.data.oMf[fid].rotation.copy() for fid in hand.tip_frame_ids]
+
+
+def _next_hold_times(t: FloatArray, holding: np.ndarray) -> FloatArray:
+    """(m, n) the time each finger is next in contact in the plan (inf: never again)."""
+    out = np.full(holding.shape, np.inf)
+    nxt = np.full(holding.shape[1], np.inf)
+    for k in range(t.size - 1, -1, -1):
+        nxt = np.where(holding[k], t[k], nxt)
+        out[k] = nxt
+    return out

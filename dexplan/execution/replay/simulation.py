@@ -1,0 +1,754 @@
+"""Physics replay of a plan in MuJoCo (extra ``sim``): does the object follow the plan?
+
+:func:`build_mjcf` writes a MuJoCo model from the plan file alone:
+
+- the hand: one body per Pinocchio joint of the plan's embedded URDF (joint
+  placements, inertias with fixed links merged, hinge or slide axes, URDF
+  ranges), its collision geometry from the Pinocchio geometry model (boxes,
+  spheres, cylinders, capsules; any other geometry by its local bounding box),
+  gravity compensated on the hand's own links (``gravcomp``); hand-hand
+  contacts are off (the planner checked them). The fingertip spheres are
+  rigid: where a finger turns relative to the object, the plan's fixed
+  contact asks the sphere to slide on the object by ``r (w_object - w_link) x n``,
+  which friction resists and the plan does not model (a passive ball at the
+  tip would roll instead, but a free ball transmits normal forces only);
+- the object: a free body with the plan's shape and mass (uniform density;
+  meshes from the plan's mesh file), obstacles static;
+- friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
+  contacts ``condim 3``, soft contacts ``condim 4`` with the torsional friction
+  ``torsion`` (m, as in dexplan); elliptic cones, ``impratio`` 10.
+
+:func:`replay_plan` times the plan and computes its grip forces
+(:func:`dexplan.execution.export.build_trajectory`; with ``gravity=False`` the forces
+balance no weight and only the least normal force squeezes), then drives the
+fingers with position actuators along the timed trajectory (targets
+interpolated linearly between samples) plus the grip-force feed-forward
+``J^T f`` applied as joint forces. It reports the object's position and
+orientation error against the plan over time (max over the samples and the
+waypoints, and at the goal), contact losses (a loaded finger without a
+MuJoCo contact for longer than :data:`LOSS_TIME`), slips (the contact point
+moving more than :data:`SLIP_TOL` on the object from the planned one), drops
+(the object more than :data:`DROP_TOL` from the plan) and the deepest
+penetration. ``tracked``: every waypoint within :data:`POSITION_TOL` and
+:data:`ANGLE_TOL` and no drop; ``at_goal``: the final pose within the plan's
+goal tolerances.
+
+mujoco is imported only in this module.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.core.errors import DependencyError, PlanFileError
+from dexplan.core.pose import quat_angle
+from dexplan.core.typing import FloatArray
+from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY
+
+__all__ = [
+    "ANGLE_TOL",
+    "POSITION_TOL",
+    "ReplayResult",
+    "build_mjcf",
+    "replay_plan",
+    "require_mujoco",
+]
+
+#: Tracking tolerances at every waypoint (m, rad).
+POSITION_TOL = 0.005
+ANGLE_TOL = 0.1
+#: Object farther than this from the plan: dropped (m).
+DROP_TOL = 0.02
+#: A loaded finger without contact for longer than this: a contact loss (s).
+LOSS_TIME = 0.02
+#: Contact point farther than this from the planned one on the object: a slip (m).
+SLIP_TOL = 0.003
+#: Simulation step (s), position gain (N m / rad), joint armature (kg m^2).
+TIMESTEP = 0.001
+KP = 10.0
+ARMATURE = 1e-3
+#: Still time before the trajectory starts (s), with the start targets and forces.
+SETTLE_TIME = 0.2
+_PIP = "pip install 'dexplan[sim]' (or: pip install mujoco)"
+
+
+def require_mujoco() -> Any:
+    """Import mujoco or raise DependencyError naming the pip command."""
+    try:
+        import mujoco
+    except ImportError as exc:
+        raise DependencyError(f"dexplan replay needs MuJoCo: {_PIP}") from exc
+    return mujoco
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """What the physics replay of a plan did (``m`` recorded samples).
+
+    Attributes:
+        gravity: whether gravity was on.
+        t: (m,) times of the trajectory samples (s from the trajectory's start).
+        planned_pose: (m, 7) the plan's object pose at those times, world frame.
+        sim_pose: (m, 7) the simulated object pose, world frame.
+        planned_q: (m, nq) the planned (timed) joints at those times.
+        sim_q: (m, nq) the simulated joints.
+        position_error: (m,) |p_sim - p_plan| (m).
+        angle_error: (m,) rotation angle between the two orientations (rad).
+        waypoint_position_error: max over the plan's waypoints (m).
+        waypoint_angle_error: max over the plan's waypoints (rad).
+        goal_position_error: final distance to the goal position (m).
+        goal_angle_error: final angle to the goal orientation (rad).
+        goal_tolerances: the plan's ``(position_tol, angle_tol)``.
+        contact_losses: (finger, time) of each contact loss.
+        slips: (finger, time, distance) of each slip event.
+        dropped: the object strayed more than :data:`DROP_TOL` from the plan.
+        drop_time: when it first did (s), or None.
+        max_penetration: deepest hand-object penetration (m).
+        unbalanced_samples: trajectory samples where no grip forces balance
+            the wrench (not force closure: no feed-forward there).
+    """
+
+    gravity: bool
+    t: FloatArray
+    planned_pose: FloatArray
+    sim_pose: FloatArray
+    planned_q: FloatArray
+    sim_q: FloatArray
+    position_error: FloatArray
+    angle_error: FloatArray
+    waypoint_position_error: float
+    waypoint_angle_error: float
+    goal_position_error: float
+    goal_angle_error: float
+    goal_tolerances: tuple[float, float]
+    contact_losses: tuple[tuple[int, float], ...]
+    slips: tuple[tuple[int, float, float], ...]
+    dropped: bool
+    drop_time: float | None
+    max_penetration: float
+    unbalanced_samples: int = 0
+
+    @property
+    def tracked(self) -> bool:
+        """Every waypoint within the tolerances and no drop."""
+        return (
+            self.waypoint_position_error <= POSITION_TOL
+            and self.waypoint_angle_error <= ANGLE_TOL
+            and not self.dropped
+        )
+
+    @property
+    def at_goal(self) -> bool:
+        """The final pose is within the plan's goal tolerances."""
+        return (
+            self.goal_position_error <= self.goal_tolerances[0]
+            and self.goal_angle_error <= self.goal_tolerances[1]
+        )
+
+    def summary(self) -> str:
+        """Lines for the CLI: errors, events and the verdict."""
+        lines = [
+            f"replay: {'gravity' if self.gravity else 'no gravity'}, "
+            f"{self.t[-1] if self.t.size else 0:.2f} s",
+            f"object error: max {float(self.position_error.max(initial=0)) * 1e3:.2f} mm, "
+            f"{float(self.angle_error.max(initial=0)):.4f} rad; at waypoints max "
+            f"{self.waypoint_position_error * 1e3:.2f} mm, {self.waypoint_angle_error:.4f} rad",
+            f"goal: {self.goal_position_error * 1e3:.2f} mm, {self.goal_angle_error:.4f} rad "
+            f"({'within' if self.at_goal else 'outside'} the goal tolerance)",
+            f"contact losses: {len(self.contact_losses)}  slips: {len(self.slips)}  "
+            f"dropped: {f'yes at {self.drop_time:.2f} s' if self.dropped else 'no'}  "
+            f"max penetration: {self.max_penetration * 1e3:.2f} mm  "
+            f"samples without balancing grip forces: {self.unbalanced_samples}",
+        ]
+        if self.tracked:
+            verdict = f"TRACKED within {POSITION_TOL * 1e3:g} mm and {ANGLE_TOL:g} rad"
+        elif self.dropped:
+            verdict = "DROPPED: the object fell away from the plan"
+        else:
+            verdict = f"LOST TRACK: beyond {POSITION_TOL * 1e3:g} mm or {ANGLE_TOL:g} rad"
+        lines.append(verdict)
+        return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ model
+def _f(v: Any) -> str:
+    return " ".join(f"{float(x):.9g}" for x in np.asarray(v, dtype=float).reshape(-1))
+
+
+def _quat_wxyz(R: FloatArray) -> FloatArray:
+    q = pin.Quaternion(np.asarray(R, dtype=float))
+    q.normalize()
+    return np.array([q.w, q.x, q.y, q.z])
+
+
+def _pose_attrs(M: pin.SE3) -> str:
+    return f'pos="{_f(M.translation)}" quat="{_f(_quat_wxyz(M.rotation))}"'
+
+
+def _geom_xml(geom: Any) -> str | None:
+    """MJCF type and size of a coal geometry (None: not a collision shape)."""
+    import coal
+
+    if isinstance(geom, coal.Box):
+        return f'type="box" size="{_f(geom.halfSide)}"'
+    if isinstance(geom, coal.Sphere):
+        return f'type="sphere" size="{geom.radius:.9g}"'
+    if isinstance(geom, coal.Capsule):
+        return f'type="capsule" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    if isinstance(geom, coal.Cylinder):
+        return f'type="cylinder" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    try:
+        geom.computeLocalAABB()
+        box = geom.aabb_local
+        c = 0.5 * (np.asarray(box.min_) + np.asarray(box.max_))
+        h = 0.5 * (np.asarray(box.max_) - np.asarray(box.min_))
+    except Exception:
+        return None
+    return f'type="box" size="{_f(np.maximum(h, 1e-4))}" pos="{_f(c)}"'
+
+
+def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[str, str]:
+    """(asset xml, geom attributes) of a plan shape table."""
+    kind = d["shape"]
+    if kind == "sphere":
+        return "", f'type="sphere" size="{float(d["radius"]):.9g}"'
+    if kind == "box":
+        return "", f'type="box" size="{_f(np.asarray(d["size"], dtype=float) / 2)}"'
+    if kind == "capsule":
+        return "", f'type="capsule" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    if kind == "cylinder":
+        return "", f'type="cylinder" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    path = Path(str(d["path"]))
+    if not path.is_absolute():
+        path = base_dir / path
+    scale = float(d.get("scale", 1.0))
+    asset = f'<mesh name="{name}_mesh" file={quoteattr(str(path))} scale="{_f([scale] * 3)}"/>'
+    return asset, f'type="mesh" mesh="{name}_mesh"'
+
+
+def build_mjcf(
+    doc: Mapping[str, Any],
+    hand: Any,
+    *,
+    mass: float,
+    gravity: FloatArray,
+    base_dir: str | Path = ".",
+) -> tuple[str, list[int]]:
+    """MJCF text of the plan's hand, object and obstacles; and the fingertip geom ids.
+
+    Geoms are named ``hand{k}`` in the order of ``hand.geom_model``, the
+    object ``object``, obstacles ``obstacle{k}``; bodies ``b_<joint>``; position
+    actuators ``a_<joint>`` in ``hand.joint_names`` order.
+
+    Args:
+        doc: a validated plan.
+        hand: its :class:`~dexplan.model.hand.hand.Hand`.
+        mass: object mass (kg).
+        gravity: (3,) gravity (m/s^2), world frame.
+        base_dir: the plan's folder (mesh paths).
+    """
+    from dexplan.model.collision import CollisionWorld
+    from dexplan.planfile.document import shape_of
+
+    base_dir = Path(base_dir)
+    model = hand.model
+    contact = _contact_attrs(doc)
+    obj = shape_of(doc["object"], base_dir, "object")
+    world = CollisionWorld(hand, obj)
+    tips = list(world.tip_geoms)
+
+    geoms_of = _hand_geoms(hand.geom_model, contact)
+    children: dict[int, list[int]] = {}
+    for j in range(1, model.njoints):
+        children.setdefault(int(model.parents[j]), []).append(j)
+    a_obj, g_obj = _shape_xml(doc["object"], base_dir, "object")
+    obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
+    assets = [a_obj, *obstacle_assets]
+    start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
+    actuators = "\n".join(
+        f'    <position name="a_{n}" joint="{n}" kp="{KP:g}" dampratio="1" '
+        f'ctrlrange="{model.lowerPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g} '
+        f'{model.upperPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g}"/>'
+        for n in hand.joint_names
+    )
+    palm = "\n".join("    " + g for g in geoms_of.get(0, []))
+    tree = "\n".join(_body_xml(model, c, "    ", geoms_of, children) for c in children.get(0, []))
+    xml = f"""<mujoco model="dexplan replay">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{TIMESTEP:g}" gravity="{_f(gravity)}" cone="elliptic" impratio="10"
+          integrator="implicitfast"/>
+  <asset>
+{chr(10).join(a for a in assets if a)}
+  </asset>
+  <worldbody>
+{palm}
+{chr(10).join(obstacles)}
+    <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">
+      <freejoint name="object"/>
+      <geom name="object" {g_obj} mass="{mass:.9g}" contype="2" conaffinity="3" {contact}/>
+    </body>
+{tree}
+  </worldbody>
+  <actuator>
+{actuators}
+  </actuator>
+</mujoco>
+"""
+    return xml, tips
+
+
+def _contact_attrs(doc: Mapping[str, Any]) -> str:
+    """MJCF contact attributes of every geom: ``condim``, friction ``mu`` (and torsion), solver.
+
+    Args:
+        doc: a validated plan (``mu``, ``contact_model``, ``torsion``).
+    """
+    mu = float(doc["mu"])
+    soft = doc.get("contact_model", "point") == "soft"
+    torsion = float(doc.get("torsion", 0.0))
+    condim = 4 if soft else 3
+    fr = f'friction="{mu:.6g} {max(torsion, 1e-6) if soft else 0.0:.6g} 0"'
+    return f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
+
+
+def _hand_geoms(gm: Any, contact: str) -> dict[int, list[str]]:
+    """MJCF geoms of the hand's collision geometry, by parent joint.
+
+    Args:
+        gm: the hand's Pinocchio geometry model.
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        Per Pinocchio joint, its ``<geom name="hand{k}" .../>`` lines (geometry
+        that is no collision shape is left out).
+    """
+    geoms_of: dict[int, list[str]] = {}
+    for k, go in enumerate(gm.geometryObjects):
+        g = _geom_xml(go.geometry)
+        if g is None:
+            continue
+        pos = _pose_attrs(go.placement)
+        if ' pos="' in g:  # a bounding box centred off the geometry frame
+            c = np.array([float(x) for x in g.split(' pos="')[1].split('"')[0].split()])
+            M = go.placement * pin.SE3(np.eye(3), c)
+            g = g.split(' pos="')[0]
+            pos = _pose_attrs(M)
+        geoms_of.setdefault(int(go.parentJoint), []).append(
+            f'<geom name="hand{k}" {g} {pos} contype="1" conaffinity="2" {contact}/>'
+        )
+    return geoms_of
+
+
+def _body_xml(
+    model: pin.Model,
+    j: int,
+    indent: str,
+    geoms_of: Mapping[int, list[str]],
+    children: Mapping[int, list[int]],
+) -> str:
+    """MJCF body of Pinocchio joint ``j`` and, nested, of every joint below it.
+
+    Args:
+        model: the hand's Pinocchio model.
+        j: the joint.
+        indent: the body's indentation.
+        geoms_of: the hand geoms by joint (:func:`_hand_geoms`).
+        children: the child joints of each joint.
+    """
+    name = model.names[j]
+    jm = model.joints[j]
+    short = jm.shortname()
+    kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
+    axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
+    if axis is None:
+        axis = tuple(np.asarray(jm.extract().axis, dtype=float))
+    inertia = model.inertias[j]
+    m = max(float(inertia.mass), 1e-4)
+    Ic = np.asarray(inertia.inertia, dtype=float)
+    Ic = Ic + np.eye(3) * 1e-8
+    full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
+    iq = jm.idx_q
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    parts = [
+        f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
+        f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
+        f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
+        f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
+    ]
+    parts += [indent + "  " + g for g in geoms_of.get(j, [])]
+    for c in children.get(j, []):
+        parts.append(_body_xml(model, c, indent + "  ", geoms_of, children))
+    parts.append(f"{indent}</body>")
+    return "\n".join(parts)
+
+
+def _obstacles_xml(
+    doc: Mapping[str, Any], base_dir: Path, contact: str
+) -> tuple[list[str], list[str]]:
+    """The obstacles' mesh assets and static geoms.
+
+    Args:
+        doc: a validated plan (its ``obstacles``).
+        base_dir: the plan's folder (mesh paths).
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        ``(assets, geoms)``: one asset line per obstacle (empty for a
+        primitive) and one ``<geom name="obstacle{k}" .../>`` line each.
+    """
+    assets = []
+    geoms = []
+    for k, ob in enumerate(doc.get("obstacles", [])):
+        sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
+        a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
+        assets.append(a)
+        p = np.asarray(ob["pose_xyzquat"], dtype=float)
+        geoms.append(
+            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
+            f'contype="2" conaffinity="1" {contact}/>'
+        )
+    return assets, geoms
+
+
+# ------------------------------------------------------------------ replay
+def replay_plan(
+    doc: Mapping[str, Any],
+    *,
+    gravity: bool = True,
+    base_dir: str | Path = ".",
+    rate: float = 100.0,
+    mass: float | None = None,
+    gravity_vector: FloatArray | None = None,
+    hand: Any = None,
+    feedback: bool = True,
+) -> ReplayResult:
+    """Simulate the plan in MuJoCo and measure how far the object strays from it.
+
+    Args:
+        doc: a validated plan (:func:`dexplan.planfile.document.read_plan`).
+        gravity: gravity on (the plan's ``world.gravity`` or ``(0, 0, -9.81)``) or off.
+        base_dir: the plan's folder (mesh paths).
+        rate: trajectory samples per second (targets in between are interpolated).
+        mass: object mass (kg), default the plan's ``object.mass`` or 0.1.
+        gravity_vector: (3,) overrides the plan's gravity (world frame).
+        hand: the plan's hand (rebuilt from the file when None).
+        feedback: correct the fingertip targets from the measured object pose
+            (:class:`dexplan.execution.replay.control.ObjectFeedback`); False: the
+            planned joints open loop.
+
+    Where no grip forces balance the wrench (a tampered plan) the fingers get
+    no feed-forward there and only follow their targets; the result counts
+    those samples (:attr:`ReplayResult.unbalanced_samples`).
+
+    Raises:
+        DependencyError: mujoco is not installed.
+        PlanFileError: MuJoCo rejects the model built from the plan.
+        TimingError: the plan cannot be timed.
+    """
+    mujoco = require_mujoco()
+    from dexplan.execution.export import build_trajectory
+
+    if hand is None:
+        from dexplan.planfile.document import hand_from_plan
+
+        hand = hand_from_plan(doc["hand"])
+    settings, g = _replay_settings(doc, gravity, mass, gravity_vector)
+    traj = build_trajectory(
+        doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced="zero"
+    )
+    xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
+    try:
+        m = mujoco.MjModel.from_xml_string(xml)
+    except Exception as exc:  # mujoco's ValueError
+        raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
+    feedback_ctl = None
+    if feedback:
+        from dexplan.execution.forces import solver_from_plan
+        from dexplan.execution.replay.control import ObjectFeedback
+
+        solver = solver_from_plan(doc, settings, hand, base_dir)
+        feedback_ctl = ObjectFeedback(hand, traj, solver)
+    run = _Replay(mujoco, m, hand, tips, traj, feedback_ctl)
+    run.simulate()
+    return _replay_result(doc, gravity, traj, run)
+
+
+def _replay_result(doc: Mapping[str, Any], gravity: bool, traj: Any, run: _Replay) -> ReplayResult:
+    """The errors of a finished simulation against the plan's trajectory and goal.
+
+    Args:
+        doc: the plan.
+        gravity: whether gravity was on.
+        traj: the sampled trajectory (:class:`dexplan.execution.export.Trajectory`).
+        run: the finished simulation.
+    """
+    sim_pose = run.sim_pose
+    pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
+    ang_err = np.array(
+        [quat_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
+    )
+    wp_pos, wp_ang = _waypoint_errors(doc, traj, sim_pose)
+    goal = doc["goal"]
+    gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+    fin = sim_pose[-1]
+    return ReplayResult(
+        gravity=gravity,
+        t=traj.t,
+        planned_pose=traj.object_pose,
+        sim_pose=sim_pose,
+        planned_q=traj.q,
+        sim_q=run.sim_q,
+        position_error=pos_err,
+        angle_error=ang_err,
+        waypoint_position_error=wp_pos,
+        waypoint_angle_error=wp_ang,
+        goal_position_error=float(np.linalg.norm(fin[:3] - gp[:3])),
+        goal_angle_error=float(quat_angle(fin[3:], gp[3:])),
+        goal_tolerances=(
+            float(goal.get("position_tol", 0.005)),
+            float(goal.get("angle_tol", 0.05)),
+        ),
+        contact_losses=tuple(run.losses),
+        slips=tuple(run.slips),
+        dropped=run.drop_time is not None,
+        drop_time=run.drop_time,
+        max_penetration=run.max_pen,
+        unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
+    )
+
+
+def _replay_settings(
+    doc: Mapping[str, Any],
+    gravity: bool,
+    mass: float | None,
+    gravity_vector: FloatArray | None,
+) -> tuple[Any, FloatArray]:
+    """The force settings of the replay and its gravity vector (zero with gravity off).
+
+    Args:
+        doc: a validated plan.
+        gravity: gravity on or off.
+        mass: object mass (kg) overriding the plan's, or None.
+        gravity_vector: (3,) gravity overriding the plan's, or None.
+
+    Returns:
+        ``(settings, g)``: the :class:`~dexplan.execution.forces.ForceSettings` (their
+        gravity ``g``) and (3,) ``g`` (m/s^2, world frame).
+    """
+    from dexplan.execution.forces import force_settings_from_plan
+
+    settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)
+    g = np.asarray(settings.gravity, dtype=float) if gravity else np.zeros(3)
+    settings = type(settings)(
+        mass=settings.mass,
+        gravity=tuple(float(v) for v in g),
+        cone_margin=settings.cone_margin,
+        min_normal_force=settings.min_normal_force,
+    )
+    return settings, g
+
+
+class _Replay:
+    """One MuJoCo run of a timed trajectory and what it records (``m`` samples, ``n`` fingers).
+
+    Attributes:
+        sim_pose: (m, 7) the simulated object pose at each sample, world frame, XYZW.
+        sim_q: (m, nq) the simulated joints at each sample.
+        losses: (finger, time) of each contact loss.
+        slips: (finger, time, distance) of each slip event.
+        max_pen: deepest hand-object penetration (m).
+        drop_time: when the object first strayed more than :data:`DROP_TOL` (s), or None.
+    """
+
+    def __init__(
+        self, mujoco: Any, m: Any, hand: Any, tips: list[int], traj: Any, feedback: Any = None
+    ) -> None:
+        self.mujoco, self.m, self.traj = mujoco, m, traj
+        self.d = mujoco.MjData(m)
+        self.nq = hand.nq
+        self.jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
+        self.jv = np.array([m.jnt_dofadr[m.joint(n).id] for n in hand.joint_names])
+        self.oq = m.jnt_qposadr[m.joint("object").id]
+        self.obj_geom = m.geom("object").id
+        tip_ids = [m.geom(f"hand{k}").id for k in tips]
+        self.tip_of = {gid: i for i, gid in enumerate(tip_ids)}
+        self.hand_geoms = {
+            m.geom(f"hand{k}").id for k in range(hand.geom_model.ngeoms) if _has(m, k)
+        }
+        n = hand.n_fingers
+        self.n = n
+        self.loaded = ~np.isnan(traj.forces[:, :, 0])  # (m, n): fingers planned in contact
+        self.feedback = feedback
+        self.sim_pose = np.empty((traj.t.size, 7))
+        self.sim_q = np.empty((traj.t.size, self.nq))
+        self.rec_idx = 0
+        self.missing = np.zeros(n)
+        self.losses: list[tuple[int, float]] = []
+        self.slips: list[tuple[int, float, float]] = []
+        self.slipping = np.zeros(n, dtype=bool)
+        self.max_pen = 0.0
+        self.drop_time: float | None = None
+
+    def simulate(self) -> None:
+        """Settle at the start, then follow the trajectory to its end, recording every sample."""
+        mujoco, m, d, traj, oq = self.mujoco, self.m, self.d, self.traj, self.oq
+        d.qpos[self.jq] = traj.q[0]
+        d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
+        d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
+        mujoco.mj_forward(m, d)
+        steps_total = math.ceil((SETTLE_TIME + traj.t[-1]) / TIMESTEP) + 1
+        every = max(1, round(CONTROL_PERIOD / TIMESTEP))
+        target, ff_now = traj.q[0], traj.joint_torques[0]
+        pose_now = traj.object_pose[0]
+        for step in range(steps_total):
+            i, planned, ff, planned_pose = self._targets(step * TIMESTEP - SETTLE_TIME)
+            if self.feedback is None:
+                target = planned
+            elif step % every == 0:
+                q_sim = d.qpos[self.jq]
+                target = self.feedback.targets(i, planned, q_sim, planned_pose, pose_now)
+                if step % (every * FORCE_EVERY) == 0:
+                    ff_now = self.feedback.feed_forward(i, q_sim, pose_now, ff)
+            if self.feedback is not None:
+                ff = ff_now
+            d.ctrl[: self.nq] = target
+            d.qfrc_applied[:] = 0.0
+            d.qfrc_applied[self.jv] = ff
+            mujoco.mj_step(m, d)
+            now = (step + 1) * TIMESTEP - SETTLE_TIME
+            pose_now = np.concatenate(
+                [d.qpos[oq : oq + 3], d.qpos[oq + 4 : oq + 7], d.qpos[oq + 3 : oq + 4]]
+            )
+            touching = self._scan_contacts(i, now, pose_now)
+            if now >= 0.0:
+                self._count_losses(i, now, touching)
+            self._record(now, pose_now)
+        while self.rec_idx < traj.t.size:  # numerical end: the last state
+            self.sim_pose[self.rec_idx] = self.sim_pose[self.rec_idx - 1]
+            self.sim_q[self.rec_idx] = self.sim_q[self.rec_idx - 1]
+            self.rec_idx += 1
+
+    def _targets(self, now: float) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+        """The sample before ``now``, the planned joints, feed-forward torques and object pose.
+
+        All are interpolated linearly between samples (the quaternion
+        normalised); ``now`` is clipped to the trajectory (before its start:
+        the start; after its end: the end).
+        """
+        t, traj = self.traj.t, self.traj
+        tt = min(max(now, 0.0), t[-1])
+        i = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 1))
+        if i + 1 < t.size and t[i + 1] > t[i]:
+            w = (tt - t[i]) / (t[i + 1] - t[i])
+            target = (1 - w) * traj.q[i] + w * traj.q[i + 1]
+            ff = (1 - w) * traj.joint_torques[i] + w * traj.joint_torques[i + 1]
+            a, b = traj.object_pose[i], traj.object_pose[i + 1]
+            if float(np.dot(a[3:], b[3:])) < 0.0:
+                b = np.concatenate([b[:3], -b[3:]])
+            pose = (1 - w) * a + w * b
+            pose[3:] /= np.linalg.norm(pose[3:])
+        else:
+            target, ff, pose = traj.q[i], traj.joint_torques[i], traj.object_pose[i]
+        return i, target, ff, pose
+
+    def _scan_contacts(self, i: int, now: float, pose_now: FloatArray) -> np.ndarray:
+        """The fingertips touching the object; records penetration depth and slips.
+
+        Args:
+            i: the trajectory sample the step started from.
+            now: the time after the step (s from the trajectory's start).
+            pose_now: (7,) the object pose after the step.
+
+        Returns:
+            (n,) whether each fingertip has a MuJoCo contact with the object.
+        """
+        d, obj_geom = self.d, self.obj_geom
+        touching = np.zeros(self.n, dtype=bool)
+        R = pin.Quaternion(pose_now[6], pose_now[3], pose_now[4], pose_now[5]).normalized()
+        Rm = R.toRotationMatrix()
+        for c in range(d.ncon):
+            con = d.contact[c]
+            g1, g2 = int(con.geom1), int(con.geom2)
+            if obj_geom not in (g1, g2):
+                continue
+            other = g2 if g1 == obj_geom else g1
+            if other in self.hand_geoms:
+                self.max_pen = max(self.max_pen, -float(con.dist))
+            f = self.tip_of.get(other)
+            if f is None:
+                continue
+            touching[f] = True
+            if now >= 0.0 and self.loaded[i, f]:
+                p_obj = Rm.T @ (np.asarray(con.pos) - pose_now[:3])
+                dist = float(np.linalg.norm(p_obj - self.traj.contacts[i, f]))
+                if dist > SLIP_TOL and not self.slipping[f]:
+                    self.slips.append((f, now, dist))
+                self.slipping[f] = dist > SLIP_TOL
+        return touching
+
+    def _count_losses(self, i: int, now: float, touching: np.ndarray) -> None:
+        """A contact loss where a loaded finger has gone without contact for :data:`LOSS_TIME`."""
+        for f in range(self.n):
+            if self.loaded[i, f] and not touching[f]:
+                self.missing[f] += TIMESTEP
+                if self.missing[f] > LOSS_TIME and self.missing[f] - TIMESTEP <= LOSS_TIME:
+                    self.losses.append((f, now))
+            else:
+                self.missing[f] = 0.0
+
+    def _record(self, now: float, pose_now: FloatArray) -> None:
+        """Record the state at every sample reached by ``now`` (and the first drop)."""
+        t, traj = self.traj.t, self.traj
+        while self.rec_idx < t.size and now >= t[self.rec_idx] - 1e-9:
+            k = self.rec_idx
+            self.sim_pose[k] = pose_now
+            self.sim_q[k] = self.d.qpos[self.jq]
+            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[k, :3]))
+            if err > DROP_TOL and self.drop_time is None:
+                self.drop_time = float(t[k])
+            self.rec_idx += 1
+
+
+def _waypoint_errors(
+    doc: Mapping[str, Any], traj: Any, sim_pose: FloatArray
+) -> tuple[float, float]:
+    """Largest position (m) and angle (rad) error at the plan's waypoints.
+
+    Each waypoint is compared with the first simulated sample at or after its
+    time in the trajectory.
+
+    Args:
+        doc: the plan (its waypoints' object poses).
+        traj: its :class:`~dexplan.execution.export.Trajectory`.
+        sim_pose: (m, 7) the simulated object pose at each sample.
+    """
+    t = traj.t
+    wp_t = np.concatenate(
+        [
+            traj.timing.start_times[s] + seg.waypoint_times
+            for s, seg in enumerate(traj.timing.segments)
+        ]
+    )
+    wp_pose = np.array(
+        [w["object_pose_xyzquat"] for s in doc["segments"] for w in s["waypoints"]], dtype=float
+    )
+    idx = np.clip(np.searchsorted(t, wp_t - 1e-9), 0, t.size - 1)
+    wp_pos = float(np.max(np.linalg.norm(sim_pose[idx, :3] - wp_pose[:, :3], axis=1)))
+    wp_ang = float(max(quat_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
+    return wp_pos, wp_ang
+
+
+def _has(m: Any, k: int) -> bool:
+    try:
+        m.geom(f"hand{k}")
+    except KeyError:
+        return False
+    return True

@@ -1,0 +1,9 @@
+"""The physical models: the hand, the object, contacts and force closure, collisions, scenarios."""
+
+__all__ = [
+    "collision",
+    "grasp",
+    "hand",
+    "objects",
+    "scenario",
+]

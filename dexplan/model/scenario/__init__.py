@@ -1,0 +1,6 @@
+"""Scenario files: the hand, object, obstacles, start, goal and planner; goal lists."""
+
+__all__ = [
+    "goals",
+    "scenario",
+]

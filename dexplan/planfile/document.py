@@ -1,0 +1,373 @@
+"""Plan files (format ``dexplan-plan/1``): write, read and verify.
+
+A plan file is one self-contained JSON document: the hand (URDF text, joint
+names, fingertip frames and radius), the object, friction, obstacles, start,
+goal, the transfer/regrasp segments and statistics. It is written atomically
+(temporary file in the same folder, then rename), so a reader never sees half a
+plan.
+
+:func:`verify_plan` re-checks a plan from the file alone: it lives in
+:mod:`dexplan.planfile.verify` (one function per rule family, the rule names in
+its :data:`~dexplan.planfile.verify.RULES` table) and is re-exported here with
+:class:`VerifyReport`, :class:`Violation` and :func:`fingertip_contact`. This
+module keeps the format: building, writing and reading documents and
+rebuilding their models (:func:`models_from_document`).
+
+Every document is first checked for structure by
+:func:`dexplan.planfile.schema.validate_plan` (:func:`read_plan` and
+:func:`verify_plan` both call it): a malformed plan is a
+:class:`~dexplan.core.errors.PlanFileError` naming the field, never a violation,
+a crash or a silent pass.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from dexplan.core.errors import DexplanError, InvalidInputError, PlanFileError, one_line, shorten
+from dexplan.core.files import atomic_output, file_sha256
+from dexplan.core.segments import Segment, Waypoint
+from dexplan.core.typing import FloatArray
+from dexplan.planfile import schema as plan_schema
+from dexplan.planfile.schema import FORMAT, validate_plan
+from dexplan.planfile.verify import RULES, VerifyReport, Violation, fingertip_contact, verify_plan
+
+if TYPE_CHECKING:  # models only: the plan file never imports planning
+    from dexplan.model.collision import CollisionWorld, Obstacle
+    from dexplan.model.hand.hand import Hand
+    from dexplan.model.objects import Shape
+    from dexplan.model.scenario.scenario import Scenario
+
+__all__ = [
+    "FORMAT",
+    "RULES",
+    "VerifyReport",
+    "Violation",
+    "build_plan_document",
+    "fingertip_contact",
+    "hand_from_plan",
+    "hand_table",
+    "read_plan",
+    "segments_from_dicts",
+    "validate_plan",
+    "verify_plan",
+    "write_plan",
+]
+
+
+# ------------------------------------------------------------------ writing
+def waypoint_to_dict(w: Waypoint) -> dict[str, Any]:
+    """JSON form of a waypoint."""
+    return {
+        "object_pose_xyzquat": [float(v) for v in w.object_pose_xyzquat],
+        "q": [float(v) for v in w.q],
+        "contacts": [None if c is None else [float(v) for v in c] for c in w.contacts],
+    }
+
+
+def segment_to_dict(s: Segment) -> dict[str, Any]:
+    """JSON form of a segment."""
+    return {
+        "kind": s.kind,
+        "finger": s.finger,
+        "waypoints": [waypoint_to_dict(w) for w in s.waypoints],
+    }
+
+
+def segments_from_dicts(items: Sequence[Mapping[str, Any]]) -> tuple[Segment, ...]:
+    """Segments from their JSON form (of a document :func:`validate_plan` accepted)."""
+    out = []
+    for s in items:
+        wps = tuple(
+            Waypoint(
+                np.asarray(w["object_pose_xyzquat"], dtype=float),
+                np.asarray(w["q"], dtype=float),
+                tuple(None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]),
+            )
+            for w in s["waypoints"]
+        )
+        out.append(Segment(s["kind"], s["finger"], wps))
+    return tuple(out)
+
+
+def write_plan(path: str | Path, doc: Mapping[str, Any]) -> None:
+    """Write a plan document as JSON, atomically.
+
+    Raises:
+        PlanFileError: the folder does not exist or is not writable.
+    """
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    try:
+        with atomic_output(path, "plan") as tmp, open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except InvalidInputError as exc:
+        raise PlanFileError(str(exc)) from exc
+    except OSError as exc:
+        raise PlanFileError(f"cannot write plan to {str(path)!r}: {exc}") from exc
+
+
+def read_plan(path: str | Path, base_dir: str | Path | None = None) -> dict[str, Any]:
+    """Read a plan file and check its structure (:func:`validate_plan`).
+
+    Args:
+        path: the plan file.
+        base_dir: folder relative mesh paths resolve against (default: the
+            plan file's folder).
+
+    Raises:
+        PlanFileError: missing or oversized file
+            (:data:`~dexplan.planfile.schema.MAX_PLAN_BYTES`),
+            invalid or too deeply nested JSON, or a malformed plan (the message
+            names the field).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise PlanFileError(f"plan file not found: {str(path)!r}")
+    size = path.stat().st_size
+    if size > plan_schema.MAX_PLAN_BYTES:
+        limit = plan_schema.MAX_PLAN_BYTES
+        raise PlanFileError(f"{path}: {size} bytes, more than a plan may have ({limit})")
+    try:
+        doc = json.loads(path.read_bytes())
+    except RecursionError as exc:
+        raise PlanFileError(f"{path}: not valid JSON: nested too deeply") from exc
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError, a 5000-digit int
+        raise PlanFileError(f"{path}: not valid JSON: {one_line(str(exc), 200)}") from exc
+    try:
+        validate_plan(doc, path.resolve().parent if base_dir is None else base_dir)
+    except PlanFileError as exc:
+        raise PlanFileError(f"{path}: {exc}") from exc
+    return doc
+
+
+def hand_table(hand: Hand) -> dict[str, Any]:
+    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from."""
+    return {
+        "urdf_xml": hand.urdf_xml,
+        "joint_names": list(hand.joint_names),
+        "fingertip_frames": list(hand.fingertip_frames),
+        "fingertip_radius": hand.fingertip_radius,
+        "collision_exclude": [list(p) for p in hand.collision_exclude],
+    }
+
+
+def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
+    """The :class:`~dexplan.model.hand.hand.Hand` of a validated plan's ``hand`` table.
+
+    Args:
+        h: the ``hand`` table.
+        package_dirs: folders ``package://`` mesh URIs resolve against.
+
+    Raises:
+        PlanFileError: the URDF text does not build a hand with these
+            fingertip frames, or its joints are not ``hand.joint_names``.
+    """
+    from dexplan.model.hand.hand import Hand
+
+    try:
+        hand = Hand(
+            h["urdf_xml"],
+            h["fingertip_frames"],
+            h["fingertip_radius"],
+            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
+            name="plan hand",
+            package_dirs=package_dirs,
+        )
+    except DexplanError as exc:
+        raise PlanFileError(f"hand: {one_line(str(exc), 200)}") from exc
+    if list(hand.joint_names) != list(h["joint_names"]):
+        raise PlanFileError(
+            f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "
+            f"got {shorten(list(h['joint_names']))}"
+        )
+    return hand
+
+
+# ---------------------------------------------------------------- models
+#: Fields of an object or obstacle table that are not shape (mass, placement, label).
+NOT_SHAPE_FIELDS = ("mass", "pose_xyzquat", "name")
+
+
+@dataclass(frozen=True)
+class PlanModels:
+    """The models a plan file describes, rebuilt from the file alone.
+
+    Attributes:
+        hand: the hand (its URDF text, fingertips, exclusions).
+        obj: the object shape.
+        obstacles: static obstacles, world frame.
+        world: the collision world of hand, object and obstacles.
+        mu: friction coefficient. friction_edges: edges of the linearized cone.
+        contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
+    """
+
+    hand: Hand
+    obj: Shape
+    obstacles: tuple[Obstacle, ...]
+    world: CollisionWorld
+    mu: float
+    friction_edges: int
+    contact_model: str
+    torsion: float
+
+
+def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
+    """The shape of an object or obstacle table (its non-shape fields set aside)."""
+    from dexplan.model.objects import shape_from_dict
+
+    shape = {k: v for k, v in table.items() if k not in NOT_SHAPE_FIELDS}
+    return shape_from_dict(shape, base_dir, field=field)
+
+
+def models_from_document(
+    doc: Mapping[str, Any],
+    base_dir: str | Path = ".",
+    *,
+    hand: Hand | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> PlanModels:
+    """Hand, object, obstacles and collision world of a validated plan document.
+
+    The one way to rebuild a plan's models: the verifier, the viewer, the
+    trajectory export and the replay all use it.
+
+    Args:
+        doc: a ``dexplan-plan/1`` document (see :func:`read_plan`).
+        base_dir: folder relative mesh paths resolve against.
+        hand: the hand if already rebuilt (:func:`hand_from_plan`).
+        package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.
+
+    Raises:
+        PlanFileError: the hand does not build from the file.
+    """
+    from dexplan.model.collision import CollisionWorld, Obstacle
+
+    base = Path(base_dir)
+    hand = hand if hand is not None else hand_from_plan(doc["hand"], package_dirs)
+    obj = shape_of(doc["object"], base, "object")
+    obstacles = tuple(
+        Obstacle(
+            shape_of(ob, base, f"obstacles[{k}]"),
+            tuple(float(v) for v in ob["pose_xyzquat"]),
+            str(ob.get("name", f"obstacle{k}")),
+        )
+        for k, ob in enumerate(doc.get("obstacles", []))
+    )
+    return PlanModels(
+        hand=hand,
+        obj=obj,
+        obstacles=obstacles,
+        world=CollisionWorld(hand, obj, list(obstacles)),
+        mu=float(doc["mu"]),
+        friction_edges=int(doc.get("friction_edges", 8)),
+        contact_model=str(doc.get("contact_model", "point")),
+        torsion=float(doc.get("torsion", 0.0)),
+    )
+
+
+def _portable_shape(shape: Mapping[str, Any], base_dir: Path, out_dir: Path) -> dict[str, Any]:
+    """Shape dict with a mesh path relative to the plan's folder and its sha256."""
+    d = dict(shape)
+    if d.get("shape") == "mesh":
+        src = (base_dir / str(d["path"])).resolve()
+        try:
+            d["path"] = os.path.relpath(src, out_dir.resolve())
+        except ValueError:  # another drive
+            d["path"] = str(src)
+        d["sha256"] = file_sha256(src)
+    return d
+
+
+class PlannedPath(Protocol):
+    """What a plan document is built from (a planner result has these).
+
+    The plan file sits below planning and does not import it: any object with
+    these attributes will do (:class:`~dexplan.planning.planner.PlanResult` is one).
+    """
+
+    segments: Sequence[Segment]
+    start_pose: FloatArray
+    start_q: FloatArray | None
+
+    @property
+    def stats(self) -> _StatsLike: ...
+
+
+class _StatsLike(Protocol):
+    def as_dict(self) -> Mapping[str, Any]: ...
+
+
+def _object_table(scenario: Any, base: Path, out_dir: Path) -> dict[str, Any]:
+    """The plan's ``object`` table: the shape, and ``mass`` when the scenario gives one."""
+    d = _portable_shape(scenario.object, base, out_dir)
+    mass = getattr(scenario, "object_mass", None)
+    if mass is not None:
+        d["mass"] = float(mass)
+    return d
+
+
+def build_plan_document(
+    scenario: Scenario, hand: Hand, result: PlannedPath, out_dir: str | Path = "."
+) -> dict[str, Any]:
+    """The ``dexplan-plan/1`` document of a planner's result.
+
+    Args:
+        scenario: the scenario planned.
+        hand: the hand used.
+        result: the planner's result (segments, start pose and joints, statistics).
+        out_dir: folder the plan will be written to (mesh paths are relative to it).
+    """
+    out_dir = Path(out_dir)
+    base = scenario.base_dir
+    g = scenario.goal
+    doc = {
+        "format": FORMAT,
+        "scenario": scenario.name,
+        "hand": hand_table(hand),
+        "object": _object_table(scenario, base, out_dir),
+        "mu": scenario.mu,
+        "friction_edges": scenario.friction_edges,
+        "contact_model": scenario.contact_model,
+        "torsion": scenario.torsion,
+        "obstacles": [_portable_shape(o, base, out_dir) for o in scenario.obstacles],
+        "start": {
+            "object_pose_xyzquat": [float(v) for v in result.start_pose],
+            "q": None if result.start_q is None else [float(v) for v in result.start_q],
+        },
+        "goal": {
+            "object_pose_xyzquat": [float(v) for v in g.object_pose_xyzquat],
+            "position_tol": g.position_tol,
+            "angle_tol": g.angle_tol,
+        },
+        "segments": [segment_to_dict(s) for s in result.segments],
+        "stats": _jsonable(result.stats.as_dict()),
+    }
+    gravity = getattr(scenario, "gravity", None)
+    if gravity is not None:  # [world] gravity, for executing the plan
+        doc["world"] = {"gravity": [float(v) for v in gravity]}
+    return doc
+
+
+def _jsonable(value: Any) -> Any:
+    """Statistics as plain JSON values (NumPy scalars and arrays converted)."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

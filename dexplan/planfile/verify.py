@@ -1,0 +1,488 @@
+"""The verifier of plan files: every rule of a ``dexplan-plan/1`` document.
+
+:func:`verify_plan` re-checks a plan from the file alone. It rebuilds the
+models (Pinocchio hand, object, coal world, force closure) but shares no code
+path with the planner: every rule of DESIGN.md is checked again and each
+violation names the segment, the waypoint and the rule.
+
+The rules are named once, in :data:`RULES` (the table of
+``docs/plan_format.md``); the checker has one method per rule family (waypoint
+pose and joints, fingertip contacts, collisions, force closure, steps,
+transfer, regrasp, continuity, start and goal) and records a violation only
+under a name of that table.
+
+The format itself (reading, writing, building, the models of a document) is
+:mod:`dexplan.planfile.document`, which re-exports :func:`verify_plan`,
+:class:`VerifyReport`, :class:`Violation` and :func:`fingertip_contact`. This
+module imports it inside :func:`verify_plan` only, so either may be imported
+first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dexplan.core.errors import DexplanError, PlanFileError, one_line
+from dexplan.core.segments import Segment, Waypoint
+from dexplan.core.typing import FloatArray
+from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
+from dexplan.planfile.schema import validate_plan
+
+if TYPE_CHECKING:  # models only: the plan file never imports planning
+    from dexplan.planfile.document import PlanModels
+
+__all__ = [
+    "RULES",
+    "TIP_DISTANCE_TOL",
+    "VerifyReport",
+    "Violation",
+    "fingertip_contact",
+    "verify_plan",
+]
+
+#: Verification tolerances (DESIGN.md).
+PENETRATION_TOL = 1e-3  # (m)
+MAX_STEP_M = 0.01  # object translation between waypoints (m)
+MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
+CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
+STILL_TOL = 1e-9  # "does not move" (m, rad)
+FC_MIN = 0.0  # force-closure quality must exceed this
+#: Verdicts of :func:`dexplan.model.grasp.exact_force_closure` that pass.
+FC_PASS = ("fc_linear", "fc_dense")
+GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
+GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
+
+#: Every rule the verifier checks, by family, name -> what it requires (one
+#: line each: the rule table of docs/plan_format.md, checked by a test).
+RULES: dict[str, str] = {
+    # waypoint geometry
+    "object_pose": "unit quaternion (within 1e-6; sizes and finite numbers are structure, above)",
+    "joint_limits": "every joint within its URDF limits",
+    # fingertip contacts
+    "fingertip_distance": (
+        "every contact finger's fingertip sphere is within 1 mm of touching the surface"
+    ),
+    "contact_on_surface": "every stated contact lies within 1 mm of the surface",
+    "contact_matches_fingertip": (
+        "the stated contact is the surface point closest to the fingertip centre "
+        "(within 1 mm): where the sphere touches; force closure uses it with the normal "
+        "there (at a box edge, the direction from the edge to the centre)"
+    ),
+    # collisions and penetration
+    "collision": (
+        "no link-link (non-adjacent, not excluded), hand-object (except contact "
+        "fingertips), hand-obstacle or object-obstacle contact"
+    ),
+    "penetration": "no contact fingertip sinks more than 1 mm into the object",
+    # force closure
+    "force_closure": (
+        "at least two fingers hold the object and are force closure at every waypoint, "
+        "under the plan's `contact_model` (below)"
+    ),
+    "subgrasp_force_closure": "on transfer waypoints, every (n-1)-finger subgrasp too",
+    # segments and steps
+    "segments": "the plan has at least one segment",
+    "step": (
+        "consecutive waypoints differ by at most 1 cm and 0.05 rad (object) "
+        "and 0.05 rad (every joint)"
+    ),
+    # transfer
+    "transfer_contacts": "during a transfer the set of contact fingers does not change",
+    "transfer_contact_drift": (
+        "during a transfer every contact stays put in the object frame (within 1 mm)"
+    ),
+    # regrasp
+    "regrasp_object_still": "during a regrasp the object does not move",
+    "regrasp_one_finger": (
+        "during a regrasp the joints and contacts of every other finger do not move"
+    ),
+    "regrasp_interior": "a regrasp has at least one interior waypoint",
+    "regrasp_free_finger": "the regrasping finger is free (contact `null`) at interior waypoints",
+    "regrasp_clearance": "the free finger is clear of the object at interior waypoints",
+    "regrasp_endpoints": "the regrasping finger is in contact at both ends of the regrasp",
+    # continuity, start and goal
+    "continuity": "each segment starts where the previous one ended",
+    "start": "the first waypoint is the start object pose (and `start.q` when given)",
+    "goal": "the last object pose is within the goal's `position_tol` and `angle_tol`",
+}
+
+
+# ---------------------------------------------------------------- contacts
+# ---------------------------------------------------------------- reports
+@dataclass(frozen=True)
+class Violation:
+    """One broken rule: where (segment, waypoint; -1 for the whole plan) and what."""
+
+    segment: int
+    waypoint: int
+    rule: str
+    message: str
+
+    def __str__(self) -> str:
+        where = "plan" if self.segment < 0 else f"segment {self.segment}"
+        if self.waypoint >= 0:
+            where += f", waypoint {self.waypoint}"
+        return f"{where}: {self.rule}: {self.message}"
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Result of :func:`verify_plan`."""
+
+    violations: tuple[Violation, ...]
+    waypoints: int
+    segments: int
+
+    @property
+    def ok(self) -> bool:
+        """True when no rule is broken."""
+        return not self.violations
+
+
+# ---------------------------------------------------------------- checking
+class _Checker:
+    """Checks every rule against the models of one plan, one method per rule family."""
+
+    def __init__(self, m: PlanModels) -> None:
+        self.hand, self.obj, self.world = m.hand, m.obj, m.world
+        self.mu, self.edges = m.mu, m.friction_edges
+        self.contact_model, self.torsion = m.contact_model, m.torsion
+        self.n = self.hand.n_fingers
+        self.violations: list[Violation] = []
+        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
+        self._surface_memo: dict[bytes, tuple[float, tuple[FloatArray, FloatArray]]] = {}
+
+    def add(self, seg: int, wp: int, rule: str, message: str) -> None:
+        """Record a violation of ``rule`` (a name of :data:`RULES`)."""
+        if rule not in RULES:
+            raise ValueError(f"unknown verification rule {rule!r}")
+        self.violations.append(Violation(seg, wp, rule, message))
+
+    # -- per segment ---------------------------------------------------------
+    def segment(self, si: int, seg: Segment, previous: Segment | None) -> None:
+        """Every rule of one segment: its waypoints, steps, kind and continuity."""
+        for wi, w in enumerate(seg.waypoints):
+            self.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
+        self.steps(si, seg)
+        if seg.kind == "transfer":
+            self.transfer(si, seg)
+        else:
+            self.regrasp(si, seg)
+        if previous is not None:
+            self.continuity(si, previous, seg)
+
+    # -- per waypoint --------------------------------------------------------
+    def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
+        """Every rule of one waypoint (``subgrasps``: of a transfer)."""
+        if not self.pose_and_joints(si, wi, w):
+            return
+        pts, nrm = self.contacts(si, wi, w)
+        self.collisions(si, wi, w)
+        self.force_closure(si, wi, pts, nrm, subgrasps=subgrasps)
+
+    def pose_and_joints(self, si: int, wi: int, w: Waypoint) -> bool:
+        """``object_pose`` and ``joint_limits``; False when the pose is unusable."""
+        hand = self.hand
+        pose, q = w.object_pose_xyzquat, w.q  # sizes and finiteness: validate_plan
+        if abs(float(np.linalg.norm(pose[3:])) - 1.0) > 1e-6:
+            self.add(si, wi, "object_pose", "quaternion is not unit length")
+            return False
+        if not hand.within_limits(q, 1e-9):
+            bad = [
+                hand.joint_names[j]
+                for j in np.flatnonzero((q < hand.lower - 1e-9) | (q > hand.upper + 1e-9))
+            ]
+            self.add(si, wi, "joint_limits", f"joints outside limits: {bad}")
+        return True
+
+    def contacts(self, si: int, wi: int, w: Waypoint) -> tuple[list[FloatArray], list[FloatArray]]:
+        """The fingertip-contact rules; the holding contacts' points and inward normals."""
+        from dexplan.core.pose import inverse_transform_points
+
+        obj, r = self.obj, self.hand.fingertip_radius
+        tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
+        pts, nrm = [], []
+        for i, c in enumerate(w.contacts):
+            if c is None:
+                continue
+            d_tip = float(obj.signed_distance(tips[i])) - r
+            if abs(d_tip) > TIP_DISTANCE_TOL:
+                msg = f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface"
+                self.add(si, wi, "fingertip_distance", msg)
+            d_c, stated = self._surface(c)
+            if abs(d_c) > TIP_DISTANCE_TOL:
+                msg = f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface"
+                self.add(si, wi, "contact_on_surface", msg)
+            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r, stated)
+            if gap > TIP_DISTANCE_TOL:
+                msg = f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's"
+                self.add(si, wi, "contact_matches_fingertip", msg)
+            pts.append(np.asarray(p_s).reshape(3))
+            nrm.append(-np.asarray(n_s).reshape(3))
+        return pts, nrm
+
+    def _surface(self, c: FloatArray) -> tuple[float, tuple[FloatArray, FloatArray]]:
+        """Signed distance and closest surface point of a stated contact, by exact value.
+
+        A contact is held over a whole transfer: its surface figures are
+        computed once (the same numbers give the same answers).
+        """
+        key = np.asarray(c, dtype=float).tobytes()
+        out = self._surface_memo.get(key)
+        if out is None:
+            p_s, n_s = self.obj.closest_point(c)
+            out = self._surface_memo[key] = (float(self.obj.signed_distance(c)), (p_s, n_s))
+        return out
+
+    def collisions(self, si: int, wi: int, w: Waypoint) -> None:
+        """``collision`` and ``penetration``."""
+        rep = self.world.check(w.q, w.object_pose_xyzquat, w.contact_mask(), first_only=True)
+        if rep.pair is not None:
+            self.add(si, wi, "collision", f"{rep.pair[0]} touches {rep.pair[1]}")
+        if rep.max_penetration > PENETRATION_TOL:
+            msg = f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object"
+            self.add(si, wi, "penetration", msg)
+
+    def force_closure(
+        self,
+        si: int,
+        wi: int,
+        pts: Sequence[FloatArray],
+        nrm: Sequence[FloatArray],
+        *,
+        subgrasps: bool,
+    ) -> None:
+        """``force_closure`` and (``subgrasps``) ``subgrasp_force_closure``."""
+        if len(pts) < 2:
+            self.add(si, wi, "force_closure", f"only {len(pts)} finger(s) hold the object")
+            return
+        P, N = np.array(pts), np.array(nrm)
+        ts = self.obj.characteristic_length
+        # The rules are signs, judged under the plan's contact model against the
+        # exact sets (round Coulomb cone, elliptic soft-finger set): the file's
+        # own linearization, then dense inner and outer polytopes. The same
+        # contacts give the same answer, and along a transfer or a regrasp the
+        # holding contacts repeat: remember answers by exact contact values.
+        key = (P.tobytes(), N.tobytes(), subgrasps)
+        if key not in self._fc_memo:
+            fc = self._fc_verdict(P, N, ts, subgrasps=False)
+            sub = self._fc_verdict(P, N, ts, subgrasps=True) if subgrasps else "fc_linear"
+            self._fc_memo[key] = (fc, sub)
+        fc, sub = self._fc_memo[key]
+        if fc not in FC_PASS:
+            self.add(si, wi, "force_closure", f"holding grasp is {self._fc_text(fc)}")
+        elif subgrasps and sub not in FC_PASS:
+            msg = f"some {len(pts) - 1}-finger subgrasp is {self._fc_text(sub)}"
+            self.add(si, wi, "subgrasp_force_closure", msg)
+
+    def _fc_verdict(self, P: np.ndarray, N: np.ndarray, ts: float, *, subgrasps: bool) -> str:
+        from dexplan.model.grasp import exact_force_closure
+
+        return exact_force_closure(
+            P,
+            N,
+            self.mu,
+            edges=self.edges,
+            torque_scale=ts,
+            subgrasps=subgrasps,
+            contact_model=self.contact_model,  # type: ignore[arg-type]
+            torsion=self.torsion,
+        )
+
+    def _fc_text(self, verdict: str) -> str:
+        if self.contact_model == "soft":
+            where = f"soft contacts, mu {self.mu:g}, torsion {self.torsion:g} m"
+        else:
+            where = f"point contacts, mu {self.mu:g}"
+        if verdict == "undecided":
+            return (
+                f"not provably force closure ({where}): within the gap between the "
+                "dense inner and outer polytopes of the exact contact sets"
+            )
+        return f"not force closure ({where})"
+
+    # -- steps, transfer, regrasp, continuity --------------------------------
+    def steps(self, si: int, seg: Segment) -> None:
+        """``step``: object and joint change between consecutive waypoints."""
+        from dexplan.core.pose import quat_angle
+
+        for wi in range(1, len(seg.waypoints)):
+            a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
+            dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
+            da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
+            dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
+            if dp > MAX_STEP_M + 1e-12:
+                self.add(
+                    si, wi, "step", f"object moves {dp * 1e3:.2f} mm from the previous waypoint"
+                )
+            if da > MAX_STEP_RAD + 1e-12:
+                self.add(si, wi, "step", f"object turns {da:.4f} rad from the previous waypoint")
+            if dq > MAX_STEP_RAD + 1e-12:
+                self.add(si, wi, "step", f"a joint moves {dq:.4f} rad from the previous waypoint")
+
+    def transfer(self, si: int, seg: Segment) -> None:
+        """``transfer_contacts`` and ``transfer_contact_drift``."""
+        first = seg.waypoints[0]
+        for wi, w in enumerate(seg.waypoints):
+            if w.contact_mask() != first.contact_mask():
+                self.add(si, wi, "transfer_contacts", "the set of contact fingers changes")
+                continue
+            for i, (c, c0) in enumerate(zip(w.contacts, first.contacts, strict=True)):
+                if c is None:
+                    continue
+                drift = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
+                if drift > CONTACT_DRIFT_TOL:
+                    msg = f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame"
+                    self.add(si, wi, "transfer_contact_drift", msg)
+
+    def regrasp(self, si: int, seg: Segment) -> None:
+        """The ``regrasp_*`` rules of a regrasp of finger ``seg.finger``."""
+        f = int(seg.finger)  # in [0, n): validate_plan
+        wps = seg.waypoints
+        if len(wps) < 3:
+            self.add(si, -1, "regrasp_interior", "a regrasp needs at least one interior waypoint")
+        for wi, w in enumerate(wps):
+            self._regrasp_still(si, wi, w, wps[0], f)
+            if 0 < wi < len(wps) - 1:
+                self._regrasp_free(si, wi, w, f)
+        for wi in (0, len(wps) - 1):
+            if wps[wi].contacts[f] is None:
+                self.add(si, wi, "regrasp_endpoints", f"finger {f} must be in contact here")
+
+    def _regrasp_still(self, si: int, wi: int, w: Waypoint, first: Waypoint, f: int) -> None:
+        """``regrasp_object_still`` and ``regrasp_one_finger`` (finger ``f`` moves)."""
+        others = np.ones(self.hand.nq, dtype=bool)
+        others[self.hand.finger_q_index[f]] = False
+        dpose = float(np.max(np.abs(w.object_pose_xyzquat - first.object_pose_xyzquat)))
+        if dpose > STILL_TOL:
+            self.add(si, wi, "regrasp_object_still", f"the object moves ({dpose:.3g})")
+        moved = np.flatnonzero(np.abs(w.q - first.q)[others] > STILL_TOL)
+        if len(moved):
+            names = [self.hand.joint_names[j] for j in np.flatnonzero(others)[moved]]
+            self.add(si, wi, "regrasp_one_finger", f"joints of other fingers move: {names}")
+        for i in range(self.n):
+            if i == f:
+                continue
+            c, c0 = w.contacts[i], first.contacts[i]
+            if (c is None) != (c0 is None) or (
+                c is not None and np.linalg.norm(np.asarray(c) - np.asarray(c0)) > STILL_TOL
+            ):
+                self.add(si, wi, "regrasp_one_finger", f"finger {i}'s contact changes")
+
+    def _regrasp_free(self, si: int, wi: int, w: Waypoint, f: int) -> None:
+        """``regrasp_free_finger`` and ``regrasp_clearance`` at an interior waypoint."""
+        if w.contacts[f] is not None:
+            msg = f"finger {f} must be free (contact null) at interior waypoints"
+            self.add(si, wi, "regrasp_free_finger", msg)
+            return
+        d = self.world.finger_object_distance(w.q, w.object_pose_xyzquat, f)
+        if d <= 0.0:
+            msg = f"free finger {f} touches the object ({d * 1e3:.3f} mm)"
+            self.add(si, wi, "regrasp_clearance", msg)
+
+    def continuity(self, si: int, previous: Segment, seg: Segment) -> None:
+        """``continuity``: segment ``si`` starts where ``previous`` ends."""
+        a, b = previous.waypoints[-1], seg.waypoints[0]
+        same = np.allclose(a.q, b.q, atol=STILL_TOL) and np.allclose(
+            a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL
+        )
+        if not same:
+            self.add(si, 0, "continuity", "does not start where the previous segment ends")
+
+    # -- start and goal (finite, tolerances > 0: validate_plan) --------------
+    def start(self, start: Mapping[str, Any], segments: Sequence[Segment]) -> None:
+        """``start``: the first waypoint is the plan's start."""
+        w0 = segments[0].waypoints[0]
+        sp = np.asarray(start["object_pose_xyzquat"], dtype=float)
+        if not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
+            self.add(0, 0, "start", "first waypoint is not the start object pose")
+        if start.get("q") is not None:
+            sq = np.asarray(start["q"], dtype=float)
+            if not np.allclose(sq, w0.q, atol=1e-9):
+                self.add(0, 0, "start", "first waypoint is not the start configuration")
+
+    def goal(self, goal: Mapping[str, Any], segments: Sequence[Segment]) -> None:
+        """``goal``: the last waypoint is in the goal region."""
+        from dexplan.core.pose import quat_angle
+
+        wl = segments[-1].waypoints[-1]
+        gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+        dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
+        da = quat_angle(wl.object_pose_xyzquat[3:], gp[3:])
+        last = (len(segments) - 1, len(segments[-1].waypoints) - 1)
+        if not dp <= float(goal.get("position_tol", GOAL_POSITION_TOL)) + 1e-12:
+            self.add(*last, "goal", f"object ends {dp * 1e3:.2f} mm from the goal position")
+        if not da <= float(goal.get("angle_tol", GOAL_ANGLE_TOL)) + 1e-12:
+            msg = f"object ends {math.degrees(da):.2f} deg from the goal orientation"
+            self.add(*last, "goal", msg)
+
+
+_HANDS: dict[str, Any] = {}
+_HANDS_SIZE = 4
+"""Hands rebuilt from plan files, by the ``hand`` table's content (most recent last)."""
+
+
+def _plan_hand(table: Mapping[str, Any]) -> Any:
+    """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
+
+    Many queries of one process carry the same hand: rebuilding its model
+    (URDF parsing, Pinocchio and coal geometry) for each plan cost as much as
+    checking a third of its waypoints. The key is the whole table (URDF text,
+    fingertip frames and radius, exclusions, joint names), so a plan of any
+    other hand is rebuilt from its own file, as before.
+    """
+    import json
+
+    from dexplan.planfile.document import hand_from_plan
+
+    key = json.dumps(table, sort_keys=True)
+    hand = _HANDS.pop(key, None)
+    if hand is None:
+        hand = hand_from_plan(table)
+        if len(_HANDS) >= _HANDS_SIZE:
+            _HANDS.pop(next(iter(_HANDS)))
+    _HANDS[key] = hand
+    return hand
+
+
+def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
+    """Check every rule of a ``dexplan-plan/1`` document.
+
+    Args:
+        doc: the parsed plan (see :func:`dexplan.planfile.document.read_plan`).
+        base_dir: folder that relative mesh paths resolve against.
+
+    Returns:
+        A :class:`VerifyReport` listing every violation.
+
+    Raises:
+        PlanFileError: the document is malformed (:func:`validate_plan`: the
+            message names the field) or its models cannot be rebuilt (the URDF
+            text, a mesh file).
+    """
+    from dexplan.planfile.document import models_from_document, segments_from_dicts
+
+    validate_plan(doc, base_dir)
+    try:
+        hand = _plan_hand(doc["hand"])
+        chk = _Checker(models_from_document(doc, Path(base_dir), hand=hand))
+    except PlanFileError:
+        raise
+    except DexplanError as exc:  # a mesh file that changed since validation, coal
+        raise PlanFileError(f"cannot rebuild the plan's models: {one_line(str(exc), 200)}") from exc
+    segments = segments_from_dicts(doc["segments"])
+    if not segments:
+        chk.add(-1, -1, "segments", "the plan has no segments")
+    for si, seg in enumerate(segments):
+        chk.segment(si, seg, segments[si - 1] if si > 0 else None)
+    if segments:
+        chk.start(doc["start"], segments)
+        chk.goal(doc["goal"], segments)
+    total = sum(len(s.waypoints) for s in segments)
+    return VerifyReport(tuple(chk.violations), total, len(segments))

@@ -1,0 +1,8 @@
+"""The grasp subspace GSn (paper, section III): constraint, chart, sampler, validity."""
+
+__all__ = [
+    "chart",
+    "sampler",
+    "space",
+    "validity",
+]

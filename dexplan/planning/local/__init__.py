@@ -1,0 +1,10 @@
+"""Local planners (paper, section IV): transfers, regrasps, landings, the reduction."""
+
+__all__ = [
+    "contact_paths",
+    "geodesic_motion",
+    "landings",
+    "reduction",
+    "smoothing",
+    "transitions",
+]
