@@ -43,7 +43,7 @@ from dexplan.core.typing import FloatArray, IntArray, as_points, as_positive
 from dexplan.model.objects.shape import SCALAR_LOOP_MAX, Shape, check_sample_args, normalize_rows
 
 #: Directory of the meshes shipped with dexplan (package data).
-BUILTIN_MESH_DIR = Path(__file__).resolve().parent.parent / "data" / "meshes"
+BUILTIN_MESH_DIR = Path(__file__).resolve().parents[2] / "data" / "meshes"
 
 #: Faces whose area is below this fraction of the squared bounding-box diagonal
 #: are degenerate (zero area).
