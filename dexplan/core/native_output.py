@@ -21,12 +21,13 @@ import os
 import sys
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 _LOCK = threading.RLock()
 _STDERR_FD = 2
 
+_LIBC_FFLUSH: Callable[[ctypes.c_void_p | None], int] | None
 try:  # flushes C stdio buffers (stderr is unbuffered by default, but be safe)
     _LIBC_FFLUSH = ctypes.CDLL(None).fflush
 except (OSError, AttributeError):  # pragma: no cover - non-POSIX platforms
