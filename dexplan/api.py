@@ -30,7 +30,7 @@ import numpy as np
 from dexplan.core.segments import Segment
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario.scenario import GoalSpec, Scenario, default_scenario, load_scenario
-from dexplan.planfile.document import (
+from dexplan.planfile import (
     VerifyReport,
     build_plan_document,
     read_plan,

@@ -12,7 +12,7 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.model.objects import Mesh, Sphere
 from dexplan.model.objects.geodesic import surface_geodesics
 from dexplan.model.scenario.scenario import load_scenario
-from dexplan.planfile.document import build_plan_document, verify_plan
+from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.contact_paths import ContactPaths

@@ -10,7 +10,7 @@ import numpy as np
 from cli_contract import run_cli
 
 from dexplan import api
-from dexplan.planfile import document as plan_module
+from dexplan import planfile as plan_module
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.sampler import SamplerStats
 from dexplan.planning.gsn.validity import KEPT_PER_REASON, REASONS, ValidityStats

@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from dexplan.execution.forces import ForceSettings, GripForceError, plan_waypoint_forces
-from dexplan.planfile.document import hand_from_plan, read_plan
+from dexplan.planfile import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")
@@ -158,7 +158,7 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
     from dexplan.cli import main as cli
     from dexplan.model.objects.fingertip import fingertip_contact
     from dexplan.model.scenario.scenario import builtin_scenario_path
-    from dexplan.planfile.document import models_from_document
+    from dexplan.planfile import models_from_document
 
     path = tmp_path / "plan.json"
     scenario = builtin_scenario_path("suite/box_tilt90")

@@ -9,7 +9,7 @@ import pytest
 
 from dexplan.core.errors import PlanFileError
 from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
-from dexplan.planfile.document import build_plan_document, read_plan, verify_plan, write_plan
+from dexplan.planfile import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import plan
 

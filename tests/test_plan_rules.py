@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import dexplan.planfile.verify as plan_verify
-from dexplan.planfile.document import RULES as REEXPORTED
+from dexplan.planfile import RULES as REEXPORTED
 from dexplan.planfile.verify import RULES
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,7 @@ import pytest
 from cli_contract import assert_bad_input, run_cli
 
 from dexplan.core.errors import DependencyError
-from dexplan.planfile.document import hand_from_plan, read_plan, write_plan
+from dexplan.planfile import hand_from_plan, read_plan, write_plan
 
 mujoco = pytest.importorskip("mujoco")
 

@@ -8,7 +8,7 @@ import pytest
 
 from dexplan.execution.export import build_trajectory
 from dexplan.execution.replay.control import ObjectFeedback, planned_tip_slip, pose_se3
-from dexplan.planfile.document import hand_from_plan, read_plan
+from dexplan.planfile import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from dexplan.execution.timing import (
     joint_velocity_limits,
     time_plan,
 )
-from dexplan.planfile.document import hand_from_plan, read_plan
+from dexplan.planfile import hand_from_plan, read_plan
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import pytest
 from dexplan.core.errors import DependencyError
 from dexplan.core.pose import quat_from_axis_angle, transform_points
 from dexplan.model.hand.hand import Hand
-from dexplan.planfile.document import hand_table
+from dexplan.planfile import hand_table
 
 RADIUS = 0.04
 CENTER = np.array([0.0, 0.0, 0.1])

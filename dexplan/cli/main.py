@@ -271,7 +271,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     """Verify a plan file from the file alone."""
     from pathlib import Path
 
-    from dexplan.planfile.document import read_plan, verify_plan
+    from dexplan.planfile import read_plan, verify_plan
 
     doc = read_plan(args.plan)
     report = verify_plan(doc, Path(args.plan).resolve().parent)
@@ -405,7 +405,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     )
     from dexplan.execution.forces import force_settings_from_plan
     from dexplan.execution.timing import TimingLimits
-    from dexplan.planfile.document import hand_from_plan, read_plan
+    from dexplan.planfile import hand_from_plan, read_plan
 
     out = check_output_path(args.output, "-o")
     if out.suffix.lower() not in (".json", ".csv"):

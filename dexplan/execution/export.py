@@ -163,7 +163,7 @@ def build_trajectory(
     ):
         raise InvalidInputError(f"rate must be in (0, {MAX_RATE:g}] Hz, got {rate!r}")
     if hand is None:
-        from dexplan.planfile.document import hand_from_plan
+        from dexplan.planfile import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     settings = force_settings_from_plan(doc) if settings is None else settings

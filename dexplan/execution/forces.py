@@ -72,10 +72,10 @@ def solver_from_plan(
     """A :class:`GripForceSolver` for a validated plan (hand, object, friction from the file)."""
     from pathlib import Path
 
-    from dexplan.planfile.document import shape_of
+    from dexplan.planfile import shape_of
 
     if hand is None:
-        from dexplan.planfile.document import hand_from_plan
+        from dexplan.planfile import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     obj = shape_of(doc["object"], Path(base_dir), "object")

@@ -623,7 +623,7 @@ def time_plan(
         PlanFileError: the hand cannot be rebuilt from the file.
     """
     if hand is None:
-        from dexplan.planfile.document import hand_from_plan
+        from dexplan.planfile import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     if limits.joint_velocity is None:

@@ -1,4 +1,4 @@
-"""Plan files (format ``dexplan-plan/1``): write, read and verify.
+"""Plan files (format ``dexplan-plan/1``): build, write and read documents.
 
 A plan file is one self-contained JSON document: the hand (URDF text, joint
 names, fingertip frames and radius), the object, friction, obstacles, start,
@@ -6,16 +6,12 @@ goal, the transfer/regrasp segments and statistics. It is written atomically
 (temporary file in the same folder, then rename), so a reader never sees half a
 plan.
 
-:func:`verify_plan` re-checks a plan from the file alone: it lives in
-:mod:`dexplan.planfile.verify` (one function per rule family, the rule names in
-its :data:`~dexplan.planfile.verify.RULES` table) and is re-exported here with
-:class:`VerifyReport`, :class:`Violation` and :func:`fingertip_contact`. This
-module keeps the format: building, writing and reading documents and
-rebuilding their models (:func:`models_from_document`).
+The models a document describes are rebuilt by :mod:`dexplan.planfile.models`;
+the rules a plan must keep are checked by :mod:`dexplan.planfile.verify`.
 
 Every document is first checked for structure by
 :func:`dexplan.planfile.schema.validate_plan` (:func:`read_plan` and
-:func:`verify_plan` both call it): a malformed plan is a
+:func:`~dexplan.planfile.verify.verify_plan` both call it): a malformed plan is a
 :class:`~dexplan.core.errors.PlanFileError` naming the field, never a violation,
 a crash or a silent pass.
 """
@@ -26,39 +22,29 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
-from dexplan.core.errors import DexplanError, InvalidInputError, PlanFileError, one_line, shorten
+from dexplan.core.errors import InvalidInputError, PlanFileError, one_line
 from dexplan.core.files import atomic_output, file_sha256
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
+from dexplan.model.scenario.scenario import Scenario
 from dexplan.planfile import schema as plan_schema
+from dexplan.planfile.models import hand_table
 from dexplan.planfile.schema import FORMAT, validate_plan
-from dexplan.planfile.verify import RULES, VerifyReport, Violation, fingertip_contact, verify_plan
-
-if TYPE_CHECKING:  # models only: the plan file never imports planning
-    from dexplan.model.collision import CollisionWorld, Obstacle
-    from dexplan.model.hand.hand import Hand
-    from dexplan.model.objects import Shape
-    from dexplan.model.scenario.scenario import Scenario
 
 __all__ = [
     "FORMAT",
-    "RULES",
-    "VerifyReport",
-    "Violation",
+    "PlannedPath",
     "build_plan_document",
-    "fingertip_contact",
-    "hand_from_plan",
-    "hand_table",
     "read_plan",
+    "segment_to_dict",
     "segments_from_dicts",
-    "validate_plan",
-    "verify_plan",
+    "waypoint_to_dict",
     "write_plan",
 ]
 
@@ -150,131 +136,6 @@ def read_plan(path: str | Path, base_dir: str | Path | None = None) -> dict[str,
     return doc
 
 
-def hand_table(hand: Hand) -> dict[str, Any]:
-    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from."""
-    return {
-        "urdf_xml": hand.urdf_xml,
-        "joint_names": list(hand.joint_names),
-        "fingertip_frames": list(hand.fingertip_frames),
-        "fingertip_radius": hand.fingertip_radius,
-        "collision_exclude": [list(p) for p in hand.collision_exclude],
-    }
-
-
-def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
-    """The :class:`~dexplan.model.hand.hand.Hand` of a validated plan's ``hand`` table.
-
-    Args:
-        h: the ``hand`` table.
-        package_dirs: folders ``package://`` mesh URIs resolve against.
-
-    Raises:
-        PlanFileError: the URDF text does not build a hand with these
-            fingertip frames, or its joints are not ``hand.joint_names``.
-    """
-    from dexplan.model.hand.hand import Hand
-
-    try:
-        hand = Hand(
-            h["urdf_xml"],
-            h["fingertip_frames"],
-            h["fingertip_radius"],
-            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
-            name="plan hand",
-            package_dirs=package_dirs,
-        )
-    except DexplanError as exc:
-        raise PlanFileError(f"hand: {one_line(str(exc), 200)}") from exc
-    if list(hand.joint_names) != list(h["joint_names"]):
-        raise PlanFileError(
-            f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "
-            f"got {shorten(list(h['joint_names']))}"
-        )
-    return hand
-
-
-# ---------------------------------------------------------------- models
-#: Fields of an object or obstacle table that are not shape (mass, placement, label).
-NOT_SHAPE_FIELDS = ("mass", "pose_xyzquat", "name")
-
-
-@dataclass(frozen=True)
-class PlanModels:
-    """The models a plan file describes, rebuilt from the file alone.
-
-    Attributes:
-        hand: the hand (its URDF text, fingertips, exclusions).
-        obj: the object shape.
-        obstacles: static obstacles, world frame.
-        world: the collision world of hand, object and obstacles.
-        mu: friction coefficient. friction_edges: edges of the linearized cone.
-        contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
-    """
-
-    hand: Hand
-    obj: Shape
-    obstacles: tuple[Obstacle, ...]
-    world: CollisionWorld
-    mu: float
-    friction_edges: int
-    contact_model: str
-    torsion: float
-
-
-def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
-    """The shape of an object or obstacle table (its non-shape fields set aside)."""
-    from dexplan.model.objects import shape_from_dict
-
-    shape = {k: v for k, v in table.items() if k not in NOT_SHAPE_FIELDS}
-    return shape_from_dict(shape, base_dir, field=field)
-
-
-def models_from_document(
-    doc: Mapping[str, Any],
-    base_dir: str | Path = ".",
-    *,
-    hand: Hand | None = None,
-    package_dirs: Sequence[str | Path] = (),
-) -> PlanModels:
-    """Hand, object, obstacles and collision world of a validated plan document.
-
-    The one way to rebuild a plan's models: the verifier, the viewer, the
-    trajectory export and the replay all use it.
-
-    Args:
-        doc: a ``dexplan-plan/1`` document (see :func:`read_plan`).
-        base_dir: folder relative mesh paths resolve against.
-        hand: the hand if already rebuilt (:func:`hand_from_plan`).
-        package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.
-
-    Raises:
-        PlanFileError: the hand does not build from the file.
-    """
-    from dexplan.model.collision import CollisionWorld, Obstacle
-
-    base = Path(base_dir)
-    hand = hand if hand is not None else hand_from_plan(doc["hand"], package_dirs)
-    obj = shape_of(doc["object"], base, "object")
-    obstacles = tuple(
-        Obstacle(
-            shape_of(ob, base, f"obstacles[{k}]"),
-            tuple(float(v) for v in ob["pose_xyzquat"]),
-            str(ob.get("name", f"obstacle{k}")),
-        )
-        for k, ob in enumerate(doc.get("obstacles", []))
-    )
-    return PlanModels(
-        hand=hand,
-        obj=obj,
-        obstacles=obstacles,
-        world=CollisionWorld(hand, obj, list(obstacles)),
-        mu=float(doc["mu"]),
-        friction_edges=int(doc.get("friction_edges", 8)),
-        contact_model=str(doc.get("contact_model", "point")),
-        torsion=float(doc.get("torsion", 0.0)),
-    )
-
-
 def _portable_shape(shape: Mapping[str, Any], base_dir: Path, out_dir: Path) -> dict[str, Any]:
     """Shape dict with a mesh path relative to the plan's folder and its sha256."""
     d = dict(shape)
@@ -300,7 +161,9 @@ class PlannedPath(Protocol):
     start_q: FloatArray | None
 
     @property
-    def stats(self) -> _StatsLike: ...
+    def stats(self) -> _StatsLike:
+        """The planner's statistics (their ``as_dict()`` goes to the document)."""
+        ...
 
 
 class _StatsLike(Protocol):

@@ -2,8 +2,8 @@
 
 :func:`verify_plan` re-checks a plan from the file alone. It rebuilds the
 models (Pinocchio hand, object, coal world, force closure) but shares no code
-path with the planner: every rule of DESIGN.md is checked again and each
-violation names the segment, the waypoint and the rule.
+path with the planner, so a planner bug cannot hide itself: every rule is
+checked again and each violation names the segment, the waypoint and the rule.
 
 The rules are named once, in :data:`RULES` (the table of
 ``docs/plan_format.md``); the checker has one method per rule family (waypoint
@@ -11,31 +11,32 @@ pose and joints, fingertip contacts, collisions, force closure, steps,
 transfer, regrasp, continuity, start and goal) and records a violation only
 under a name of that table.
 
-The format itself (reading, writing, building, the models of a document) is
-:mod:`dexplan.planfile.document`, which re-exports :func:`verify_plan`,
-:class:`VerifyReport`, :class:`Violation` and :func:`fingertip_contact`. This
-module imports it inside :func:`verify_plan` only, so either may be imported
-first.
+The format itself (reading, writing, building) is
+:mod:`dexplan.planfile.document`, the models of a document
+:mod:`dexplan.planfile.models`.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dexplan.core.errors import DexplanError, PlanFileError, one_line
+from dexplan.core.pose import inverse_transform_points, quat_angle
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
+from dexplan.model.grasp import exact_force_closure
+from dexplan.model.hand.hand import Hand
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
+from dexplan.planfile.document import segments_from_dicts
+from dexplan.planfile.models import PlanModels, hand_from_plan, models_from_document
 from dexplan.planfile.schema import validate_plan
-
-if TYPE_CHECKING:  # models only: the plan file never imports planning
-    from dexplan.planfile.document import PlanModels
 
 __all__ = [
     "RULES",
@@ -46,7 +47,7 @@ __all__ = [
     "verify_plan",
 ]
 
-#: Verification tolerances (DESIGN.md).
+#: Verification tolerances.
 PENETRATION_TOL = 1e-3  # (m)
 MAX_STEP_M = 0.01  # object translation between waypoints (m)
 MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
@@ -113,7 +114,6 @@ RULES: dict[str, str] = {
 }
 
 
-# ---------------------------------------------------------------- contacts
 # ---------------------------------------------------------------- reports
 @dataclass(frozen=True)
 class Violation:
@@ -203,8 +203,6 @@ class _Checker:
 
     def contacts(self, si: int, wi: int, w: Waypoint) -> tuple[list[FloatArray], list[FloatArray]]:
         """The fingertip-contact rules; the holding contacts' points and inward normals."""
-        from dexplan.core.pose import inverse_transform_points
-
         obj, r = self.obj, self.hand.fingertip_radius
         tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
         pts, nrm = [], []
@@ -282,8 +280,6 @@ class _Checker:
             self.add(si, wi, "subgrasp_force_closure", msg)
 
     def _fc_verdict(self, P: np.ndarray, N: np.ndarray, ts: float, *, subgrasps: bool) -> str:
-        from dexplan.model.grasp import exact_force_closure
-
         return exact_force_closure(
             P,
             N,
@@ -310,8 +306,6 @@ class _Checker:
     # -- steps, transfer, regrasp, continuity --------------------------------
     def steps(self, si: int, seg: Segment) -> None:
         """``step``: object and joint change between consecutive waypoints."""
-        from dexplan.core.pose import quat_angle
-
         for wi in range(1, len(seg.waypoints)):
             a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
             dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
@@ -409,8 +403,6 @@ class _Checker:
 
     def goal(self, goal: Mapping[str, Any], segments: Sequence[Segment]) -> None:
         """``goal``: the last waypoint is in the goal region."""
-        from dexplan.core.pose import quat_angle
-
         wl = segments[-1].waypoints[-1]
         gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
         dp = float(np.linalg.norm(wl.object_pose_xyzquat[:3] - gp[:3]))
@@ -423,12 +415,12 @@ class _Checker:
             self.add(*last, "goal", msg)
 
 
-_HANDS: dict[str, Any] = {}
+_HANDS: dict[str, Hand] = {}
 _HANDS_SIZE = 4
 """Hands rebuilt from plan files, by the ``hand`` table's content (most recent last)."""
 
 
-def _plan_hand(table: Mapping[str, Any]) -> Any:
+def _plan_hand(table: Mapping[str, Any]) -> Hand:
     """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
 
     Many queries of one process carry the same hand: rebuilding its model
@@ -437,10 +429,6 @@ def _plan_hand(table: Mapping[str, Any]) -> Any:
     fingertip frames and radius, exclusions, joint names), so a plan of any
     other hand is rebuilt from its own file, as before.
     """
-    import json
-
-    from dexplan.planfile.document import hand_from_plan
-
     key = json.dumps(table, sort_keys=True)
     hand = _HANDS.pop(key, None)
     if hand is None:
@@ -466,8 +454,6 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
             message names the field) or its models cannot be rebuilt (the URDF
             text, a mesh file).
     """
-    from dexplan.planfile.document import models_from_document, segments_from_dicts
-
     validate_plan(doc, base_dir)
     try:
         hand = _plan_hand(doc["hand"])

@@ -121,7 +121,7 @@ def _contact_series(
 ) -> _ContactSeries:
     """Contact points, cone strips and FC values at every waypoint of the plan."""
     from dexplan.core.pose import inverse_transform_points, transform_points
-    from dexplan.planfile.document import fingertip_contact
+    from dexplan.planfile import fingertip_contact
 
     hand, obj = scene.hand, scene.obj
     assert hand is not None and obj is not None

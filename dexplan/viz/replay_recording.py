@@ -43,7 +43,7 @@ def record_replay(
         ``path``.
     """
     rr = rerun_module()
-    from dexplan.planfile.document import hand_from_plan, shape_of
+    from dexplan.planfile import hand_from_plan, shape_of
 
     base_dir = Path(base_dir)
     hand = hand_from_plan(doc["hand"])

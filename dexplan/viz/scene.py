@@ -64,7 +64,7 @@ class HandLayout:
 # ------------------------------------------------------------------ models
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
     """The hand of a plan document (meshes found beside it or in example-robot-data)."""
-    from dexplan.planfile.document import hand_from_plan
+    from dexplan.planfile import hand_from_plan
 
     return hand_from_plan(h, hand_package_dirs(base_dir))
 
@@ -82,7 +82,7 @@ def obstacles_from_dicts(
     Returns:
         One triple per entry, in order.
     """
-    from dexplan.planfile.document import shape_of
+    from dexplan.planfile import shape_of
 
     out = []
     for k, ob in enumerate(items):
@@ -100,7 +100,7 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
             field; :func:`dexplan.planfile.schema.validate_plan`) or its hand does
             not build.
     """
-    from dexplan.planfile.document import models_from_document
+    from dexplan.planfile import models_from_document
     from dexplan.planfile.schema import validate_plan
 
     validate_plan(doc, base_dir)

@@ -239,7 +239,7 @@ def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
     """
     from pathlib import Path
 
-    from dexplan.planfile.document import shape_of
+    from dexplan.planfile import shape_of
 
     obj = shape_of(doc["object"], Path("."), "object")
     r = float(hand.fingertip_radius)

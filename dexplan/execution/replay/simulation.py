@@ -256,7 +256,7 @@ def build_mjcf(
         base_dir: the plan's folder (mesh paths).
     """
     from dexplan.model.collision import CollisionWorld
-    from dexplan.planfile.document import shape_of
+    from dexplan.planfile import shape_of
 
     base_dir = Path(base_dir)
     model = hand.model
@@ -457,7 +457,7 @@ def replay_plan(
     from dexplan.execution.export import build_trajectory
 
     if hand is None:
-        from dexplan.planfile.document import hand_from_plan
+        from dexplan.planfile import hand_from_plan
 
         hand = hand_from_plan(doc["hand"])
     settings, g = _replay_settings(doc, gravity, mass, gravity_vector)

@@ -1,0 +1,147 @@
+"""The models a plan file describes: hand, object, obstacles and collision world.
+
+A ``dexplan-plan/1`` document carries everything needed to rebuild its models
+(the hand's URDF text and fingertips, the object and obstacle shapes, friction):
+:func:`models_from_document` rebuilds them from the document alone, for the
+verifier, the viewer, the trajectory export and the replay. :func:`hand_table`
+is the inverse of :func:`hand_from_plan`: the ``hand`` table a plan is written with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dexplan.core.errors import DexplanError, PlanFileError, one_line, shorten
+from dexplan.model.collision import CollisionWorld, Obstacle
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Shape, shape_from_dict
+
+__all__ = [
+    "NOT_SHAPE_FIELDS",
+    "PlanModels",
+    "hand_from_plan",
+    "hand_table",
+    "models_from_document",
+    "shape_of",
+]
+
+
+def hand_table(hand: Hand) -> dict[str, Any]:
+    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from."""
+    return {
+        "urdf_xml": hand.urdf_xml,
+        "joint_names": list(hand.joint_names),
+        "fingertip_frames": list(hand.fingertip_frames),
+        "fingertip_radius": hand.fingertip_radius,
+        "collision_exclude": [list(p) for p in hand.collision_exclude],
+    }
+
+
+def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
+    """The :class:`~dexplan.model.hand.hand.Hand` of a validated plan's ``hand`` table.
+
+    Args:
+        h: the ``hand`` table.
+        package_dirs: folders ``package://`` mesh URIs resolve against.
+
+    Raises:
+        PlanFileError: the URDF text does not build a hand with these
+            fingertip frames, or its joints are not ``hand.joint_names``.
+    """
+    try:
+        hand = Hand(
+            h["urdf_xml"],
+            h["fingertip_frames"],
+            h["fingertip_radius"],
+            collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
+            name="plan hand",
+            package_dirs=package_dirs,
+        )
+    except DexplanError as exc:
+        raise PlanFileError(f"hand: {one_line(str(exc), 200)}") from exc
+    if list(hand.joint_names) != list(h["joint_names"]):
+        raise PlanFileError(
+            f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "
+            f"got {shorten(list(h['joint_names']))}"
+        )
+    return hand
+
+
+#: Fields of an object or obstacle table that are not shape (mass, placement, label).
+NOT_SHAPE_FIELDS = ("mass", "pose_xyzquat", "name")
+
+
+@dataclass(frozen=True)
+class PlanModels:
+    """The models a plan file describes, rebuilt from the file alone.
+
+    Attributes:
+        hand: the hand (its URDF text, fingertips, exclusions).
+        obj: the object shape.
+        obstacles: static obstacles, world frame.
+        world: the collision world of hand, object and obstacles.
+        mu: friction coefficient. friction_edges: edges of the linearized cone.
+        contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
+    """
+
+    hand: Hand
+    obj: Shape
+    obstacles: tuple[Obstacle, ...]
+    world: CollisionWorld
+    mu: float
+    friction_edges: int
+    contact_model: str
+    torsion: float
+
+
+def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
+    """The shape of an object or obstacle table (its non-shape fields set aside)."""
+    shape = {k: v for k, v in table.items() if k not in NOT_SHAPE_FIELDS}
+    return shape_from_dict(shape, base_dir, field=field)
+
+
+def models_from_document(
+    doc: Mapping[str, Any],
+    base_dir: str | Path = ".",
+    *,
+    hand: Hand | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> PlanModels:
+    """Hand, object, obstacles and collision world of a validated plan document.
+
+    The one way to rebuild a plan's models: the verifier, the viewer, the
+    trajectory export and the replay all use it.
+
+    Args:
+        doc: a ``dexplan-plan/1`` document (see :func:`read_plan`).
+        base_dir: folder relative mesh paths resolve against.
+        hand: the hand if already rebuilt (:func:`hand_from_plan`).
+        package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.
+
+    Raises:
+        PlanFileError: the hand does not build from the file.
+    """
+    base = Path(base_dir)
+    hand = hand if hand is not None else hand_from_plan(doc["hand"], package_dirs)
+    obj = shape_of(doc["object"], base, "object")
+    obstacles = tuple(
+        Obstacle(
+            shape_of(ob, base, f"obstacles[{k}]"),
+            tuple(float(v) for v in ob["pose_xyzquat"]),
+            str(ob.get("name", f"obstacle{k}")),
+        )
+        for k, ob in enumerate(doc.get("obstacles", []))
+    )
+    return PlanModels(
+        hand=hand,
+        obj=obj,
+        obstacles=obstacles,
+        world=CollisionWorld(hand, obj, list(obstacles)),
+        mu=float(doc["mu"]),
+        friction_edges=int(doc.get("friction_edges", 8)),
+        contact_model=str(doc.get("contact_model", "point")),
+        torsion=float(doc.get("torsion", 0.0)),
+    )
