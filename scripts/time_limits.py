@@ -50,7 +50,7 @@ time_limit = 30.0
 
 
 def allegro_urdf() -> Path:
-    from dexplan.model.hand.hand import example_robot_data_file
+    from dexplan.model.hand.builtin import example_robot_data_file
 
     return example_robot_data_file("allegro_hand_description/urdf/allegro_right_hand.urdf")
 

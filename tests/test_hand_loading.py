@@ -16,8 +16,9 @@ import pytest
 from dexplan.core.errors import DependencyError, ModelError
 from dexplan.core.native_output import captured_stderr
 from dexplan.model.collision import CollisionWorld
-from dexplan.model.hand import hand as hand_module
-from dexplan.model.hand.hand import ALLEGRO_TIPS, Hand, example_robot_data_file
+from dexplan.model.hand import builtin as hand_module
+from dexplan.model.hand.builtin import ALLEGRO_TIPS, example_robot_data_file
+from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.urdf import MOUNT_LINK, mount_urdf
 from dexplan.model.objects.primitives import Sphere
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from dexplan.model.grasp import CONTACT_MODELS
-from dexplan.model.hand.hand import BUILTIN_HANDS
+from dexplan.model.hand.builtin import BUILTIN_HANDS
 from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS
 from dexplan.model.scenario.scenario import OBSTACLE_OWN_FIELDS, SCENARIO_FIELDS, SPACES
 from dexplan.planning.ompl import available_planners

@@ -15,62 +15,32 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from importlib import metadata, resources
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.errors import DependencyError, InvalidInputError, ModelError, shorten
+from dexplan.core.errors import InvalidInputError, ModelError, shorten
 from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_vector
-from dexplan.model.hand.ik import FingerChain, SplitFingerIK, batch_dls
-from dexplan.model.hand.reach import ReachVoxels
+from dexplan.model.hand.builtin import builtin_hand
+from dexplan.model.hand.ik import (
+    FingerChain,
+    IKResult,
+    PlanarFingerIK,
+    SplitFingerIK,
+    batch_dls,
+    finger_dls,
+)
+from dexplan.model.hand.reach import ReachVoxels, reach_samples
 from dexplan.model.hand.urdf import (
     build_models,
     check_collision_exclude,
     check_finger_geometry,
     check_fingertip_radius,
-    mount_urdf,
     parse_urdf,
     urdf_text,
 )
-
-#: Frames the builtin hands use for their fingertips.
-PAPER_HAND_TIPS: tuple[str, ...] = ("f0_tip", "f1_tip", "f2_tip", "f3_tip")
-PAPER_HAND_TIP_RADIUS = 0.012
-THREE_FINGER_TIPS: tuple[str, ...] = ("f0_tip", "f1_tip", "f2_tip")
-THREE_FINGER_TIP_RADIUS = 0.012
-#: Allegro fingers: index, middle, ring, thumb. The joints follow Pinocchio's
-#: order (index q[0:4], thumb q[4:8], middle q[8:12], ring q[12:16]).
-ALLEGRO_TIPS: tuple[str, ...] = ("link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip")
-ALLEGRO_TIP_RADIUS = 0.012
-#: The palm box and the thumb's second link overlap by design (for joint_12.0 < 0.9).
-ALLEGRO_COLLISION_EXCLUDE: tuple[tuple[str, str], ...] = (("palm_link", "link_13.0"),)
-#: Roll, pitch, yaw (URDF fixed-axis XYZ) of palm_link in the world frame: the
-#: palm normal (palm_link +x) is world +z, the fingers (palm_link +z) point
-#: along world +x, palm_link +y is world -y. palm_link's origin is the world origin.
-ALLEGRO_MOUNT_RPY: tuple[float, float, float] = (math.pi, -math.pi / 2, 0.0)
-BUILTIN_HANDS: tuple[str, ...] = ("paper", "three_finger", "allegro", "allegro_left")
-
-
-def _halton(n: int, dims: int) -> FloatArray:
-    """First ``n`` points of the Halton sequence in ``[0, 1)^dims`` (IK restarts)."""
-    primes = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)[:dims]
-    out = np.empty((n, dims))
-    for j, b in enumerate(primes):
-        for i in range(n):
-            f, r, k = 1.0, 0.0, i + 1
-            while k:
-                f /= b
-                r += f * (k % b)
-                k //= b
-            out[i, j] = r
-    return out
-
-
-_HALTON = _halton(16, 12)
 
 
 def _joint_limits(
@@ -142,23 +112,6 @@ def _finger_chain(model: pin.Model, fid: int, tip: str) -> list[int]:
     if not chain:
         raise ModelError(f"fingertip frame {tip!r} is not moved by any joint")
     return chain
-
-
-@dataclass(frozen=True)
-class IKResult:
-    """Outcome of a per-finger inverse kinematics solve.
-
-    Attributes:
-        q_finger: (m,) joint values of the finger, always within limits.
-        success: True when the tip reached the target within tolerance.
-        residual: |p_tip - p_target| in metres at ``q_finger``.
-        iterations: solver iterations used (over all restarts).
-    """
-
-    q_finger: FloatArray
-    success: bool
-    residual: float
-    iterations: int
 
 
 class Hand:
@@ -233,12 +186,15 @@ class Hand:
     def _init_ik(self) -> None:
         """Per-finger IK solvers: closed form where the structure allows it.
 
-        ``_PlanarFingerIK`` for planar 3-joint fingers; otherwise the vectorised
-        kinematics of :mod:`dexplan.model.hand.ik` (closed form also for 4-joint fingers,
-        redundancy on a grid, else batched DLS).
+        :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint
+        fingers; otherwise the vectorised kinematics of :mod:`dexplan.model.hand.ik`
+        (closed form also for 4-joint fingers, redundancy on a grid, else batched DLS).
         """
-        self._analytic_ik: list[_PlanarFingerIK | None] = [
-            _PlanarFingerIK.detect(self, i) for i in range(self.n_fingers)
+        self._analytic_ik: list[PlanarFingerIK | None] = [
+            PlanarFingerIK.detect(
+                self.model, self.data, idx, fid, self.lower, self.upper, self.neutral
+            )
+            for idx, fid in zip(self.finger_q_index, self.tip_frame_ids, strict=True)
         ]
         self._chains: list[FingerChain | None] = [
             FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
@@ -279,7 +235,7 @@ class Hand:
 
     @classmethod
     def builtin(cls, name: str = "paper") -> Hand:
-        """Return a builtin hand (see :data:`BUILTIN_HANDS`).
+        """Return a builtin hand (see :data:`~dexplan.model.hand.builtin.BUILTIN_HANDS`).
 
         ``"paper"`` (4 x 3 DOF, after the paper) and ``"three_finger"``
         (3 x 3 DOF, capsule links) ship with dexplan; ``"allegro"`` and
@@ -291,16 +247,14 @@ class Hand:
             InvalidInputError: unknown name.
             DependencyError: an Allegro hand without ``example-robot-data``.
         """
-        if name == "paper":
-            text = _data_text("paper_hand.urdf")
-            return cls(text, PAPER_HAND_TIPS, PAPER_HAND_TIP_RADIUS, name="paper")
-        if name == "three_finger":
-            text = _data_text("three_finger.urdf")
-            return cls(text, THREE_FINGER_TIPS, THREE_FINGER_TIP_RADIUS, name="three_finger")
-        if name in ("allegro", "allegro_left"):
-            return _allegro_hand(left=name == "allegro_left")
-        raise InvalidInputError(
-            f"hand.builtin must be one of {list(BUILTIN_HANDS)}, got {shorten(name)}"
+        spec = builtin_hand(name)
+        return cls(
+            spec.urdf_xml,
+            spec.fingertip_frames,
+            spec.fingertip_radius,
+            collision_exclude=spec.collision_exclude,
+            name=spec.name,
+            package_dirs=spec.package_dirs,
         )
 
     # --------------------------------------------------------------- properties
@@ -426,8 +380,23 @@ class Hand:
         """Where ``finger``'s fingertip centre can be (built on first use; see :mod:`.reach`)."""
         voxels = self._reach[finger]
         if voxels is None:
-            voxels = self._reach[finger] = ReachVoxels.of_finger(self, finger)
+            voxels = self._reach[finger] = ReachVoxels.from_tips(self._reach_tips(finger))
         return voxels
+
+    def _reach_tips(self, finger: int) -> FloatArray:
+        """Fingertip centres ``(K, 3)`` of random joint values of ``finger`` (fixed seed)."""
+        idx = self.finger_q_index[finger]
+        qf = reach_samples(finger, self.lower[idx], self.upper[idx])
+        chain = self._chains[finger]
+        if chain is not None:
+            return chain.tips(qf)
+        # not a revolute chain: Pinocchio, fewer samples
+        q = self.neutral.copy()
+        tips = np.empty((2000, 3))
+        for k, v in enumerate(qf[:2000]):
+            q[idx] = v
+            tips[k] = self.fingertip_positions(q)[finger]
+        return tips
 
     def has_closed_form_ik(self, finger: int) -> bool:
         """True when ``finger`` is solved in closed form (see :meth:`finger_ik`).
@@ -575,227 +544,18 @@ class Hand:
                 err = float(np.linalg.norm(self._finger_tip(finger, q_try)[0] - target))
                 if err < tol:
                     return IKResult(q_f, True, err, 1)
-        lo, hi = self.lower[idx], self.upper[idx]
-        eye = np.eye(3)
-        best_q, best_err, iters = np.clip(q[idx], lo, hi), math.inf, 0
-        for attempt in range(restarts + 1):
-            if attempt == 0:
-                q[idx] = best_q
-            elif attempt == 1:
-                q[idx] = 0.5 * (lo + hi)
-            else:  # deterministic pseudo-random restarts: same call, same answer
-                q[idx] = lo + (hi - lo) * _HALTON[(attempt - 2) % len(_HALTON), : len(idx)]
-            for _ in range(max_iter):
-                iters += 1
-                p, J = self._finger_tip(finger, q)
-                e = target - p
-                err = math.sqrt(e @ e)
-                if err < best_err:
-                    best_err, best_q = err, q[idx].copy()
-                if err < tol:
-                    return IKResult(best_q, True, best_err, iters)
-                dq = J.T @ np.linalg.solve(J @ J.T + (err * err + 1e-9) * eye, e)
-                q_new = np.clip(q[idx] + dq, lo, hi)
-                if np.max(np.abs(q_new - q[idx])) < 1e-12:
-                    break  # stalled against a limit or in a local minimum
-                q[idx] = q_new
-        return IKResult(best_q, best_err < tol, best_err, iters)
 
+        def tip_jacobian(q_f: FloatArray) -> tuple[FloatArray, FloatArray]:
+            q[idx] = q_f
+            return self._finger_tip(finger, q)
 
-class _PlanarFingerIK:
-    """Closed-form IK of an abduction joint followed by a planar 2R chain.
-
-    Geometry read off the model at q = 0: abduction axis ``a0`` through ``o0``;
-    the flexion joints' origins and the tip lie on the ray from ``o0`` along
-    ``e`` (perpendicular to ``a0``) at distances ``k``, ``k + l1`` and
-    ``k + l1 + l2``; both flexion axes are perpendicular to ``a0`` and ``e``.
-    :meth:`detect` verifies the solver against FK before it is used.
-    """
-
-    def __init__(self, o0, a0, e, k, l1, l2, s, lo, hi) -> None:
-        self.o0, self.a0, self.e = o0, a0, e
-        self.b = np.cross(a0, e)
-        self.k, self.l1, self.l2, self.s = k, l1, l2, s
-        self.lo, self.hi = lo, hi
-
-    @classmethod
-    def detect(cls, hand: Hand, finger: int) -> _PlanarFingerIK | None:
-        idx = hand.finger_q_index[finger]
-        if len(idx) != 3:
-            return None
-        model, data = hand.model, hand.data
-        q0 = np.zeros(hand.nq)
-        pin.forwardKinematics(model, data, q0)
-        fid = hand.tip_frame_ids[finger]
-        tip = pin.updateFramePlacement(model, data, fid).translation.copy()
-        jids = [j for i in idx for j in range(1, model.njoints) if model.idx_qs[j] == i]
-        origins = [data.oMi[j].translation.copy() for j in jids]
-        J = pin.computeJointJacobians(model, data, q0)
-        axes = [J[3:, int(i)].copy() for i in idx]
-        o0, a0 = origins[0], axes[0]
-        ray = tip - o0
-        if np.linalg.norm(ray) < 1e-9 or abs(ray @ a0) > 1e-7 * np.linalg.norm(ray):
-            return None
-        e = ray / np.linalg.norm(ray)
-        k = float((origins[1] - o0) @ e)
-        l1 = float((origins[2] - origins[1]) @ e)
-        l2 = float((tip - origins[2]) @ e)
-        f = axes[1]
-        s = float(np.cross(f, e) @ a0)
-        if min(l1, l2) <= 0 or abs(abs(s) - 1) > 1e-7 or np.linalg.norm(axes[2] - f) > 1e-7:
-            return None
-        solver = cls(o0, a0, e, k, l1, l2, s, hand.lower[idx], hand.upper[idx])
-        rng = np.random.default_rng(0)
-        q = hand.neutral.copy()
-        for _ in range(20):
-            q[idx] = rng.uniform(solver.lo, solver.hi)
-            target = hand.fingertip_positions(q)[finger]
-            sol = solver.solve(target, q[idx])
-            if sol is None:
-                return None
-            q2 = q.copy()
-            q2[idx] = sol
-            if np.linalg.norm(hand.fingertip_positions(q2)[finger] - target) > 1e-8:
-                return None
-        return solver
-
-    def solve(self, target: FloatArray, q_near: FloatArray) -> FloatArray | None:
-        """Joint values within limits reaching ``target`` (closest to ``q_near``), or None."""
-        p = target - self.o0
-        u = float(p @ self.a0) * self.s
-        pe, pb = float(p @ self.e), float(p @ self.b)
-        r = math.hypot(pe, pb)
-        base = math.atan2(pb, pe)
-        best, best_d = None, math.inf
-        l1, l2 = self.l1, self.l2
-        for th0, w in ((base, r - self.k), (base - math.copysign(math.pi, base), -r - self.k)):
-            c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-            if abs(c2) > 1.0:
-                continue
-            for th2 in (math.acos(c2), -math.acos(c2)):
-                th1 = math.atan2(u, w) - math.atan2(l2 * math.sin(th2), l1 + l2 * math.cos(th2))
-                th1 = (th1 + math.pi) % (2 * math.pi) - math.pi
-                sol = np.array([th0, th1, th2])
-                if np.all(sol >= self.lo - 1e-12) and np.all(sol <= self.hi + 1e-12):
-                    d = float(np.sum((sol - q_near) ** 2))
-                    if d < best_d:
-                        best, best_d = np.clip(sol, self.lo, self.hi), d
-        return best
-
-    def solve_batch(self, targets: FloatArray) -> tuple[FloatArray, np.ndarray]:
-        """Vectorized :meth:`solve` without the nearest-solution preference.
-
-        Args:
-            targets: (N, 3) fingertip-centre targets, world frame.
-
-        Returns:
-            ``q: (N, 3)`` and ``ok: (N,)``; among the branches within limits
-            the first found is returned (abduction on the target's side first).
-        """
-        p = targets - self.o0
-        u = (p @ self.a0) * self.s
-        pe, pb = p @ self.e, p @ self.b
-        r = np.hypot(pe, pb)
-        base = np.arctan2(pb, pe)
-        l1, l2 = self.l1, self.l2
-        q_out = np.zeros((len(targets), 3))
-        ok = np.zeros(len(targets), dtype=bool)
-        lo, hi = self.lo - 1e-12, self.hi + 1e-12
-        # elbow signs the third joint's limits allow at all (pruned for speed)
-        signs = [sg for sg in (1.0, -1.0) if sg * hi[2] >= 0.0 or sg * lo[2] >= 0.0]
-        for th0, w in ((base, r - self.k), (base - np.copysign(np.pi, base), -r - self.k)):
-            cand = (th0 >= lo[0]) & (th0 <= hi[0]) & ~ok
-            if not cand.any():
-                continue
-            c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-            cand &= np.abs(c2) <= 1.0
-            a2 = np.arccos(np.clip(c2, -1.0, 1.0))
-            for sg in signs:
-                th2 = sg * a2
-                th1 = np.arctan2(u, w) - np.arctan2(l2 * np.sin(th2), l1 + l2 * np.cos(th2))
-                th1 = (th1 + np.pi) % (2 * np.pi) - np.pi
-                new = cand & ~ok & (th1 >= lo[1]) & (th1 <= hi[1]) & (th2 >= lo[2]) & (th2 <= hi[2])
-                q_out[new, 0] = th0[new]
-                q_out[new, 1] = th1[new]
-                q_out[new, 2] = th2[new]
-                ok |= new
-        return np.clip(q_out, self.lo, self.hi), ok
-
-
-def _data_text(filename: str) -> str:
-    """Text of ``dexplan/data/hands/<filename>``."""
-    return resources.files("dexplan").joinpath(f"data/hands/{filename}").read_text(encoding="utf-8")
-
-
-# -------------------------------------------------------------- Allegro hands
-_ERD = "example-robot-data"
-_ERD_PIP = "pip install 'dexplan[allegro]' (or: pip install example-robot-data)"
-
-
-def example_robot_data_share(robot_file: Path | None = None) -> Path:
-    """The folder ``package://example-robot-data/robots/...`` mesh URIs resolve against.
-
-    Args:
-        robot_file: a file of the distribution,
-            ``.../share/example-robot-data/robots/<robot>/<folder>/<file>``
-            (default: the Allegro right hand's URDF).
-
-    Raises:
-        DependencyError: example-robot-data is not installed.
-    """
-    if robot_file is None:
-        robot_file = example_robot_data_file(
-            "allegro_hand_description/urdf/allegro_right_hand.urdf"
+        return finger_dls(
+            tip_jacobian,
+            target,
+            q[idx],
+            self.lower[idx],
+            self.upper[idx],
+            tol=tol,
+            max_iter=max_iter,
+            restarts=restarts,
         )
-    return robot_file.parents[4]
-
-
-def example_robot_data_file(relative: str) -> Path:
-    """Path of a file the installed ``example-robot-data`` distribution ships.
-
-    example-robot-data 4.4 and later install no Python module, only files under
-    ``<site-packages>/cmeel.prefix/share/example-robot-data/robots/``; they are
-    found through the distribution's file list (``importlib.metadata``).
-
-    Args:
-        relative: path below ``robots/``, e.g.
-            ``"allegro_hand_description/urdf/allegro_right_hand.urdf"``.
-
-    Raises:
-        DependencyError: the distribution is not installed or lacks the file.
-    """
-    try:
-        dist = metadata.distribution(_ERD)
-    except metadata.PackageNotFoundError:
-        raise DependencyError(f"{_ERD} is not installed: {_ERD_PIP}") from None
-    suffix = f"robots/{relative}"
-    candidates = [
-        Path(str(dist.locate_file(f))) for f in dist.files or () if str(f).endswith(suffix)
-    ]
-    candidates.append(Path(str(dist.locate_file(f"cmeel.prefix/share/{_ERD}/robots/{relative}"))))
-    for path in candidates:
-        if path.is_file():
-            return path
-    raise DependencyError(
-        f"{_ERD} {dist.version} is installed but has no {relative!r}: "
-        "pip install --upgrade 'dexplan[allegro]'"
-    )
-
-
-def _allegro_hand(*, left: bool) -> Hand:
-    """The Allegro right (or left) hand from example-robot-data, mounted palm-up."""
-    hand_name = "allegro_left" if left else "allegro"
-    side = "left" if left else "right"
-    try:
-        path = example_robot_data_file(f"allegro_hand_description/urdf/allegro_{side}_hand.urdf")
-    except DependencyError as exc:
-        raise DependencyError(f"hand {hand_name!r}: {exc}") from None
-    text = urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
-    return Hand(
-        mount_urdf(text, ALLEGRO_MOUNT_RPY),
-        ALLEGRO_TIPS,
-        ALLEGRO_TIP_RADIUS,
-        collision_exclude=ALLEGRO_COLLISION_EXCLUDE,
-        name=hand_name,
-        package_dirs=[str(example_robot_data_share(path))],
-    )

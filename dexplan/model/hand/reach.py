@@ -11,19 +11,27 @@ outside (0.006 %), so the test almost never drops a reachable target.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dexplan.core.typing import FloatArray
 
-if TYPE_CHECKING:
-    from dexplan.model.hand.hand import Hand
-
 #: Random configurations whose fingertips fill a finger's reach voxels.
 REACH_SAMPLES = 20000
 #: Reach voxel edge (m).
 REACH_VOXEL = 0.004
+
+
+def reach_samples(finger: int, lower: FloatArray, upper: FloatArray) -> FloatArray:
+    """:data:`REACH_SAMPLES` random joint values ``(K, m)`` of ``finger`` (seeded by its index).
+
+    Args:
+        finger: finger index (the seed is ``1000 + finger``).
+        lower: (m,) the finger's lower joint limits.
+        upper: (m,) its upper joint limits.
+    """
+    rng = np.random.default_rng(1000 + finger)
+    return rng.uniform(lower, upper, size=(REACH_SAMPLES, len(lower)))
 
 
 @dataclass(frozen=True)
@@ -42,20 +50,8 @@ class ReachVoxels:
     occupied: np.ndarray
 
     @classmethod
-    def of_finger(cls, hand: Hand, finger: int) -> ReachVoxels:
-        """The voxels of ``finger``, by forward kinematics at random joints (fixed seed)."""
-        idx = hand.finger_q_index[finger]
-        rng = np.random.default_rng(1000 + finger)
-        qf = rng.uniform(hand.lower[idx], hand.upper[idx], size=(REACH_SAMPLES, len(idx)))
-        chain = hand._chains[finger]
-        if chain is not None:
-            tips = chain.tips(qf)
-        else:  # not a revolute chain: Pinocchio, fewer samples
-            q = hand.neutral.copy()
-            tips = np.empty((2000, 3))
-            for k, v in enumerate(qf[:2000]):
-                q[idx] = v
-                tips[k] = hand.fingertip_positions(q)[finger]
+    def from_tips(cls, tips: FloatArray) -> ReachVoxels:
+        """The voxels of fingertip centres ``tips: (K, 3)`` (world frame), dilated by one."""
         size = REACH_VOXEL
         origin = tips.min(axis=0) - 2 * size
         ijk = np.floor((tips - origin) / size).astype(np.int64)

@@ -415,7 +415,7 @@ def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
                     "a builtin hand defines its own"
                 )
         _only(h, "hand", HAND_BUILTIN_FIELDS)
-        from dexplan.model.hand.hand import BUILTIN_HANDS
+        from dexplan.model.hand.builtin import BUILTIN_HANDS
 
         builtin = h.get("builtin", "paper")
         if not isinstance(builtin, str) or builtin not in BUILTIN_HANDS:

@@ -1,24 +1,15 @@
-"""Vectorised inverse kinematics of serial fingers (many targets at once).
+"""Closed-form IK of an axis joint + planar 2R chain with at most one free joint.
 
-Two solvers, both working on whole batches of fingertip targets with NumPy:
-
-- :class:`SplitFingerIK`, closed form: a finger whose joints (after fixing at
-  most one *free* joint) are an axis joint followed by two parallel flexion
-  joints whose plane contains that axis ("abduction + planar 2R": the paper
-  hand's fingers, and the Allegro index, middle and ring with their distal
-  joint fixed, and the Allegro thumb with its first joint fixed). A 3-joint
-  finger has one solution per branch; a 4-joint finger is redundant, and the
-  free joint is resolved on a grid: every grid value is solved in closed form
-  and the solution nearest a reference configuration wins (the previous
-  joints when following a moving contact, the middle of the joint ranges when
-  sampling). See ``docs/hands.md``, "IK and redundancy".
-- :func:`batch_dls`: damped least squares over many targets at once, for any
-  revolute chain (:class:`FingerChain` gives vectorised forward kinematics and
-  the analytic position Jacobian).
-
-Frames: everything is in the world (= palm) frame. ``q`` arrays hold one
-finger's joints in chain order (root to tip), which is also the order of
-``Hand.finger_q_index[i]``.
+A finger whose joints (after fixing at most one *free* joint) are an axis
+joint followed by two parallel flexion joints whose plane contains that axis
+("abduction + planar 2R": the paper hand's fingers, and the Allegro index,
+middle and ring with their distal joint fixed, and the Allegro thumb with its
+first joint fixed). A 3-joint finger has one solution per branch; a 4-joint
+finger is redundant, and the free joint is resolved on a grid: every grid
+value is solved in closed form and the solution nearest a reference
+configuration wins (the previous joints when following a moving contact, the
+middle of the joint ranges when sampling). See ``docs/hands.md``, "IK and
+redundancy".
 """
 
 from __future__ import annotations
@@ -26,11 +17,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
-
-_REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"}
+from dexplan.model.hand.ik.chain import FingerChain
 
 #: Offsets (rad) of the free joint around its previous value tried when a
 #: redundant finger follows a moving contact.
@@ -42,163 +31,6 @@ TRACK_MAX_STEP = 0.04
 TRACK_RESOLUTION = 0.004
 #: Free-joint grid size when solving without a previous configuration.
 SAMPLE_GRID = 7
-
-
-def _skew(a: FloatArray) -> FloatArray:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
-class FingerChain:
-    """Forward kinematics of one finger, vectorised over configurations.
-
-    Built from the Pinocchio model: the finger's joints must all be revolute
-    and form a chain from the root to the fingertip frame (every joint of a
-    finger belongs to it, so the chain's base is fixed in the world).
-
-    Args:
-        placements: per joint, ``(R, t)`` of the joint frame in its parent
-            joint's frame at zero angle; ``R: (3, 3)``, ``t: (3,)``.
-        axes: (m, 3) joint axes in their own joint frames (unit).
-        tip: (3,) fingertip centre in the last joint's frame.
-    """
-
-    def __init__(
-        self, placements: list[tuple[FloatArray, FloatArray]], axes: FloatArray, tip: FloatArray
-    ) -> None:
-        self.placements = placements
-        self.axes = axes
-        self.tip = tip
-        self.m = len(placements)
-        # joint j's local transform at angle q, Rodrigues folded into its
-        # placement: [R_j + sin q (R_j K_j) + (1 - cos q) (R_j K_j^2), t_j],
-        # as (m, 3, 9) coefficients of (1, sin q, 1 - cos q) and a 4x4 template
-        terms = []
-        for (Rj, _), a in zip(placements, axes, strict=True):
-            K = _skew(a)
-            terms.append(np.stack([Rj, Rj @ K, Rj @ K @ K]).reshape(3, 9))
-        self._rodrigues = np.array(terms)
-        self._template = np.zeros((self.m, 4, 4))
-        for j, (_, tj) in enumerate(placements):
-            self._template[j, :3, 3] = tj
-            self._template[j, 3, 3] = 1.0
-        self._tip_h = np.append(np.asarray(tip, dtype=float), 1.0)
-
-    @classmethod
-    def from_model(cls, model: pin.Model, tip_frame_id: int) -> FingerChain | None:
-        """The chain ending in frame ``tip_frame_id``, or None if not all revolute."""
-        frame = model.frames[tip_frame_id]
-        jids = []
-        jid = frame.parentJoint
-        while jid > 0:
-            jids.append(jid)
-            jid = model.parents[jid]
-        jids.reverse()
-        if not jids or any(model.joints[j].shortname() not in _REVOLUTE for j in jids):
-            return None
-        data = model.createData()
-        q0 = pin.neutral(model)
-        J = pin.computeJointJacobians(model, data, q0)
-        placements, axes = [], []
-        for j in jids:
-            M = model.jointPlacements[j]
-            placements.append((np.array(M.rotation), np.array(M.translation)))
-            w = J[3:, model.joints[j].idx_v]
-            axes.append(data.oMi[j].rotation.T @ w)
-        axes_arr = np.array(axes)
-        axes_arr /= np.linalg.norm(axes_arr, axis=1, keepdims=True)
-        return cls(placements, axes_arr, np.array(frame.placement.translation))
-
-    def forward(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Forward kinematics of many configurations.
-
-        Args:
-            q: (N, m) joint values.
-
-        Returns:
-            ``tip: (N, 3)`` fingertip centres, ``origins: (N, m, 3)`` joint
-            origins and ``axes: (N, m, 3)`` unit joint axes, world frame.
-        """
-        q = np.asarray(q, dtype=float)
-        n = len(q)
-        # every joint's local 4x4 transform at once, then the chain products
-        coef = np.empty((n, self.m, 3))
-        coef[..., 0] = 1.0
-        coef[..., 1] = np.sin(q)
-        coef[..., 2] = 1.0 - np.cos(q)
-        A = np.repeat(self._template[None], n, axis=0)
-        A[..., :3, :3] = (coef[:, :, None, :] @ self._rodrigues).reshape(n, self.m, 3, 3)
-        T = np.empty((n, self.m, 4, 4))
-        T[:, 0] = A[:, 0]
-        for j in range(1, self.m):
-            T[:, j] = T[:, j - 1] @ A[:, j]
-        # joint j's origin is T_j's translation; its axis is fixed by its own rotation
-        origins = T[..., :3, 3]
-        axes = (T[..., :3, :3] @ self.axes[:, :, None])[..., 0]
-        return T[:, -1, :3, :] @ self._tip_h, origins, axes
-
-    def tips(self, q: FloatArray) -> FloatArray:
-        """Fingertip centres ``(N, 3)`` of configurations ``q: (N, m)``."""
-        return self.forward(q)[0]
-
-    def jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Tip centres ``(N, 3)`` and position Jacobians ``(N, 3, m)`` (world frame)."""
-        tip, origins, axes = self.forward(q)
-        return tip, np.cross(axes, tip[:, None, :] - origins).transpose(0, 2, 1)
-
-
-def batch_dls(
-    chain: FingerChain,
-    targets: FloatArray,
-    q0: FloatArray,
-    lo: FloatArray,
-    hi: FloatArray,
-    *,
-    tol: float = 1e-7,
-    max_iter: int = 40,
-) -> tuple[FloatArray, np.ndarray]:
-    """Damped least squares IK for many targets at once, within joint limits.
-
-    Steps ``dq = J^T (J J^T + lambda I)^-1 e`` with ``lambda = |e|^2 + 1e-9``
-    (as :meth:`dexplan.model.hand.hand.Hand.finger_ik`), clipped to the limits, for all
-    targets together; converged targets stop moving.
-
-    Args:
-        chain: the finger.
-        targets: (N, 3) fingertip-centre targets, world frame.
-        q0: (N, m) or (m,) start configurations (the solution stays near them).
-        lo: (m,) lower joint limits.
-        hi: (m,) upper joint limits.
-        tol: success threshold on the position error (m).
-        max_iter: iterations.
-
-    Returns:
-        ``q: (N, m)`` within limits and ``ok: (N,)`` (error below ``tol``).
-    """
-    targets = np.asarray(targets, dtype=float).reshape(-1, 3)
-    q = np.clip(np.broadcast_to(q0, (len(targets), chain.m)).astype(float), lo, hi)
-    active = np.arange(len(targets))
-    ok = np.zeros(len(targets), dtype=bool)
-    eye = np.eye(3)
-    for _ in range(max_iter):
-        if not len(active):
-            break
-        qa = q[active]
-        p, J = chain.jacobian(qa)
-        e = targets[active] - p
-        err2 = np.einsum("ij,ij->i", e, e)
-        done = err2 < tol * tol
-        ok[active[done]] = True
-        keep = ~done
-        active, qa, J, e, err2 = active[keep], qa[keep], J[keep], e[keep], err2[keep]
-        if not len(active):
-            break
-        A = J @ J.transpose(0, 2, 1) + (err2 + 1e-9)[:, None, None] * eye
-        dq = np.einsum("nji,nj->ni", J, np.linalg.solve(A, e[:, :, None])[:, :, 0])
-        q[active] = np.clip(qa + dq, lo, hi)
-    if len(active):
-        e = targets[active] - chain.tips(q[active])
-        ok[active] = np.einsum("ij,ij->i", e, e) < tol * tol
-    return q, ok
 
 
 _BRANCH = np.array([1.0, -1.0])
@@ -551,72 +383,103 @@ class SplitFingerIK:
             ``approach`` or when no solution is that near) and the solution
             nearest ``q_prev`` (None when there is none at these entries).
         """
-        tx, ty, tz = (float(x) for x in target)
-        ax_, ay_, az_ = (0.0, 0.0, 0.0) if approach is None else (float(x) for x in approach)
+        fr = self.free
+        assert fr is not None  # only redundant fingers have scalar rows
+        t = (float(target[0]), float(target[1]), float(target[2]))
+        app = (0.0, 0.0, 0.0) if approach is None else (float(x) for x in approach)
+        ax_, ay_, az_ = app
         prev = [float(x) for x in q_prev]
         ia, i1, i2 = self.sub
-        fr = self.free
-        lo, hi = self._lo_list, self._hi_list
         step = TRACK_MAX_STEP
         k0 = int(np.argmin(np.abs(self.table - prev[fr])))
         top = len(self.table) - 1
         best_score, best = -math.inf, None
         near_d, near = math.inf, None
-        pi, two_pi = math.pi, 2.0 * math.pi
         for d in TRACK_DELTAS:
-            k = min(max(k0 + d, 0), top)
-            (ox, oy, oz, ax, ay, az, bx, by, bz, nx, ny, nz, j1u, j1w, L1u, L1w, L2u, L2w,
-             l1l2s, l12, dphi, s2, lu, lw, inv_last, v) = self._rows[k]  # fmt: skip
-            px, py, pz = tx - ox, ty - oy, tz - oz
-            u = px * ax + py * ay + pz * az
-            pb = px * bx + py * by + pz * bz
-            pn = px * nx + py * ny + pz * nz
-            rho = math.sqrt(pb * pb + pn * pn)
-            app_a = ax_ * ax + ay_ * ay + az_ * az
-            app_b = ax_ * bx + ay_ * by + az_ * bz
-            app_n = ax_ * nx + ay_ * ny + az_ * nz
-            du = u - j1u
+            row = self._rows[min(max(k0 + d, 0), top)]
+            lu, lw, inv_last, v = row[-4:]
             dv = v - prev[fr]
-            for sgn in (1.0, -1.0):
-                th0 = (math.atan2(sgn * pn, sgn * pb) + pi) % two_pi - pi
-                if not (lo[ia] <= th0 <= hi[ia]):
+            for th0, q1, q2, turn, app_a, app_w in self._row_solutions(row, t, ax_, ay_, az_):
+                d0, d1, d2 = th0 - prev[ia], q1 - prev[i1], q2 - prev[i2]
+                dist = d0 * d0 + d1 * d1 + d2 * d2 + dv * dv
+                sol = None
+                if dist < near_d:
+                    sol = [0.0] * self.m
+                    sol[ia], sol[i1], sol[i2], sol[fr] = th0, q1, q2, v
+                    near_d, near = dist, sol
+                if approach is None or max(abs(d0), abs(d1), abs(d2), abs(dv)) > step:
                     continue
-                dw = sgn * rho - j1w
-                c = (du * du + dw * dw - l1l2s) / l12
-                if abs(c) > 1.0:
-                    continue
-                acs = math.acos(c)
-                base = math.atan2(dw, du)
-                # the plane's in-plane normal direction w is cos th0 b + sin th0 n
-                app_w = math.cos(th0) * app_b + math.sin(th0) * app_n
-                d0 = th0 - prev[ia]
-                for elbow in (1.0, -1.0):
-                    al2 = elbow * acs - dphi
-                    ca, sa = math.cos(al2), math.sin(al2)
-                    psi = base - math.atan2(L1w + sa * L2u + ca * L2w, L1u + ca * L2u - sa * L2w)
-                    q1 = (psi + pi) % two_pi - pi
-                    q2 = (s2 * al2 + pi) % two_pi - pi
-                    if not (lo[i1] <= q1 <= hi[i1] and lo[i2] <= q2 <= hi[i2]):
-                        continue
-                    d1, d2 = q1 - prev[i1], q2 - prev[i2]
-                    dist = d0 * d0 + d1 * d1 + d2 * d2 + dv * dv
-                    sol = None
-                    if dist < near_d:
+                ct, st = math.cos(turn), math.sin(turn)
+                align = ((ct * lu - st * lw) * app_a + (st * lu + ct * lw) * app_w) * inv_last
+                if align - dist > best_score:
+                    if sol is None:
                         sol = [0.0] * self.m
                         sol[ia], sol[i1], sol[i2], sol[fr] = th0, q1, q2, v
-                        near_d, near = dist, sol
-                    if approach is None or max(abs(d0), abs(d1), abs(d2), abs(dv)) > step:
-                        continue
-                    turn = psi + al2
-                    ct, st = math.cos(turn), math.sin(turn)
-                    align = ((ct * lu - st * lw) * app_a + (st * lu + ct * lw) * app_w) * inv_last
-                    if align - dist > best_score:
-                        if sol is None:
-                            sol = [0.0] * self.m
-                            sol[ia], sol[i1], sol[i2], sol[fr] = th0, q1, q2, v
-                        best_score, best = align - dist, sol
-        clip = lambda x: None if x is None else np.clip(np.array(x), self.lo, self.hi)  # noqa: E731
-        return clip(best), clip(near)
+                    best_score, best = align - dist, sol
+        return self._clipped(best), self._clipped(near)
+
+    def _clipped(self, q: list[float] | None) -> FloatArray | None:
+        return None if q is None else np.clip(np.array(q), self.lo, self.hi)
+
+    def _row_solutions(
+        self,
+        row: tuple[float, ...],
+        target: tuple[float, float, float],
+        ax_: float,
+        ay_: float,
+        az_: float,
+    ) -> list[tuple[float, float, float, float, float, float]]:
+        """The closed-form solutions within limits at one table entry, in scalar arithmetic.
+
+        Args:
+            row: the entry's constants (see :meth:`_scalar_rows`).
+            target: fingertip-centre target, world frame.
+            ax_: the approach direction's world x (0 without one).
+            ay_: its world y.
+            az_: its world z.
+
+        Returns:
+            Per solution ``(q_axis, q_flex1, q_flex2, turn, app_a, app_w)``:
+            the three sub-chain joints, the last link's in-plane turn, and the
+            approach direction's coordinates along the axis and the plane's
+            in-plane direction.
+        """
+        (ox, oy, oz, ax, ay, az, bx, by, bz, nx, ny, nz, j1u, j1w, L1u, L1w, L2u, L2w,
+         l1l2s, l12, dphi, s2, _, _, _, _) = row  # fmt: skip
+        ia, i1, i2 = self.sub
+        lo, hi = self._lo_list, self._hi_list
+        pi, two_pi = math.pi, 2.0 * math.pi
+        px, py, pz = target[0] - ox, target[1] - oy, target[2] - oz
+        u = px * ax + py * ay + pz * az
+        pb = px * bx + py * by + pz * bz
+        pn = px * nx + py * ny + pz * nz
+        rho = math.sqrt(pb * pb + pn * pn)
+        app_a = ax_ * ax + ay_ * ay + az_ * az
+        app_b = ax_ * bx + ay_ * by + az_ * bz
+        app_n = ax_ * nx + ay_ * ny + az_ * nz
+        du = u - j1u
+        out = []
+        for sgn in (1.0, -1.0):
+            th0 = (math.atan2(sgn * pn, sgn * pb) + pi) % two_pi - pi
+            if not (lo[ia] <= th0 <= hi[ia]):
+                continue
+            dw = sgn * rho - j1w
+            c = (du * du + dw * dw - l1l2s) / l12
+            if abs(c) > 1.0:
+                continue
+            acs = math.acos(c)
+            base = math.atan2(dw, du)
+            # the plane's in-plane normal direction w is cos th0 b + sin th0 n
+            app_w = math.cos(th0) * app_b + math.sin(th0) * app_n
+            for elbow in (1.0, -1.0):
+                al2 = elbow * acs - dphi
+                ca, sa = math.cos(al2), math.sin(al2)
+                psi = base - math.atan2(L1w + sa * L2u + ca * L2w, L1u + ca * L2u - sa * L2w)
+                q1 = (psi + pi) % two_pi - pi
+                q2 = (s2 * al2 + pi) % two_pi - pi
+                if lo[i1] <= q1 <= hi[i1] and lo[i2] <= q2 <= hi[i2]:
+                    out.append((th0, q1, q2, psi + al2, app_a, app_w))
+        return out
 
     def options_near(
         self, target: FloatArray, q_prev: FloatArray, approach: FloatArray
@@ -692,65 +555,3 @@ class SplitFingerIK:
         last = (ct * lu - st * lw)[:, None] * a + (st * lu + ct * lw)[:, None] * w
         last /= np.hypot(lu, lw)[:, None]
         return last, np.cos(th0) * n - np.sin(th0) * b
-
-
-def planar_branches(solver, targets: FloatArray) -> tuple[FloatArray, np.ndarray, FloatArray]:
-    """Every branch of a closed-form abduction + planar 2R finger for many targets.
-
-    ``solver`` is the hand's closed-form 3-joint solver (``dexplan.model.hand.hand``'s
-    ``_PlanarFingerIK``: geometry ``o0, a0, e, b, k, l1, l2, s``, limits
-    ``lo, hi``). Branch order and arithmetic are those of its ``solve`` (the
-    same scalar operations), so that :func:`nearest_branch` picks bit for bit
-    the solution ``solve`` returns.
-
-    Args:
-        solver: the closed-form solver.
-        targets: (N, 3) fingertip-centre targets, world frame.
-
-    Returns:
-        ``q: (N, 4, 3)`` unclipped branch solutions, ``ok: (N, 4)`` branches
-        within the limits (1e-12 tolerance), and ``q_clipped: (N, 4, 3)``.
-    """
-    n = len(targets)
-    q = np.zeros((n, 4, 3))
-    ok = np.zeros((n, 4), dtype=bool)
-    lo, hi = solver.lo - 1e-12, solver.hi + 1e-12
-    l1, l2 = solver.l1, solver.l2
-    # scalar math, as the solver's own: NumPy's vectorised transcendental
-    # functions may differ from libm's in the last bit (numpy 2.4 SIMD loops)
-    for i in range(n):
-        p = targets[i] - solver.o0
-        u = float(p @ solver.a0) * solver.s
-        pe, pb = float(p @ solver.e), float(p @ solver.b)
-        r = math.hypot(pe, pb)
-        base = math.atan2(pb, pe)
-        for a, (th0, w) in enumerate(
-            ((base, r - solver.k), (base - math.copysign(math.pi, base), -r - solver.k))
-        ):
-            c2 = (w * w + u * u - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-            valid = abs(c2) <= 1.0
-            acos = math.acos(min(1.0, max(-1.0, c2)))
-            for sgn, th2 in enumerate((acos, -acos)):
-                th1 = math.atan2(u, w) - math.atan2(l2 * math.sin(th2), l1 + l2 * math.cos(th2))
-                th1 = (th1 + math.pi) % (2 * math.pi) - math.pi
-                col = 2 * a + sgn
-                q[i, col] = (th0, th1, th2)
-                ok[i, col] = valid and bool(np.all((q[i, col] >= lo) & (q[i, col] <= hi)))
-    return q, ok, np.clip(q, solver.lo, solver.hi)
-
-
-def nearest_branch(
-    q: FloatArray, ok: np.ndarray, q_clipped: FloatArray, q_near: FloatArray
-) -> FloatArray | None:
-    """The branch of one target (rows of :func:`planar_branches`) nearest ``q_near``.
-
-    ``q: (4, 3)``, ``ok: (4,)``, ``q_clipped: (4, 3)``; the first of equally
-    near branches wins, as in the scalar solver. None when no branch is valid.
-    """
-    best, best_d = -1, math.inf
-    for j in range(4):
-        if ok[j]:
-            d = float(np.sum((q[j] - q_near) ** 2))
-            if d < best_d:
-                best, best_d = j, d
-    return None if best < 0 else q_clipped[best]

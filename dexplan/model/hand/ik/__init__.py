@@ -1,0 +1,42 @@
+"""Inverse kinematics of serial fingers, one module per solver.
+
+- :mod:`.planar` (:class:`PlanarFingerIK`): closed form for an abduction
+  joint followed by a planar 2R chain (3 joints).
+- :mod:`.split` (:class:`SplitFingerIK`): the same closed form after fixing
+  at most one free joint, vectorised over targets; 4-joint fingers resolve
+  the free joint on a grid (see ``docs/hands.md``, "IK and redundancy").
+- :mod:`.numeric` (:func:`batch_dls`, :func:`finger_dls`): damped least
+  squares for any revolute chain, batched or one target with restarts.
+- :mod:`.chain` (:class:`FingerChain`): vectorised forward kinematics and
+  position Jacobian of a revolute finger.
+
+Frames: everything is in the world (= palm) frame. ``q`` arrays hold one
+finger's joints in chain order (root to tip), which is also the order of
+``Hand.finger_q_index[i]``.
+"""
+
+from dexplan.model.hand.ik.chain import FingerChain
+from dexplan.model.hand.ik.numeric import IKResult, batch_dls, finger_dls
+from dexplan.model.hand.ik.planar import PlanarFingerIK, nearest_branch, planar_branches
+from dexplan.model.hand.ik.split import (
+    SAMPLE_GRID,
+    TRACK_DELTAS,
+    TRACK_MAX_STEP,
+    TRACK_RESOLUTION,
+    SplitFingerIK,
+)
+
+__all__ = [
+    "SAMPLE_GRID",
+    "TRACK_DELTAS",
+    "TRACK_MAX_STEP",
+    "TRACK_RESOLUTION",
+    "FingerChain",
+    "IKResult",
+    "PlanarFingerIK",
+    "SplitFingerIK",
+    "batch_dls",
+    "finger_dls",
+    "nearest_branch",
+    "planar_branches",
+]
