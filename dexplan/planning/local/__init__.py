@@ -3,7 +3,6 @@
 __all__ = [
     "contact_paths",
     "geodesic_motion",
-    "landings",
     "reduction",
     "smoothing",
     "transitions",

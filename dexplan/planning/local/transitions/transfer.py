@@ -1,0 +1,204 @@
+"""The transfer local planner (paper, section IV).
+
+Contacts fixed in the object frame; the object follows a given pose sequence
+(straight line in position, slerp in orientation between samples); every
+finger follows by IK. A transfer moves the grasp rigidly, so force closure and
+fingertip spacing are constant along it and are checked where the grasp is
+made; joint limits (kept :attr:`TransitionSettings.joint_margin` away: joint
+steps blow up near full extension) and link collisions are checked at every
+waypoint. Waypoints are at most ``max_step_m`` / ``max_step_rad`` apart in
+object position, object rotation and every joint.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dexplan.core.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.core.segments import Waypoint
+from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
+from dexplan.planning.local.transitions.checks import FingerChecks
+from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.settings import TransitionSettings
+
+#: Times a transfer step whose joints jump is halved before it gives up.
+_MAX_HALVINGS = 4
+
+
+def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> FloatArray:
+    """Insert poses so consecutive ones differ by at most the given steps.
+
+    Args:
+        poses: (P, 7) object poses, XYZW.
+        max_step_m: largest translation between consecutive poses (m).
+        max_step_rad: largest rotation between consecutive poses (rad).
+
+    Returns:
+        (P', 7) poses, straight line in position and slerp in orientation
+        between the given ones, the quaternions' signs continuous (each
+        interpolation starts from the previous output, so a given pose whose
+        quaternion has the other sign comes out negated, the same rotation).
+    """
+    out = [poses[0]]
+    for b in poses[1:]:
+        a = out[-1]
+        d = float(np.linalg.norm(b[:3] - a[:3]))
+        ang = quat_angle(a[3:], b[3:])
+        k = max(1, math.ceil(max(d / max_step_m, ang / max_step_rad)))
+        out.extend(interpolate_pose(a, b, j / k) for j in range(1, k + 1))
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class TransferResult:
+    """Outcome of :meth:`TransferPlanner.transfer`.
+
+    Attributes:
+        waypoints: waypoints from the start pose to the last valid one.
+        reached: index in the pose sequence of the last pose reached.
+        blocking: finger that stopped the transfer (IK, joint limit or link
+            collision), or None when the end was reached or the object collided.
+        reason: why it stopped, or None when it reached the end.
+    """
+
+    waypoints: tuple[Waypoint, ...]
+    reached: int
+    blocking: int | None
+    reason: str | None
+
+
+class TransferPlanner:
+    """Transfers of a fixed grasp along object poses.
+
+    Args:
+        hand: the hand.
+        settings: the local planners' settings.
+        checks: the per-finger collision checks and joint bounds.
+        stats: the local planners' counters (``transfers`` counted here).
+    """
+
+    def __init__(
+        self,
+        hand: Hand,
+        settings: TransitionSettings,
+        checks: FingerChecks,
+        stats: dict[str, int],
+    ) -> None:
+        self.hand = hand
+        self.settings = settings
+        self.checks = checks
+        self.stats = stats
+        self._finger_of_joint = np.zeros(hand.nq, dtype=np.int64)
+        for i, idx in enumerate(hand.finger_q_index):
+            self._finger_of_joint[idx] = i
+
+    def transfer(
+        self, poses: FloatArray, start: int, q_start: FloatArray, grasp: GraspContacts
+    ) -> TransferResult:
+        """Follow ``poses[start:]`` with a fixed grasp for as long as it stays valid.
+
+        Args:
+            poses: (P, 7) dense object trajectory (see :func:`densify_poses`).
+            start: index of the current pose in ``poses``.
+            q_start: (nq,) hand configuration at ``poses[start]``.
+            grasp: contacts held during the transfer.
+
+        Returns:
+            A :class:`TransferResult`; its waypoints start at ``poses[start]``.
+        """
+        self.stats["transfers"] += 1
+        contacts = grasp.as_tuple()
+        wps = [Waypoint(poses[start].copy(), q_start.copy(), contacts)]
+        q = q_start
+        for j in range(start + 1, len(poses)):
+            if self.checks.world.object_collides(poses[j]):
+                return TransferResult(tuple(wps), j - 1, None, "object_collision")
+            steps = self._advance(poses[j - 1], poses[j], q, grasp, depth=0)
+            if isinstance(steps, tuple):
+                return TransferResult(tuple(wps), j - 1, steps[0], steps[1])
+            for pose_k, q_k in steps:
+                wps.append(Waypoint(pose_k, q_k, contacts))
+            q = steps[-1][1]
+        return TransferResult(tuple(wps), len(poses) - 1, None, None)
+
+    def _advance(self, pa, pb, q_a, grasp, depth):
+        """Waypoints from pose ``pa`` (at ``q_a``) to ``pb``, subdividing big joint steps.
+
+        Returns a list of (pose, q) ending at ``pb``, or (blocking finger, reason).
+        """
+        q_b, blocking, reason = self._solve_all(pb, grasp, q_a)
+        if blocking is not None:
+            return (blocking, reason)
+        if np.max(np.abs(q_b - q_a)) > self.settings.max_step_rad:
+            if depth >= _MAX_HALVINGS:
+                return (int(self._finger_of_joint[np.argmax(np.abs(q_b - q_a))]), "joint_jump")
+            mid = interpolate_pose(pa, pb, 0.5)
+            first = self._advance(pa, mid, q_a, grasp, depth + 1)
+            if isinstance(first, tuple):
+                return first
+            second = self._advance(mid, pb, first[-1][1], grasp, depth + 1)
+            if isinstance(second, tuple):
+                return second
+            return first + second
+        free, finger = self._collision_finger(q_b, pb, self.checks.all_contact)
+        if not free and finger is not None:
+            q_alt = self._other_posture(finger, pb, q_a, q_b, grasp)
+            if q_alt is not None:
+                q_b, free = q_alt, True
+        if not free:
+            return (finger, "collision")
+        return [(pb.copy(), q_b)]
+
+    def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):
+        """IK of every finger at ``pose``: ``(q, blocking finger or None, reason)``."""
+        targets = grasp.tip_centres(pose, self.hand.fingertip_radius)
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        inward = -grasp.normals_out @ R.T  # (n, 3) world frame
+        q = q_prev.copy()
+        for i in range(self.hand.n_fingers):
+            idx = self.hand.finger_q_index[i]
+            q_f = self.hand.finger_ik_fast(i, targets[i], q, inward[i])
+            if q_f is None:
+                return q, i, "ik"
+            if np.any(q_f < self.checks.lo[idx]) or np.any(q_f > self.checks.hi[idx]):
+                return q, i, "joint_limit"
+            q[idx] = q_f
+        return q, None, None
+
+    def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:
+        """(collision-free, finger involved in the first collision or None)."""
+        rep = self.checks.world.check(q, pose, mask)
+        if rep.free:
+            return True, None
+        if rep.pair is None:  # contact penetration: blame nobody in particular
+            return False, None
+        fingers = [self.checks.world.finger_of(n) for n in rep.pair]
+        fingers = [f for f in fingers if f is not None]
+        return False, (fingers[0] if fingers else None)
+
+    def _other_posture(
+        self, finger: int, pose: FloatArray, q_a: FloatArray, q_b: FloatArray, grasp: GraspContacts
+    ) -> FloatArray | None:
+        """``q_b`` with ``finger`` in another collision-free posture one step from ``q_a``.
+
+        Redundant fingers reach a contact in many postures; when the one
+        chosen collides, the others within a tracking step are tried (best
+        aligned with the surface normal first). None when none is free.
+        """
+        hand = self.hand
+        idx = hand.finger_q_index[finger]
+        R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
+        tip = grasp.tip_centres(pose, self.hand.fingertip_radius)[finger]
+        inward = -(R @ grasp.normals_out[finger])
+        options = hand.finger_ik_alternatives(finger, tip, q_a, inward)
+        lo, hi = self.checks.lo[idx], self.checks.hi[idx]
+        others = (
+            q_f
+            for q_f in options[: self.settings.posture_options]
+            if not (np.any(q_f < lo) or np.any(q_f > hi) or np.array_equal(q_f, q_b[idx]))
+        )
+        return self.checks.first_free(q_b, idx, others, pose)
