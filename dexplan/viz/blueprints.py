@@ -5,16 +5,19 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dexplan.viz.session import PLAN_STEP, REJECTED_SAMPLE, ROADMAP_NODE, rerun_module
+
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun.blueprint
 
 # Default 3D camera (the hand's workspace, seen from the front right).
 EYE = [0.19, -0.22, 0.21]
 LOOK_AT = [0.0, 0.0, 0.06]
 
 
-def _world_view(name: str) -> Any:
+def _world_view(name: str) -> rerun.blueprint.Spatial3DView:
     """The 3D view of ``world`` from the default camera, z up."""
     rrb = rerun_module().blueprint
     return rrb.Spatial3DView(
@@ -24,13 +27,15 @@ def _world_view(name: str) -> Any:
     )
 
 
-def _world_beside(name: str, side: Any) -> Any:
+def _world_beside(
+    name: str, side: rerun.blueprint.View | rerun.blueprint.Container
+) -> rerun.blueprint.Horizontal:
     """The 3D view of ``world`` (three quarters of the width) with ``side`` on its right."""
     rrb = rerun_module().blueprint
     return rrb.Horizontal(_world_view(name), side, column_shares=[3, 1])
 
 
-def roadmap_blueprint(with_scene: bool) -> Any:
+def roadmap_blueprint(with_scene: bool) -> rerun.blueprint.Blueprint:
     """A roadmap: the 3D view and the component table (the node timeline with a scene)."""
     rrb = rerun_module().blueprint
     side = rrb.Vertical(
@@ -45,7 +50,7 @@ def roadmap_blueprint(with_scene: bool) -> Any:
     )
 
 
-def plan_blueprint(has_roadmap: bool) -> Any:
+def plan_blueprint(has_roadmap: bool) -> rerun.blueprint.Blueprint:
     """A plan: the 3D view beside the FC plot, mode lanes, segment log and summaries."""
     rrb = rerun_module().blueprint
     side = [
@@ -78,7 +83,7 @@ def plan_blueprint(has_roadmap: bool) -> Any:
     )
 
 
-def rejections_blueprint() -> Any:
+def rejections_blueprint() -> rerun.blueprint.Blueprint:
     """Rejected samples: the 3D view and the log of why each was rejected."""
     rrb = rerun_module().blueprint
     return rrb.Blueprint(
@@ -88,7 +93,7 @@ def rejections_blueprint() -> Any:
     )
 
 
-def replay_blueprint() -> Any:
+def replay_blueprint() -> rerun.blueprint.Blueprint:
     """A physics replay: the plan and the replay side by side, the object error below."""
     rrb = rerun_module().blueprint
     return rrb.Blueprint(

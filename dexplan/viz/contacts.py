@@ -8,19 +8,27 @@ quality of the holding grasp and the minimum over its subgrasps
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dexplan.core.errors import DexplanError
+from dexplan.core.pose import inverse_transform_points, transform_points
+from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
+from dexplan.model.grasp import force_closure_quality, min_subgrasp_quality
+from dexplan.planfile import fingertip_contact
+from dexplan.viz.scene import Scene
 from dexplan.viz.session import finger_color, plan_index, rerun_module, rgba, set_step
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.core.segments import Segment
-    from dexplan.viz.scene import Scene
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
+
+QualityFunctions = tuple[Callable[..., float], Callable[..., float]]
+"""``(quality of a grasp, minimum over its subgrasps)``, called as
+``f(points (k, 3), inward normals (k, 3), mu, *, edges, torque_scale, contact_model, torsion)``."""
 
 
 # --------------------------------------------------------------- geometry
@@ -62,17 +70,13 @@ def _contact_strips(
 
 
 # ---------------------------------------------------------- force closure
-def fc_functions() -> tuple[Any, Any] | None:
-    """``(force_closure_quality, min_subgrasp_quality)``, or None without the grasp models."""
-    try:
-        from dexplan.model.grasp import force_closure_quality, min_subgrasp_quality
-    except ImportError:
-        return None
+def fc_functions() -> QualityFunctions:
+    """``(force_closure_quality, min_subgrasp_quality)`` of :mod:`dexplan.model.grasp`."""
     return force_closure_quality, min_subgrasp_quality
 
 
 def _fc_values(
-    fc: tuple[Any, Any],
+    fc: QualityFunctions,
     pts: list[FloatArray],
     nrm: list[FloatArray],
     scene: Scene,
@@ -117,12 +121,9 @@ class _ContactSeries:
 
 
 def _contact_series(
-    scene: Scene, segments: Sequence[Segment], fc: tuple[Any, Any] | None
+    scene: Scene, segments: Sequence[Segment], fc: QualityFunctions
 ) -> _ContactSeries:
     """Contact points, cone strips and FC values at every waypoint of the plan."""
-    from dexplan.core.pose import inverse_transform_points, transform_points
-    from dexplan.planfile import fingertip_contact
-
     hand, obj = scene.hand, scene.obj
     assert hand is not None and obj is not None
     n = hand.n_fingers
@@ -158,19 +159,17 @@ def _contact_series(
             out.points[i].append(pts_w[:1])
             out.strips[i].extend(np.split(pts_w[1:], np.cumsum(strip_sizes)))
             out.n_strips[i].append(len(strip_sizes) + 1)
-        full, sub = None, None
-        if fc is not None:
-            key_fc = b"".join(p.tobytes() for p in pts_obj) + bytes(w.contact_mask())
-            if key_fc not in fc_cache:
-                fc_cache[key_fc] = _fc_values(fc, pts_obj, nrm_in, scene, ts, n)
-            full, sub = fc_cache[key_fc]
+        key_fc = b"".join(p.tobytes() for p in pts_obj) + bytes(w.contact_mask())
+        if key_fc not in fc_cache:
+            fc_cache[key_fc] = _fc_values(fc, pts_obj, nrm_in, scene, ts, n)
+        full, sub = fc_cache[key_fc]
         out.full_q.append(full)
         out.sub_q.append(sub)
     return out
 
 
 # ---------------------------------------------------------------- logging
-def _log_styles(rec: Any, n: int, have_fc: bool) -> None:
+def _log_styles(rec: rerun.RecordingStream, n: int) -> None:
     """Static colours and sizes of the contact points, cones and FC lines."""
     rr = rerun_module()
     for i in range(n):
@@ -194,18 +193,11 @@ def _log_styles(rec: Any, n: int, have_fc: bool) -> None:
         rr.SeriesLines(colors=[[230, 90, 40, 255]], names=["min over subgrasps"], widths=[2.0]),
         static=True,
     )
-    if not have_fc:
-        rec.log(
-            "plan/segment",
-            rr.TextLog(
-                "force-closure quality not recorded: dexplan.model.grasp is unavailable",
-                level=rr.TextLogLevel.WARN,
-            ),
-            static=True,
-        )
 
 
-def _send_contacts(rec: Any, series: _ContactSeries, indexes: list[Any]) -> None:
+def _send_contacts(
+    rec: rerun.RecordingStream, series: _ContactSeries, indexes: list[rerun.TimeColumn]
+) -> None:
     """Each finger's contact point and cone strips, one (maybe empty) batch per step."""
     rr = rerun_module()
     for i in range(series.n):
@@ -222,7 +214,7 @@ def _send_contacts(rec: Any, series: _ContactSeries, indexes: list[Any]) -> None
         )
 
 
-def _send_fc(rec: Any, series: _ContactSeries) -> None:
+def _send_fc(rec: rerun.RecordingStream, series: _ContactSeries) -> None:
     """The two FC series where defined, cleared (a gap in the line) where not."""
     rr = rerun_module()
     for path, values in (("plan/fc/full", series.full_q), ("plan/fc/min_subgrasp", series.sub_q)):
@@ -238,7 +230,10 @@ def _send_fc(rec: Any, series: _ContactSeries) -> None:
 
 
 def log_contacts_and_fc(
-    rec: Any, scene: Scene, segments: Sequence[Segment], indexes: list[Any]
+    rec: rerun.RecordingStream,
+    scene: Scene,
+    segments: Sequence[Segment],
+    indexes: list[rerun.TimeColumn],
 ) -> None:
     """Log contact points, friction cones and force-closure quality per step (as columns).
 
@@ -253,9 +248,7 @@ def log_contacts_and_fc(
         indexes: the ``plan_step`` and ``time`` columns, one row per waypoint.
     """
     assert scene.hand is not None
-    fc = fc_functions()
-    _log_styles(rec, scene.hand.n_fingers, fc is not None)
-    series = _contact_series(scene, segments, fc)
+    _log_styles(rec, scene.hand.n_fingers)
+    series = _contact_series(scene, segments, fc_functions())
     _send_contacts(rec, series, indexes)
-    if fc is not None:
-        _send_fc(rec, series)
+    _send_fc(rec, series)

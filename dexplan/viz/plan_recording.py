@@ -8,10 +8,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from dexplan.core.segments import Segment, count_kinds
+from dexplan.planfile import segments_from_dicts
+from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.viz.blueprints import plan_blueprint
 from dexplan.viz.contacts import log_contacts_and_fc
 from dexplan.viz.roadmap_recording import log_roadmap
-from dexplan.viz.scene import log_scene_static, scene_from_doc, send_configurations
+from dexplan.viz.scene import (
+    HandLayout,
+    Scene,
+    log_scene_static,
+    scene_from_doc,
+    send_configurations,
+)
 from dexplan.viz.session import (
     GREY,
     STEP_SECONDS,
@@ -23,10 +32,8 @@ from dexplan.viz.session import (
     set_step,
 )
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.core.segments import Segment
-    from dexplan.planning.roadmap.roadmap import Roadmap
-    from dexplan.viz.scene import HandLayout, Scene
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
 
 _TRANSFER_COLOR = [70, 130, 220, 255]
 _REGRASP_COLOR = [240, 150, 40, 255]
@@ -69,8 +76,6 @@ def record_plan(
 
     """
     rr = rerun_module()
-    from dexplan.planfile.document import segments_from_dicts
-
     scene = scene_from_doc(doc, Path(base_dir))  # validates the document
     segments = segments_from_dicts(doc["segments"])
     assert scene.hand is not None and scene.obj is not None
@@ -98,11 +103,13 @@ def record_plan(
             log_contacts_and_fc(rec, scene, segments, indexes)
 
 
-def _plan_summary_markdown(doc: Mapping[str, Any], n_steps: int, segments: Sequence) -> str:
+def _plan_summary_markdown(
+    doc: Mapping[str, Any], n_steps: int, segments: Sequence[Segment]
+) -> str:
     """The plan's summary: segments, waypoints, friction and its stats, in Markdown."""
     stats = doc.get("stats") or {}
-    n_tr = sum(s.kind == "transfer" for s in segments)
-    n_rg = sum(s.kind == "regrasp" for s in segments)
+    kinds = count_kinds(tuple(segments))
+    n_tr, n_rg = kinds["transfers"], kinds["regrasps"]
     lines = [
         f"## Plan {doc.get('scenario', '')}".rstrip(),
         "",
@@ -119,7 +126,7 @@ def _plan_summary_markdown(doc: Mapping[str, Any], n_steps: int, segments: Seque
     return "\n".join(lines) + "\n"
 
 
-def _log_state_lanes(rec: Any, n: int) -> None:
+def _log_state_lanes(rec: rerun.RecordingStream, n: int) -> None:
     """The static values and colours of the mode and free-finger lanes."""
     rr = rerun_module()
     rec.log(
@@ -146,7 +153,10 @@ def _segment_text(si: int, seg: Segment, first: int, last: int) -> str:
 
 
 def _log_plan_states(
-    rec: Any, scene: Scene, layout: HandLayout | None, segments: Sequence[Segment]
+    rec: rerun.RecordingStream,
+    scene: Scene,
+    layout: HandLayout | None,
+    segments: Sequence[Segment],
 ) -> None:
     """Segment log, mode and free-finger lanes, and the free finger's colour."""
     rr = rerun_module()
@@ -169,16 +179,17 @@ def _log_plan_states(
         step = last + 1
 
 
-def _recolor_fingers(rec: Any, layout: HandLayout, free: int | None) -> None:
+def _recolor_fingers(rec: rerun.RecordingStream, layout: HandLayout, free: int | None) -> None:
     """Colour the free finger's links in its colour and the others grey (at the current step)."""
     for gpath, kind, finger in layout.geoms:
         if finger is None:
             continue
         color = finger_color(finger) if finger == free else GREY
-        rec.log(gpath, kind.from_fields(**_color_fields(kind, color)))
+        # every archetype class has from_fields; their common base does not declare it
+        rec.log(gpath, kind.from_fields(**_color_fields(kind, color)))  # type: ignore[attr-defined]
 
 
-def _color_fields(kind: type, color: Sequence[int]) -> dict[str, Any]:
+def _color_fields(kind: type[rerun.AsComponents], color: Sequence[int]) -> dict[str, Any]:
     """The colour field of an archetype type (a mesh's albedo, else its colours)."""
     rr = rerun_module()
     if kind is rr.Mesh3D:

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from dexplan.model.scenario.scenario import Scenario
+from dexplan.planning.gsn.validity import RejectedSample
 from dexplan.viz.blueprints import rejections_blueprint
 from dexplan.viz.scene import log_scene_static, scene_from_scenario, send_configurations
 from dexplan.viz.session import REJECTED_SAMPLE, recording, rerun_module
 
 
-def record_rejections(samples: Sequence[Any], path: str | Path, *, scenario: Any) -> int:
+def record_rejections(
+    samples: Sequence[RejectedSample], path: str | Path, *, scenario: Scenario
+) -> int:
     """Write a Rerun recording of states the validity checker rejected (``--debug-rrd``).
 
     Each sample (a :class:`~dexplan.planning.gsn.validity.RejectedSample`) is one

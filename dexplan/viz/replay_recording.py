@@ -10,24 +10,65 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from dexplan.core.typing import FloatArray
+from dexplan.planfile import hand_from_plan, shape_of
 from dexplan.viz.blueprints import replay_blueprint
 from dexplan.viz.scene import obstacles_from_dicts
-from dexplan.viz.session import recording, rerun_module, transform
+from dexplan.viz.session import TIME, recording, rerun_module, transform
 from dexplan.viz.shapes import shape_archetype
 
-__all__ = ["record_replay"]
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
+
+__all__ = ["ReplayTrace", "record_replay"]
 
 _PLAN = (90, 140, 230, 255)
 _REPLAY = (230, 120, 60, 255)
 _OBSTACLE = (150, 150, 150, 120)
 
 
+class ReplayTrace(Protocol):
+    """What a recording reads of a replay: a ``ReplayResult`` of :mod:`dexplan.execution.replay`.
+
+    Arrays have one row per trajectory sample; poses are ``[x, y, z, qx, qy, qz, qw]``
+    in the world frame.
+    """
+
+    @property
+    def t(self) -> FloatArray:
+        """``(m,)`` sample times (s from the trajectory's start)."""
+
+    @property
+    def planned_pose(self) -> FloatArray:
+        """``(m, 7)`` the plan's object pose at the sample times."""
+
+    @property
+    def sim_pose(self) -> FloatArray:
+        """``(m, 7)`` the simulated object pose."""
+
+    @property
+    def planned_q(self) -> FloatArray:
+        """``(m, nq)`` the planned joints at the sample times."""
+
+    @property
+    def sim_q(self) -> FloatArray:
+        """``(m, nq)`` the simulated joints."""
+
+    @property
+    def position_error(self) -> FloatArray:
+        """``(m,)`` distance between the simulated and planned object positions (m)."""
+
+    @property
+    def angle_error(self) -> FloatArray:
+        """``(m,)`` angle between the simulated and planned object orientations (rad)."""
+
+
 def record_replay(
-    doc: Mapping[str, Any], result: Any, path: str | Path, *, base_dir: str | Path = "."
+    doc: Mapping[str, Any], result: ReplayTrace, path: str | Path, *, base_dir: str | Path = "."
 ) -> Path:
     """Write a recording of a plan and its replay's result.
 
@@ -43,13 +84,11 @@ def record_replay(
         ``path``.
     """
     rr = rerun_module()
-    from dexplan.planfile import hand_from_plan, shape_of
-
     base_dir = Path(base_dir)
     hand = hand_from_plan(doc["hand"])
     obj = shape_of(doc["object"], base_dir, "object")
     obstacles = obstacles_from_dicts(doc.get("obstacles", []), base_dir)
-    idx = [rr.TimeColumn("time", duration=np.asarray(result.t, dtype=float))]
+    idx = [rr.TimeColumn(TIME, duration=np.asarray(result.t, dtype=float))]
     # the planned joints at the sample times: the replay's trajectory samples
     planned_q = np.asarray(result.planned_q, dtype=float)
     sides = (
@@ -82,15 +121,15 @@ def record_replay(
 
 
 def _send_side(
-    rec: Any,
+    rec: rerun.RecordingStream,
     side: str,
     color: tuple[int, ...],
-    poses: np.ndarray,
-    tips: np.ndarray,
-    idx: list[Any],
+    poses: FloatArray,
+    tips: FloatArray,
+    idx: list[rerun.TimeColumn],
     tip_radius: float,
 ) -> None:
-    """One side's object poses and fingertip positions, as columns on ``time``."""
+    """One side's object poses ``(m, 7)`` and fingertip positions ``(m, n, 3)``, on ``time``."""
     rr = rerun_module()
     rec.send_columns(
         f"world/{side}/object",

@@ -8,16 +8,24 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from dexplan.core.errors import PlanFileError
-from dexplan.core.typing import FloatArray
+from dexplan.core.typing import FloatArray, IntArray
+from dexplan.model.scenario.scenario import Scenario
+from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.viz.blueprints import roadmap_blueprint
-from dexplan.viz.scene import Scene, log_scene_static, scene_from, send_configurations
+from dexplan.viz.scene import (
+    HandLayout,
+    Scene,
+    log_scene_static,
+    scene_from,
+    send_configurations,
+)
 from dexplan.viz.session import COMPONENTS, LINK_COLOR, ROADMAP_NODE, recording, rerun_module, rgba
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.planning.roadmap.roadmap import Roadmap
-    from dexplan.viz.scene import HandLayout
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
 
 
 @dataclass(frozen=True)
@@ -106,17 +114,17 @@ def _quat_matrices(q_xyzw: FloatArray) -> FloatArray:
     )
 
 
-def _pairs(index_pairs: Any) -> np.ndarray:
+def _pairs(index_pairs: npt.ArrayLike) -> IntArray:
     """Vertex index pairs as an ``(E, 2)`` int64 array."""
     return np.asarray(index_pairs, dtype=np.int64).reshape(-1, 2)
 
 
-def _segments(P: FloatArray, pairs: np.ndarray) -> FloatArray:
+def _segments(P: FloatArray, pairs: IntArray) -> FloatArray:
     """``(E, 2, 3)`` line segments between the points of each index pair."""
     return np.stack([P[pairs[:, 0]], P[pairs[:, 1]]], axis=1) if len(pairs) else np.zeros((0, 2, 3))
 
 
-def _log_counts(rec: Any, roadmap: Roadmap, summary: RoadmapSummary) -> None:
+def _log_counts(rec: rerun.RecordingStream, roadmap: Roadmap, summary: RoadmapSummary) -> None:
     """Component classes and per-component counts on ``world/roadmap`` (static)."""
     rr = rerun_module()
     _log_component_classes(rec, "world/roadmap", summary)
@@ -146,7 +154,7 @@ def _totals(roadmap: Roadmap, summary: RoadmapSummary) -> dict[str, int]:
     }
 
 
-def _log_node_axes(rec: Any, V: FloatArray, axis_length: float) -> None:
+def _log_node_axes(rec: rerun.RecordingStream, V: FloatArray, axis_length: float) -> None:
     """Small x, y, z axes (red, green, blue) at each node's object orientation."""
     rr = rerun_module()
     P = V[:, :3]
@@ -177,7 +185,7 @@ def rotation_vectors(q_xyzw: FloatArray) -> FloatArray:
     return q[:, :3] * scale[:, None]
 
 
-def log_orientations(rec: Any, roadmap: Roadmap) -> None:
+def log_orientations(rec: rerun.RecordingStream, roadmap: Roadmap) -> None:
     """The roadmap in orientation space (static, under ``orientation``).
 
     Nodes at the object's rotation vector (rad; the ball of radius pi),
@@ -199,7 +207,7 @@ def log_orientations(rec: Any, roadmap: Roadmap) -> None:
     _log_graph_lines(rec, "orientation", roadmap, P, labels, (0.004, 0.01))
 
 
-def log_roadmap(rec: Any, roadmap: Roadmap, axis_length: float) -> RoadmapSummary:
+def log_roadmap(rec: rerun.RecordingStream, roadmap: Roadmap, axis_length: float) -> RoadmapSummary:
     """Log nodes (coloured by component), orientation axes, edges and module-2 links (static).
 
     Returns:
@@ -235,7 +243,7 @@ def record_roadmap(
     roadmap: Roadmap,
     path: str | Path,
     *,
-    scene: Mapping[str, Any] | Any | None = None,
+    scene: Mapping[str, Any] | Scenario | None = None,
     base_dir: Path = Path("."),
     browse_nodes: bool = True,
 ) -> RoadmapSummary:
@@ -303,7 +311,7 @@ def _check_state_size(models: Scene, V: FloatArray) -> None:
 
 
 def _send_still_configuration(
-    rec: Any, models: Scene, layout: HandLayout | None, V: FloatArray
+    rec: rerun.RecordingStream, models: Scene, layout: HandLayout | None, V: FloatArray
 ) -> None:
     """One static configuration: the scene's start, else the first node, else neutral."""
     assert models.hand is not None
@@ -317,11 +325,11 @@ def _send_still_configuration(
 
 
 def _log_graph_lines(
-    rec: Any,
+    rec: rerun.RecordingStream,
     prefix: str,
     roadmap: Roadmap,
     P: FloatArray,
-    labels: np.ndarray,
+    labels: IntArray,
     radii: tuple[float, float],
 ) -> None:
     """GSn edges (coloured by component) and module-2 links (one colour) as two line batches.
@@ -355,7 +363,7 @@ def _log_graph_lines(
     )
 
 
-def _log_component_classes(rec: Any, path: str, summary: RoadmapSummary) -> None:
+def _log_component_classes(rec: rerun.RecordingStream, path: str, summary: RoadmapSummary) -> None:
     """One annotation class per component (its colour and node count) at ``path``, static."""
     rr = rerun_module()
     rec.log(

@@ -15,9 +15,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 
 from dexplan.core.errors import PlanFileError
 from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Shape, shape_from_dict
+from dexplan.model.scenario.scenario import Scenario
+from dexplan.planfile import hand_from_plan, models_from_document, shape_of, validate_plan
+from dexplan.planning.context import build_hand
 from dexplan.viz.session import (
     GOAL,
     GREY,
@@ -32,9 +38,8 @@ from dexplan.viz.session import (
 from dexplan.viz.shapes import coal_archetype, shape_archetype
 from dexplan.viz.visuals import hand_package_dirs, visual_geometry
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.model.hand.hand import Hand
-    from dexplan.model.objects import Shape
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
 
 
 @dataclass
@@ -57,15 +62,15 @@ class Scene:
 class HandLayout:
     """Where each hand link and geometry is logged."""
 
-    links: list[tuple[str, int, bool]]  # (entity, frame id, moves)
-    geoms: list[tuple[str, type, int | None]]  # (entity, archetype type, finger or None)
+    links: list[tuple[str, int, bool]]
+    """Per link: its entity, frame id, and whether it moves with the joints."""
+    geoms: list[tuple[str, type[rerun.AsComponents], int | None]]
+    """Per drawn geometry: its entity, archetype type and finger (None: not recoloured)."""
 
 
 # ------------------------------------------------------------------ models
 def _hand_from_doc(h: Mapping[str, Any], base_dir: Path) -> Hand:
     """The hand of a plan document (meshes found beside it or in example-robot-data)."""
-    from dexplan.planfile import hand_from_plan
-
     return hand_from_plan(h, hand_package_dirs(base_dir))
 
 
@@ -82,8 +87,6 @@ def obstacles_from_dicts(
     Returns:
         One triple per entry, in order.
     """
-    from dexplan.planfile import shape_of
-
     out = []
     for k, ob in enumerate(items):
         pose = np.asarray(ob.get("pose_xyzquat", [0, 0, 0, 0, 0, 0, 1]), dtype=float)
@@ -100,9 +103,6 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
             field; :func:`dexplan.planfile.schema.validate_plan`) or its hand does
             not build.
     """
-    from dexplan.planfile import models_from_document
-    from dexplan.planfile.schema import validate_plan
-
     validate_plan(doc, base_dir)
     m = models_from_document(doc, base_dir, hand=_hand_from_doc(doc["hand"], base_dir))
     goal = doc["goal"]
@@ -121,11 +121,8 @@ def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
     )
 
 
-def scene_from_scenario(scenario: Any) -> Scene:
+def scene_from_scenario(scenario: Scenario) -> Scene:
     """Hand, object and obstacles of a :class:`~dexplan.model.scenario.scenario.Scenario`."""
-    from dexplan.model.objects import shape_from_dict
-    from dexplan.planning.context import build_hand
-
     base = Path(scenario.base_dir)
     return Scene(
         hand=build_hand(scenario, check_contacts=False),
@@ -141,7 +138,7 @@ def scene_from_scenario(scenario: Any) -> Scene:
     )
 
 
-def scene_from(scene: Mapping[str, Any] | Any, base_dir: Path) -> Scene:
+def scene_from(scene: Mapping[str, Any] | Scenario, base_dir: Path) -> Scene:
     """The models of a plan document (a mapping) or of a scenario."""
     if isinstance(scene, Mapping):
         return scene_from_doc(scene, Path(base_dir))
@@ -163,10 +160,8 @@ def _pose_or_none(value: Any) -> FloatArray | None:
 
 
 # ------------------------------------------------------------------- hand
-def _se3_xyzquat(M: Any) -> FloatArray:
+def _se3_xyzquat(M: pin.SE3) -> FloatArray:
     """``pin.SE3`` as ``[x, y, z, qx, qy, qz, qw]``."""
-    import pinocchio as pin
-
     return np.asarray(pin.SE3ToXYZQUAT(M), dtype=float)
 
 
@@ -190,15 +185,13 @@ def _finger_of_frame(hand: Hand) -> dict[int, int | None]:
     return {fid: finger_of(fid) for fid in range(model.nframes)}
 
 
-def _log_hand_static(rec: Any, hand: Hand) -> HandLayout:
+def _log_hand_static(rec: rerun.RecordingStream, hand: Hand) -> HandLayout:
     """Hand link geometry (static, in each link's frame) and the palm frame axes.
 
     The URDF's visual geometry when it loads (:func:`visual_geometry`), else
     the collision geometry the planner checks.
     """
     rr = rerun_module()
-    import pinocchio as pin
-
     model, data = hand.model, hand.data
     geometry = visual_geometry(hand) or hand.geom_model
     pin.framesForwardKinematics(model, data, hand.neutral)
@@ -206,7 +199,7 @@ def _log_hand_static(rec: Any, hand: Hand) -> HandLayout:
     tip_ids = set(hand.tip_frame_ids)
     rec.log("world/hand", rr.TransformAxes3D(0.03), static=True)
     links: dict[int, tuple[str, int, bool]] = {}
-    geoms: list[tuple[str, type, int | None]] = []
+    geoms: list[tuple[str, type[rerun.AsComponents], int | None]] = []
     for k, g in enumerate(geometry.geometryObjects):
         fid = int(g.parentFrame)
         if not 0 <= fid < model.nframes:
@@ -240,8 +233,6 @@ def _log_hand_static(rec: Any, hand: Hand) -> HandLayout:
 
 def _link_poses(hand: Hand, layout: HandLayout, qs: FloatArray) -> dict[str, FloatArray]:
     """Per moving link entity, its world poses ``(S, 7)`` at configurations ``qs: (S, nq)``."""
-    import pinocchio as pin
-
     model, data = hand.model, hand.data
     moving = [(p, fid) for p, fid, moves in layout.links if moves]
     out = {p: np.empty((len(qs), 7)) for p, _ in moving}
@@ -253,7 +244,7 @@ def _link_poses(hand: Hand, layout: HandLayout, qs: FloatArray) -> dict[str, Flo
 
 
 # ---------------------------------------------------------------- logging
-def log_scene_static(rec: Any, scene: Scene) -> HandLayout | None:
+def log_scene_static(rec: rerun.RecordingStream, scene: Scene) -> HandLayout | None:
     """Log the world axes convention, hand geometry, object shape, obstacles and the goal.
 
     Returns:
@@ -286,10 +277,10 @@ def log_scene_static(rec: Any, scene: Scene) -> HandLayout | None:
 
 
 def send_configurations(
-    rec: Any,
+    rec: rerun.RecordingStream,
     scene: Scene,
     layout: HandLayout | None,
-    indexes: list[Any] | None,
+    indexes: list[rerun.TimeColumn] | None,
     poses: FloatArray,
     qs: FloatArray | None,
 ) -> None:

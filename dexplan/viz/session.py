@@ -10,15 +10,19 @@ import uuid
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from dexplan.core.errors import DependencyError
 from dexplan.core.files import atomic_output
+from dexplan.core.typing import FloatArray
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from types import ModuleType
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
+    import rerun.blueprint
 
 #: Oldest rerun-sdk whose API and ``.rrd`` format this package is written for.
 MIN_RERUN_VERSION: tuple[int, int] = (0, 41)
@@ -102,7 +106,9 @@ def rerun_module() -> ModuleType:
 
 
 @contextmanager
-def recording(path: str | Path, name: str, blueprint: Any) -> Iterator[Any]:
+def recording(
+    path: str | Path, name: str, blueprint: rerun.blueprint.Blueprint
+) -> Iterator[rerun.RecordingStream]:
     """Yield a recording stream whose data lands in ``path`` once the block succeeds.
 
     The stream saves to a temporary file beside ``path`` (with ``blueprint``
@@ -150,23 +156,23 @@ def entity(*parts: str) -> str:
     return "/".join(rr.escape_entity_path_part(p) for p in parts)
 
 
-def transform(pose: Any) -> Any:
-    """A ``rr.Transform3D`` of a pose ``[x, y, z, qx, qy, qz, qw]``."""
+def transform(pose: FloatArray) -> rerun.Transform3D:
+    """A ``rr.Transform3D`` of a pose ``pose_xyzquat: (7,)`` = ``[x, y, z, qx, qy, qz, qw]``."""
     rr = rerun_module()
     return rr.Transform3D(translation=pose[:3], quaternion=pose[3:])
 
 
-def plan_index(steps: np.ndarray) -> list[Any]:
-    """The ``plan_step`` and ``time`` columns of the given steps."""
+def plan_index(steps: npt.ArrayLike) -> list[rerun.TimeColumn]:
+    """The ``plan_step`` and ``time`` columns of the given steps ``(S,)``."""
     rr = rerun_module()
-    steps = np.asarray(steps, dtype=np.int64)
+    step_numbers = np.asarray(steps, dtype=np.int64)
     return [
-        rr.TimeColumn(PLAN_STEP, sequence=steps),
-        rr.TimeColumn(TIME, duration=steps * STEP_SECONDS),
+        rr.TimeColumn(PLAN_STEP, sequence=step_numbers),
+        rr.TimeColumn(TIME, duration=step_numbers * STEP_SECONDS),
     ]
 
 
-def set_step(rec: Any, step: int) -> None:
+def set_step(rec: rerun.RecordingStream, step: int) -> None:
     """Set the stream's ``plan_step`` and ``time`` to one step."""
     rec.set_time(PLAN_STEP, sequence=step)
     rec.set_time(TIME, duration=step * STEP_SECONDS)

@@ -4,22 +4,35 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+import coal
 import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import trimesh
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
+from dexplan.model.objects import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 from dexplan.viz.session import rerun_module, rgba
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.model.objects import Shape
+if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on first use
+    import rerun
+    import rerun.components
 
 
-def mesh_archetype(vertices: FloatArray, faces: np.ndarray, color: Sequence[int]) -> Any:
-    """Return a ``rr.Mesh3D`` of a triangle mesh, with vertex normals."""
+def mesh_archetype(
+    vertices: FloatArray, faces: npt.ArrayLike, color: Sequence[int]
+) -> rerun.Mesh3D:
+    """Return a ``rr.Mesh3D`` of a triangle mesh, with vertex normals.
+
+    Args:
+        vertices: ``(V, 3)`` vertex positions in the shape's frame.
+        faces: ``(F, 3)`` vertex indices of each triangle.
+        color: RGBA.
+    """
     rr = rerun_module()
-    import trimesh
 
     tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, int), process=False)
     return rr.Mesh3D(
@@ -30,15 +43,15 @@ def mesh_archetype(vertices: FloatArray, faces: np.ndarray, color: Sequence[int]
     )
 
 
-def shape_archetype(shape: Shape, color: Sequence[int], *, wireframe: bool = False) -> Any:
+def shape_archetype(
+    shape: Shape, color: Sequence[int], *, wireframe: bool = False
+) -> rerun.AsComponents:
     """Return a Rerun archetype drawing a dexplan shape in its own frame.
 
     Raises:
         InvalidInputError: the shape is of no known kind.
     """
     rr = rerun_module()
-    from dexplan.model.objects import Box, Capsule, Cylinder, Mesh, Sphere
-
     fill = rr.components.FillMode.MajorWireframe if wireframe else rr.components.FillMode.Solid
     c = [rgba(color)]
     if isinstance(shape, Sphere):
@@ -64,7 +77,7 @@ _OUTLINE_MAX_FACES = 400
 _OUTLINE_POINTS = 500
 
 
-def _light_mesh_outline(shape: Any, color: Sequence[int]) -> Any:
+def _light_mesh_outline(shape: Mesh, color: Sequence[int]) -> rerun.AsComponents:
     """A light drawing of a mesh: its edges when few, else a sparse point cloud."""
     rr = rerun_module()
     faces = np.asarray(shape.faces)
@@ -77,7 +90,9 @@ def _light_mesh_outline(shape: Any, color: Sequence[int]) -> Any:
     return rr.Points3D(verts[::step], colors=[faint], radii=[0.0008])
 
 
-def _capsule(length: float, radius: float, colors: list, fill: Any) -> Any:
+def _capsule(
+    length: float, radius: float, colors: list[list[int]], fill: rerun.components.FillMode
+) -> rerun.Capsules3D:
     """A capsule centred on its frame (rerun's start at the origin and extend along +z)."""
     rr = rerun_module()
     return rr.Capsules3D(
@@ -89,15 +104,13 @@ def _capsule(length: float, radius: float, colors: list, fill: Any) -> Any:
     )
 
 
-def coal_archetype(geom: Any, color: Sequence[int]) -> Any | None:
+def coal_archetype(geom: pin.GeometryObject, color: Sequence[int]) -> rerun.AsComponents | None:
     """Return a Rerun archetype for a Pinocchio geometry object's coal shape (own frame).
 
     Returns:
         The archetype, or None for a geometry that cannot be drawn.
     """
     rr = rerun_module()
-    import coal
-
     g = geom.geometry
     c = [rgba(color)]
     solid = rr.components.FillMode.Solid
@@ -116,7 +129,7 @@ def coal_archetype(geom: Any, color: Sequence[int]) -> Any | None:
     return _coal_mesh_archetype(geom, color)
 
 
-def _coal_mesh_archetype(geom: Any, color: Sequence[int]) -> Any | None:
+def _coal_mesh_archetype(geom: pin.GeometryObject, color: Sequence[int]) -> rerun.Mesh3D | None:
     """A mesh geometry: its coal triangles, else the mesh file it was loaded from."""
     g = geom.geometry
     if hasattr(g, "num_tris") and hasattr(g, "tri_indices"):
@@ -127,11 +140,11 @@ def _coal_mesh_archetype(geom: Any, color: Sequence[int]) -> Any | None:
             return mesh_archetype(verts, faces, color)
     mesh_path = getattr(geom, "meshPath", "")
     if mesh_path and Path(mesh_path).is_file():
-        import trimesh
-
         try:
             tm = trimesh.load(mesh_path, force="mesh")
         except (ValueError, OSError):
+            return None
+        if not isinstance(tm, trimesh.Trimesh):  # a file holding no triangles
             return None
         return mesh_archetype(tm.vertices * np.asarray(geom.meshScale), tm.faces, color)
     return None

@@ -10,15 +10,14 @@ import tempfile
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, Any
 
 from dexplan.core.errors import DependencyError, DexplanError, PlanFileError
+from dexplan.planfile import read_plan
+from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.viz.plan_recording import record_plan
 from dexplan.viz.roadmap_recording import record_roadmap
 from dexplan.viz.session import require_rerun
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.planning.roadmap.roadmap import Roadmap
 
 _NO_DISPLAY = (
     "cannot open the Rerun viewer: no display (DISPLAY/WAYLAND_DISPLAY unset); "
@@ -57,9 +56,6 @@ def write_recording(
         PlanFileError: unreadable plan or roadmap file.
 
     """
-    from dexplan.planfile.document import read_plan
-    from dexplan.planning.roadmap.roadmap import Roadmap
-
     require_rerun()
     path = Path(path)
 
@@ -165,7 +161,7 @@ def _start_viewer(rrd: Path, wait_s: float) -> None:
         log.close()
 
 
-def _watch(proc: subprocess.Popen, log: IO[bytes], rrd: Path, deadline: float) -> None:
+def _watch(proc: subprocess.Popen[bytes], log: IO[bytes], rrd: Path, deadline: float) -> None:
     """Raise DexplanError if the viewer exits before ``deadline`` (monotonic seconds)."""
     while time.monotonic() < deadline:
         if proc.poll() is not None:

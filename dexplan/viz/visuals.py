@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import contextlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+
+import pinocchio as pin
 
 from dexplan.core.errors import DependencyError
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from dexplan.model.hand.hand import Hand
+from dexplan.core.native_output import captured_stderr
+from dexplan.model.hand.builtin import example_robot_data_share
+from dexplan.model.hand.hand import Hand
 
 
 def hand_package_dirs(base_dir: Path) -> list[str | Path]:
@@ -30,15 +31,13 @@ def hand_package_dirs(base_dir: Path) -> list[str | Path]:
     ``base_dir`` (the plan's folder), then example-robot-data's ``share``
     folder when installed (the Allegro hands' ``package://`` meshes).
     """
-    from dexplan.model.hand.hand import example_robot_data_share
-
     dirs: list[str | Path] = [base_dir]
     with contextlib.suppress(DependencyError):  # no Allegro meshes to find then
         dirs.append(example_robot_data_share())
     return dirs
 
 
-def visual_geometry(hand: Hand) -> Any | None:
+def visual_geometry(hand: Hand) -> pin.GeometryModel | None:
     """The hand's visual ``pin.GeometryModel``, or None to draw its collision geometry.
 
     None when the URDF has no ``<visual>`` element, or when any visual mesh
@@ -49,10 +48,6 @@ def visual_geometry(hand: Hand) -> Any | None:
         hand: the hand (its ``urdf_xml``, Pinocchio ``model`` and the
             ``package_dirs`` its meshes were found in).
     """
-    import pinocchio as pin
-
-    from dexplan.core.native_output import captured_stderr
-
     if "<visual" not in hand.urdf_xml:
         return None
     try:
