@@ -23,8 +23,10 @@ from typing import Any
 
 from dexplan.cli import main as cli
 from dexplan.core.errors import DexplanError
-from dexplan.execution.export import build_trajectory, check_trajectory, trajectory_document
+from dexplan.execution.check import check_trajectory
+from dexplan.execution.export import trajectory_document
 from dexplan.execution.replay.simulation import replay_plan
+from dexplan.execution.trajectory import build_trajectory
 from dexplan.planfile import hand_from_plan, read_plan
 
 PAPER = str(Path(__file__).resolve().parents[1] / "dexplan/data/scenarios/paper_sphere.toml")

@@ -8,7 +8,8 @@ import pytest
 from cli_contract import assert_bad_input, run_cli
 
 from dexplan.cli import main as cli
-from dexplan.execution.export import check_trajectory, read_trajectory
+from dexplan.execution.check import check_trajectory
+from dexplan.execution.export import read_trajectory
 from dexplan.planfile.document import read_plan
 
 
@@ -130,7 +131,7 @@ def test_a_regrasps_last_sample_reads_the_landed_finger_even_a_rounding_error_ea
     """
     from types import SimpleNamespace
 
-    from dexplan.execution.export import _sample_contacts
+    from dexplan.execution.trajectory import _sample_contacts
 
     c = [0.01, 0.0, 0.0]
     all4 = {"contacts": [c, c, c, c]}

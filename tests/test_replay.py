@@ -12,7 +12,8 @@ from dexplan.planfile import hand_from_plan, read_plan, write_plan
 
 mujoco = pytest.importorskip("mujoco")
 
-from dexplan.execution.replay.simulation import build_mjcf, replay_plan, require_mujoco  # noqa: E402
+from dexplan.execution.replay.mjcf import build_mjcf  # noqa: E402
+from dexplan.execution.replay.simulation import replay_plan, require_mujoco  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan.execution.export import build_trajectory
 from dexplan.execution.replay.control import ObjectFeedback, planned_tip_slip, pose_se3
+from dexplan.execution.trajectory import build_trajectory
 from dexplan.planfile import hand_from_plan, read_plan
 
 

@@ -397,14 +397,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dexplan.core.files import check_output_path
-    from dexplan.execution.export import (
-        build_trajectory,
-        check_trajectory,
-        trajectory_document,
-        write_trajectory,
-    )
+    from dexplan.execution.check import check_trajectory
+    from dexplan.execution.export import trajectory_document, write_trajectory
     from dexplan.execution.forces import force_settings_from_plan
     from dexplan.execution.timing import TimingLimits
+    from dexplan.execution.trajectory import build_trajectory
     from dexplan.planfile import hand_from_plan, read_plan
 
     out = check_output_path(args.output, "-o")

@@ -9,10 +9,12 @@ read their forces here. The model's names are re-exported.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
+from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.grip import (
     BALANCE_TOL,
     DEFAULT_CONE_MARGIN,
@@ -26,6 +28,8 @@ from dexplan.model.grasp.grip import (
     joint_effort_limits,
     loaded_fingers,
 )
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile import hand_from_plan, shape_of
 
 __all__ = [
     "BALANCE_TOL",
@@ -49,7 +53,7 @@ def force_settings_from_plan(
     doc: Mapping[str, Any],
     *,
     mass: float | None = None,
-    gravity: Sequence[float] | None = None,
+    gravity: Sequence[float] | FloatArray | None = None,
     **kwargs: Any,
 ) -> ForceSettings:
     """Settings from a plan's ``object.mass`` and ``world.gravity``, overridden by arguments.
@@ -63,20 +67,19 @@ def force_settings_from_plan(
     m = mass if mass is not None else doc["object"].get("mass", DEFAULT_MASS)
     world = doc.get("world") or {}
     g = gravity if gravity is not None else world.get("gravity", DEFAULT_GRAVITY)
-    return ForceSettings(mass=float(m), gravity=tuple(float(v) for v in g), **kwargs)
+    # ForceSettings checks that there are three: a wrong count is its InvalidInputError
+    g3 = cast("tuple[float, float, float]", tuple(float(v) for v in g))
+    return ForceSettings(mass=float(m), gravity=g3, **kwargs)
 
 
 def solver_from_plan(
-    doc: Mapping[str, Any], settings: ForceSettings, hand: Any = None, base_dir: Any = "."
+    doc: Mapping[str, Any],
+    settings: ForceSettings,
+    hand: Hand | None = None,
+    base_dir: str | Path = ".",
 ) -> GripForceSolver:
     """A :class:`GripForceSolver` for a validated plan (hand, object, friction from the file)."""
-    from pathlib import Path
-
-    from dexplan.planfile import shape_of
-
     if hand is None:
-        from dexplan.planfile import hand_from_plan
-
         hand = hand_from_plan(doc["hand"])
     obj = shape_of(doc["object"], Path(base_dir), "object")
     return GripForceSolver(
@@ -94,8 +97,8 @@ def plan_waypoint_forces(
     doc: Mapping[str, Any],
     settings: ForceSettings | None = None,
     *,
-    hand: Any = None,
-    base_dir: Any = ".",
+    hand: Hand | None = None,
+    base_dir: str | Path = ".",
 ) -> list[list[GripForces]]:
     """Grip forces at every waypoint of a validated plan, per segment.
 

@@ -41,29 +41,46 @@ handed to it are first scaled by :data:`SAFETY`; the profile is then sampled
 :data:`DENSE` times per grid interval and, where a velocity or acceleration still exceeds
 its limit (collocation can chatter where the path's curvature limits the
 speed), that kind of limit is tightened by the excess and toppra solves again
-(at most :data:`MAX_TIGHTENING` times). :func:`dexplan.execution.export.check_trajectory`
+(at most :data:`MAX_TIGHTENING` times). :func:`dexplan.execution.check.check_trajectory`
 checks the exported samples against the full limits.
 
 The time law between grid points is toppra's own constant-acceleration
 interpretation (``toppra.parametrizer.ParametrizeConstAccel``): ``sddot``
-constant on each grid interval.
+constant on each grid interval. The time laws and their states are
+:mod:`dexplan.execution.segment_timing`, whose names are re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from toppra import SplineInterpolator
+from toppra.algorithm import TOPPRA
+from toppra.algorithm.algorithm import ParameterizationReturnCode
+from toppra.constraint import DiscretizationType, JointAccelerationConstraint, LinearConstraint
 
-from dexplan.core.errors import DexplanError, InvalidInputError
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.segments import SegmentKind
 from dexplan.core.typing import FloatArray, IntArray
+from dexplan.execution.segment_timing import (
+    DEFAULT_JOINT_VELOCITY,
+    PlanTiming,
+    SegmentTiming,
+    TimingError,
+    TimingLimits,
+    TrajectorySample,
+    joint_velocity_limits,
+)
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile import hand_from_plan
 
 __all__ = [
     "DEFAULT_JOINT_VELOCITY",
+    "DEFAULT_LIMITS",
     "SAFETY",
     "PlanTiming",
     "SegmentTiming",
@@ -75,8 +92,6 @@ __all__ = [
     "time_segment",
 ]
 
-#: Joint velocity limit (rad/s) for a URDF joint without (or with a zero) ``velocity``.
-DEFAULT_JOINT_VELOCITY = 1.0
 #: Fraction of every limit handed to toppra (the samples between its grid points
 #: then stay within the full limits).
 SAFETY = 0.95
@@ -88,296 +103,62 @@ _DUPLICATE = 1e-12  # steps of fewer path units are dropped
 MAX_TIGHTENING = 8
 #: Samples per toppra grid interval at which the limits are checked.
 DENSE = 16
-
-
-class TimingError(DexplanError):
-    """A segment cannot be time-parameterised (toppra found no feasible profile)."""
-
-
-@dataclass(frozen=True)
-class TimingLimits:
-    """Limits of the time parameterisation (all > 0).
-
-    Attributes:
-        max_acceleration: joint acceleration limit (rad/s^2), every joint.
-        object_speed: object speed limit (m/s), quasi-static (default 2 cm/s).
-        object_angular_speed: object angular speed limit (rad/s) (default 0.5).
-        object_acceleration: object linear acceleration limit (m/s^2).
-        object_angular_acceleration: object angular acceleration limit (rad/s^2).
-        approach_scale: factor on the joint velocity limits near a regrasp's
-            lift-off and landing, in (0, 1].
-        approach_steps: planner steps at each end of a regrasp that are slowed.
-        grid_per_step: toppra grid points per planner step.
-        joint_velocity: per-joint velocity limits (rad/s) overriding the URDF's,
-            or None (the URDF's).
-    """
-
-    max_acceleration: float = 5.0
-    object_speed: float = 0.02
-    object_angular_speed: float = 0.5
-    object_acceleration: float = 0.1
-    object_angular_acceleration: float = 1.0
-    approach_scale: float = 0.25
-    approach_steps: int = 2
-    grid_per_step: int = 4
-    joint_velocity: tuple[float, ...] | None = None
-
-    def __post_init__(self) -> None:
-        for name in (
-            "max_acceleration",
-            "object_speed",
-            "object_angular_speed",
-            "object_acceleration",
-            "object_angular_acceleration",
-            "approach_scale",
-        ):
-            v = getattr(self, name)
-            if (
-                isinstance(v, bool)
-                or not isinstance(v, int | float)
-                or not (math.isfinite(v) and v > 0)
-            ):
-                raise InvalidInputError(f"{name} must be a finite number > 0, got {v!r}")
-            if v > 1e6:
-                raise InvalidInputError(f"{name} must be at most 1e6, got {v!r}")
-        if self.approach_scale > 1.0:
-            raise InvalidInputError(f"approach_scale must be in (0, 1], got {self.approach_scale}")
-        if not 0 <= self.approach_steps <= 1000:
-            raise InvalidInputError(
-                f"approach_steps must be in [0, 1000], got {self.approach_steps}"
-            )
-        if not 1 <= self.grid_per_step <= 100:
-            raise InvalidInputError(f"grid_per_step must be in [1, 100], got {self.grid_per_step}")
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON form (the ``limits`` table of a trajectory document, without joints)."""
-        return {
-            "max_acceleration": self.max_acceleration,
-            "object_speed": self.object_speed,
-            "object_angular_speed": self.object_angular_speed,
-            "object_acceleration": self.object_acceleration,
-            "object_angular_acceleration": self.object_angular_acceleration,
-            "approach_scale": self.approach_scale,
-            "approach_steps": self.approach_steps,
-        }
-
-
-@dataclass(frozen=True)
-class TrajectorySample:
-    """States of a segment at given times (``m`` samples).
-
-    Attributes:
-        t: (m,) time from the segment's start (s).
-        s: (m,) path parameter.
-        q, qd, qdd: (m, nq) joint positions (rad), velocities (rad/s) and
-            accelerations (rad/s^2), in ``hand.joint_names`` order.
-        object_pose: (m, 7) object pose ``[x, y, z, qx, qy, qz, qw]``, world frame.
-        object_velocity: (m, 6) object twist ``[v, w]``: linear velocity of the
-            object-frame origin and angular velocity, both in the world frame.
-        object_acceleration: (m, 6) ``[dv/dt, d2c/dt2]``: the linear acceleration
-            (world frame) and the rotation coordinate's second derivative
-            (object frame; its norm is the angular acceleration's to first order).
-        step: (m,) index of the waypoint (of the segment, duplicates included)
-            that starts the step each sample lies in.
-    """
-
-    t: FloatArray
-    s: FloatArray
-    q: FloatArray
-    qd: FloatArray
-    qdd: FloatArray
-    object_pose: FloatArray
-    object_velocity: FloatArray
-    object_acceleration: FloatArray
-    step: np.ndarray
-
-
-@dataclass(frozen=True)
-class SegmentTiming:
-    """The time law of one segment.
-
-    Attributes:
-        kind: ``"transfer"`` or ``"regrasp"``.
-        finger: the regrasp's free finger, or None.
-        duration: seconds (0 for a segment that does not move).
-        waypoint_s: (K,) path parameter of each waypoint (duplicates repeat).
-        waypoint_times: (K,) time of each waypoint from the segment's start (s).
-        gridpoints: (N,) toppra's grid over ``s``.
-        sd: (N,) path velocity ``ds/dt`` at the grid points (0 at both ends).
-        times: (N,) time of each grid point (s).
-        poses: (K, 7) the waypoints' object poses (world frame), for the orientation.
-        knots_c: (K, 3) the rotation coordinate at each waypoint (rad).
-        nq: number of joints.
-        rest_q: (nq,) the first waypoint's joints (the state of a segment that
-            does not move).
-        x0: (nq + 6,) path coordinates ``(q, p, c)`` at the start.
-        moving: indices of the coordinates of ``x0`` that move (toppra's path).
-    """
-
-    kind: str
-    finger: int | None
-    duration: float
-    waypoint_s: FloatArray
-    waypoint_times: FloatArray
-    gridpoints: FloatArray
-    sd: FloatArray
-    times: FloatArray
-    poses: FloatArray
-    knots_c: FloatArray
-    nq: int
-    rest_q: FloatArray
-    x0: FloatArray | None = None
-    moving: np.ndarray | None = None
-    _path: Any = field(repr=False, compare=False, default=None)
-
-    def sample(self, t: Sequence[float] | FloatArray) -> TrajectorySample:
-        """States at times ``t`` (s from the segment's start, clipped to [0, duration])."""
-        t = np.clip(np.asarray(t, dtype=float).reshape(-1), 0.0, self.duration)
-        m, nq = t.size, self.nq
-        if self._path is None:  # a segment that does not move: at rest
-            pose = np.repeat(self.poses[:1], m, axis=0)
-            q0 = np.repeat(self.rest_q[None, :], m, axis=0)
-            z = np.zeros((m, nq))
-            return TrajectorySample(
-                t,
-                np.zeros(m),
-                q0,
-                z,
-                z.copy(),
-                pose,
-                np.zeros((m, 6)),
-                np.zeros((m, 6)),
-                np.zeros(m, dtype=int),
-            )
-        s, sd, sdd = self._profile(t)
-        x = np.repeat(self.x0[None, :], m, axis=0)
-        x1 = np.zeros_like(x)
-        x2 = np.zeros_like(x)
-        mv = self.moving
-        x[:, mv] = self._path(s).reshape(m, -1)
-        x1[:, mv] = self._path(s, 1).reshape(m, -1)
-        x2[:, mv] = self._path(s, 2).reshape(m, -1)
-        xd = x1 * sd[:, None]
-        xdd = x2 * (sd**2)[:, None] + x1 * sdd[:, None]
-        # waypoint step of each sample (the last of equal s values)
-        k = np.clip(np.searchsorted(self.waypoint_s, s, side="right") - 1, 0, len(self.poses) - 1)
-        k = np.minimum(k, len(self.poses) - 1)
-        pose = np.empty((m, 7))
-        vel = np.empty((m, 6))
-        for i in range(m):
-            R = pin.Quaternion(*self.poses[k[i], [6, 3, 4, 5]]).toRotationMatrix()
-            R = R @ pin.exp3(x[i, nq + 3 : nq + 6] - self.knots_c[k[i]])
-            qt = pin.Quaternion(R)
-            qt.normalize()
-            pose[i, :3] = x[i, nq : nq + 3]
-            pose[i, 3:] = (qt.x, qt.y, qt.z, qt.w)
-            if pose[i, 6] * self.poses[k[i], 6] + pose[i, 3:6] @ self.poses[k[i], 3:6] < 0:
-                pose[i, 3:] *= -1.0  # the waypoints' hemisphere
-            vel[i, :3] = xd[i, nq : nq + 3]
-            vel[i, 3:] = R @ xd[i, nq + 3 : nq + 6]
-        return TrajectorySample(
-            t, s, x[:, :nq], xd[:, :nq], xdd[:, :nq], pose, vel, xdd[:, nq:], k.astype(int)
-        )
-
-    def _profile(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """(s, sdot, sddot) at times ``t``: constant ``sddot`` per grid interval."""
-        ts, ss, sd = self.times, self.gridpoints, self.sd
-        idx = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
-        ds = ss[idx + 1] - ss[idx]
-        u = 0.5 * (sd[idx + 1] ** 2 - sd[idx] ** 2) / ds
-        dt = t - ts[idx]
-        v = np.maximum(sd[idx] + u * dt, 0.0)
-        s = np.clip(ss[idx] + sd[idx] * dt + 0.5 * u * dt * dt, ss[idx], ss[idx + 1])
-        return s, v, u
-
-
-@dataclass(frozen=True)
-class PlanTiming:
-    """Time laws of every segment of a plan, played one after the other.
-
-    Attributes:
-        segments: one :class:`SegmentTiming` per plan segment.
-        start_times: (S,) start time of each segment (s from the plan's start).
-        joint_velocity: (nq,) joint velocity limits used (rad/s).
-        limits: the :class:`TimingLimits`.
-    """
-
-    segments: tuple[SegmentTiming, ...]
-    start_times: FloatArray
-    joint_velocity: FloatArray
-    limits: TimingLimits
-
-    @property
-    def duration(self) -> float:
-        """Total execution time (s)."""
-        if not self.segments:
-            return 0.0
-        return float(self.start_times[-1] + self.segments[-1].duration)
-
-
-def joint_velocity_limits(model: pin.Model) -> FloatArray:
-    """URDF joint velocity limits (rad/s), :data:`DEFAULT_JOINT_VELOCITY` where missing.
-
-    Args:
-        model: the hand's Pinocchio model (``model.velocityLimit``, (nv,)).
-
-    Returns:
-        (nv,) limits > 0, in the model's joint order (``hand.joint_names``).
-    """
-    v = np.array(model.velocityLimit, dtype=float).reshape(-1)
-    bad = ~np.isfinite(v) | (v <= 0.0)
-    v[bad] = DEFAULT_JOINT_VELOCITY
-    return v
+#: The limits when none are given (module docstring).
+DEFAULT_LIMITS = TimingLimits()
 
 
 def _rotation(qxyzw: FloatArray) -> FloatArray:
     return pin.Quaternion(qxyzw[3], qxyzw[0], qxyzw[1], qxyzw[2]).normalized().toRotationMatrix()
 
 
-class _QuasiStaticVelocity:
+class _QuasiStaticVelocity(LinearConstraint):
     """toppra constraint ``sdot^2 <= bound(s)``: joint boxes and object speed norms.
 
-    Built on demand (toppra is imported lazily). ``kinds`` tells each path
-    coordinate's role: 0 joint, 1 object position, 2 object rotation.
+    Args:
+        vj: joint velocity limits (rad/s) of the joints that move.
+        vo: object speed limit (m/s).
+        wo: object angular speed limit (rad/s).
+        kinds: each path coordinate's role: 0 joint, 1 object position, 2 object rotation.
+        slow: factor on the joint limits along the path parameter (:func:`_approach_slowdown`).
     """
 
-    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
-        from toppra.constraint import LinearConstraint
+    def __init__(
+        self,
+        vj: FloatArray,
+        vo: float,
+        wo: float,
+        kinds: FloatArray,
+        slow: Callable[[FloatArray], FloatArray],
+    ) -> None:
+        super().__init__()
+        self.vj, self.vo, self.wo, self.kinds, self.slow = vj, vo, wo, kinds, slow
 
-        class _Impl(LinearConstraint):
-            def __init__(self, vj, vo, wo, kinds, slow) -> None:
-                super().__init__()
-                self.vj, self.vo, self.wo, self.kinds, self.slow = vj, vo, wo, kinds, slow
-
-            def compute_constraint_params(self, path, gridpoints, *a, **k):
-                x1 = path(gridpoints, 1).reshape(len(gridpoints), -1)
-                ub = np.full(len(gridpoints), 1e6)
-                j, p, c = (self.kinds == 0), (self.kinds == 1), (self.kinds == 2)
-                tiny = 1e-300
-                if j.any():
-                    vj = self.vj[None, :] * self.slow(gridpoints)[:, None]
-                    ub = np.minimum(ub, np.min(vj / np.maximum(np.abs(x1[:, j]), tiny), axis=1))
-                if p.any():
-                    ub = np.minimum(
-                        ub, self.vo / np.maximum(np.linalg.norm(x1[:, p], axis=1), tiny)
-                    )
-                if c.any():
-                    ub = np.minimum(
-                        ub, self.wo / np.maximum(np.linalg.norm(x1[:, c], axis=1), tiny)
-                    )
-                xbound = np.stack([np.zeros_like(ub), ub**2], axis=1)
-                return None, None, None, None, None, None, xbound
-
-        return _Impl(*args, **kwargs)
+    def compute_constraint_params(
+        self, path: Any, gridpoints: FloatArray, *args: Any, **kwargs: Any
+    ) -> tuple[None, None, None, None, None, None, FloatArray]:
+        """Toppra's constraint parameters: only ``xbound``, ``[0, bound(s)]`` on ``sdot^2``."""
+        x1 = path(gridpoints, 1).reshape(len(gridpoints), -1)
+        ub = np.full(len(gridpoints), 1e6)
+        j, p, c = (self.kinds == 0), (self.kinds == 1), (self.kinds == 2)
+        tiny = 1e-300
+        if j.any():
+            vj = self.vj[None, :] * self.slow(gridpoints)[:, None]
+            ub = np.minimum(ub, np.min(vj / np.maximum(np.abs(x1[:, j]), tiny), axis=1))
+        if p.any():
+            ub = np.minimum(ub, self.vo / np.maximum(np.linalg.norm(x1[:, p], axis=1), tiny))
+        if c.any():
+            ub = np.minimum(ub, self.wo / np.maximum(np.linalg.norm(x1[:, c], axis=1), tiny))
+        xbound = np.stack([np.zeros_like(ub), ub**2], axis=1)
+        return None, None, None, None, None, None, xbound
 
 
 def time_segment(
-    kind: str,
+    kind: SegmentKind,
     finger: int | None,
     q: FloatArray,
     poses: FloatArray,
     joint_velocity: FloatArray,
-    limits: TimingLimits = TimingLimits(),
+    limits: TimingLimits = DEFAULT_LIMITS,
     *,
     name: str = "segment",
 ) -> SegmentTiming:
@@ -395,10 +176,6 @@ def time_segment(
     Raises:
         TimingError: toppra finds no feasible parameterisation.
     """
-    import toppra
-    import toppra.algorithm
-    import toppra.constraint
-
     q = np.asarray(q, dtype=float)
     poses = np.asarray(poses, dtype=float)
     K, nq = q.shape
@@ -410,7 +187,7 @@ def time_segment(
             kind, finger, 0.0, ws, np.zeros(K), np.zeros(1), np.zeros(1), np.zeros(1),
             poses, c, nq, q[0].copy(), None, None, None,
         )  # fmt: skip
-    xs, ss, moving, kinds, path = _toppra_path(toppra, q, poses, c, ws, keep)
+    xs, ss, moving, kinds, path = _toppra_path(q, poses, c, ws, keep)
     n_grid = max(2, round(ss[-1] * limits.grid_per_step) + 1)
     grid = np.linspace(0.0, ss[-1], n_grid)
     slow = _approach_slowdown(kind, limits, float(ss[-1]))
@@ -425,11 +202,11 @@ def time_segment(
             kinds,
             slow,
         )
-        acc = toppra.constraint.JointAccelerationConstraint(
+        acc = JointAccelerationConstraint(
             fa * np.stack([-alim, alim], axis=1),
-            discretization_scheme=toppra.constraint.DiscretizationType.Collocation,
+            discretization_scheme=DiscretizationType.Collocation,
         )
-        grid, sd, times = _solve(toppra, [vel, acc], path, grid, name)
+        grid, sd, times = _solve([vel, acc], path, grid, name)
         seg = SegmentTiming(
             kind, finger, float(times[-1]), ws, _times_at(ws, grid, sd, times), grid, sd, times,
             poses, c, nq, q[0].copy(), xs[0].copy(), moving, path,
@@ -448,12 +225,11 @@ def time_segment(
 
 
 def _toppra_path(
-    toppra: Any, q: FloatArray, poses: FloatArray, c: FloatArray, ws: FloatArray, keep: np.ndarray
+    q: FloatArray, poses: FloatArray, c: FloatArray, ws: FloatArray, keep: np.ndarray
 ) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, Any]:
     """The spline toppra parameterises, through the waypoints that move.
 
     Args:
-        toppra: the toppra module (imported by the caller).
         q: (K, nq) joint values (rad).
         poses: (K, 7) object poses, world frame, XYZW.
         c: (K, 3) rotation coordinate of each waypoint.
@@ -474,7 +250,7 @@ def _toppra_path(
     # instance uncontrollable)
     moving = np.flatnonzero(np.ptp(xs, axis=0) > 0.0)
     kinds = np.concatenate([np.zeros(nq), np.ones(3), np.full(3, 2.0)])[moving]
-    path = toppra.SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
+    path = SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
     return xs, ss, moving, kinds, path
 
 
@@ -505,7 +281,7 @@ def _rotation_and_steps(q: FloatArray, poses: FloatArray) -> tuple[FloatArray, F
 
 
 def _approach_slowdown(
-    kind: str, limits: TimingLimits, total: float
+    kind: SegmentKind, limits: TimingLimits, total: float
 ) -> Callable[[FloatArray], FloatArray]:
     """Factor on the joint velocity limits along ``s``: slower near a regrasp's ends.
 
@@ -542,13 +318,10 @@ def _acceleration_limits(nq: int, limits: TimingLimits) -> FloatArray:
 
 
 def _solve(
-    toppra: Any, constraints: list[Any], path: Any, grid: FloatArray, name: str
+    constraints: list[Any], path: Any, grid: FloatArray, name: str
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Path velocities of toppra on ``grid``, at rest at both ends; (grid, sd, times)."""
-    import toppra.algorithm
-    from toppra.algorithm.algorithm import ParameterizationReturnCode
-
-    instance = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, solver_wrapper="seidel")
+    instance = TOPPRA(constraints, path, gridpoints=grid, solver_wrapper="seidel")
     try:
         instance.compute_parameterization(0.0, 0.0)
     except Exception as exc:  # toppra's own errors
@@ -574,7 +347,7 @@ def _dense_ratios(seg: SegmentTiming, vj: FloatArray, limits: TimingLimits) -> t
     f = np.append(np.linspace(0.0, 1.0, DENSE + 1)[:-1], 1.0 - 1e-9)  # and each end's left limit
     ts = (seg.times[:-1, None] + f[None, :] * np.diff(seg.times)[:, None]).ravel()
     smp = seg.sample(np.concatenate([ts, seg.times[-1:]]))
-    ov, oa = smp.object_velocity, _object_acceleration(seg, smp)
+    ov, oa = smp.object_velocity, smp.object_acceleration
     rv = max(
         float(np.max(np.abs(smp.qd) / vj[None, :])) if seg.nq else 0.0,
         float(np.max(np.linalg.norm(ov[:, :3], axis=1))) / limits.object_speed,
@@ -586,11 +359,6 @@ def _dense_ratios(seg: SegmentTiming, vj: FloatArray, limits: TimingLimits) -> t
         float(np.max(np.linalg.norm(oa[:, 3:], axis=1))) / limits.object_angular_acceleration,
     )
     return rv, ra
-
-
-def _object_acceleration(seg: SegmentTiming, smp: TrajectorySample) -> FloatArray:
-    """(m, 6) second derivatives of the object's path coordinates ``(p, c)``."""
-    return smp.object_acceleration
 
 
 def _times_at(sv: FloatArray, grid: FloatArray, sd: FloatArray, times: FloatArray) -> FloatArray:
@@ -608,7 +376,7 @@ def _times_at(sv: FloatArray, grid: FloatArray, sd: FloatArray, times: FloatArra
 
 
 def time_plan(
-    doc: Mapping[str, Any], limits: TimingLimits = TimingLimits(), hand: Any = None
+    doc: Mapping[str, Any], limits: TimingLimits = DEFAULT_LIMITS, hand: Hand | None = None
 ) -> PlanTiming:
     """Time-parameterise every segment of a validated ``dexplan-plan/1`` document.
 
@@ -623,8 +391,6 @@ def time_plan(
         PlanFileError: the hand cannot be rebuilt from the file.
     """
     if hand is None:
-        from dexplan.planfile import hand_from_plan
-
         hand = hand_from_plan(doc["hand"])
     if limits.joint_velocity is None:
         vj = joint_velocity_limits(hand.model)

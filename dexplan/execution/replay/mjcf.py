@@ -1,0 +1,287 @@
+"""The MuJoCo model (MJCF text) of a plan: hand, object and obstacles, from the file alone.
+
+:func:`build_mjcf` writes:
+
+- the hand: one body per Pinocchio joint of the plan's embedded URDF (joint
+  placements, inertias with fixed links merged, hinge or slide axes, URDF
+  ranges), its collision geometry from the Pinocchio geometry model (boxes,
+  spheres, cylinders, capsules; any other geometry by its local bounding box),
+  gravity compensated on the hand's own links (``gravcomp``); hand-hand
+  contacts are off (the planner checked them). The fingertip spheres are
+  rigid: where a finger turns relative to the object, the plan's fixed
+  contact asks the sphere to slide on the object by ``r (w_object - w_link) x n``,
+  which friction resists and the plan does not model (a passive ball at the
+  tip would roll instead, but a free ball transmits normal forces only);
+- the object: a free body with the plan's shape and mass (uniform density;
+  meshes from the plan's mesh file), obstacles static;
+- friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
+  contacts ``condim 3``, soft contacts ``condim 4`` with the torsional friction
+  ``torsion`` (m, as in dexplan); elliptic cones, ``impratio`` 10.
+
+The text needs no MuJoCo: :mod:`dexplan.execution.replay.simulation` compiles it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from dexplan.core.typing import FloatArray
+from dexplan.model.collision import CollisionWorld
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile import shape_of
+
+__all__ = [
+    "ARMATURE",
+    "KP",
+    "TIMESTEP",
+    "build_mjcf",
+]
+
+#: Simulation step (s), position gain (N m / rad), joint armature (kg m^2).
+TIMESTEP = 0.001
+KP = 10.0
+ARMATURE = 1e-3
+
+
+def _f(v: Any) -> str:
+    """Numbers as MJCF attribute text: space-separated, 9 significant digits."""
+    return " ".join(f"{float(x):.9g}" for x in np.asarray(v, dtype=float).reshape(-1))
+
+
+def _quat_wxyz(R: FloatArray) -> FloatArray:
+    """(4,) MuJoCo's ``[w, x, y, z]`` unit quaternion of a (3, 3) rotation matrix."""
+    q = pin.Quaternion(np.asarray(R, dtype=float))
+    q.normalize()
+    return np.array([q.w, q.x, q.y, q.z])
+
+
+def _pose_attrs(M: pin.SE3) -> str:
+    """MJCF ``pos`` and ``quat`` attributes of a placement (relative to the parent body)."""
+    return f'pos="{_f(M.translation)}" quat="{_f(_quat_wxyz(M.rotation))}"'
+
+
+def _geom_xml(geom: Any) -> str | None:
+    """MJCF type and size of a coal geometry (None: not a collision shape)."""
+    if isinstance(geom, coal.Box):
+        return f'type="box" size="{_f(geom.halfSide)}"'
+    if isinstance(geom, coal.Sphere):
+        return f'type="sphere" size="{geom.radius:.9g}"'
+    if isinstance(geom, coal.Capsule):
+        return f'type="capsule" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    if isinstance(geom, coal.Cylinder):
+        return f'type="cylinder" size="{geom.radius:.9g} {geom.halfLength:.9g}"'
+    try:
+        geom.computeLocalAABB()
+        box = geom.aabb_local
+        c = 0.5 * (np.asarray(box.min_) + np.asarray(box.max_))
+        h = 0.5 * (np.asarray(box.max_) - np.asarray(box.min_))
+    except Exception:
+        return None
+    return f'type="box" size="{_f(np.maximum(h, 1e-4))}" pos="{_f(c)}"'
+
+
+def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[str, str]:
+    """(asset xml, geom attributes) of a plan shape table."""
+    kind = d["shape"]
+    if kind == "sphere":
+        return "", f'type="sphere" size="{float(d["radius"]):.9g}"'
+    if kind == "box":
+        return "", f'type="box" size="{_f(np.asarray(d["size"], dtype=float) / 2)}"'
+    if kind == "capsule":
+        return "", f'type="capsule" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    if kind == "cylinder":
+        return "", f'type="cylinder" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+    path = Path(str(d["path"]))
+    if not path.is_absolute():
+        path = base_dir / path
+    scale = float(d.get("scale", 1.0))
+    asset = f'<mesh name="{name}_mesh" file={quoteattr(str(path))} scale="{_f([scale] * 3)}"/>'
+    return asset, f'type="mesh" mesh="{name}_mesh"'
+
+
+def build_mjcf(
+    doc: Mapping[str, Any],
+    hand: Hand,
+    *,
+    mass: float,
+    gravity: FloatArray,
+    base_dir: str | Path = ".",
+) -> tuple[str, list[int]]:
+    """MJCF text of the plan's hand, object and obstacles; and the fingertip geom ids.
+
+    Geoms are named ``hand{k}`` in the order of ``hand.geom_model``, the
+    object ``object``, obstacles ``obstacle{k}``; bodies ``b_<joint>``; position
+    actuators ``a_<joint>`` in ``hand.joint_names`` order.
+
+    Args:
+        doc: a validated plan.
+        hand: its :class:`~dexplan.model.hand.hand.Hand`.
+        mass: object mass (kg).
+        gravity: (3,) gravity (m/s^2), world frame.
+        base_dir: the plan's folder (mesh paths).
+    """
+    base_dir = Path(base_dir)
+    model = hand.model
+    contact = _contact_attrs(doc)
+    obj = shape_of(doc["object"], base_dir, "object")
+    world = CollisionWorld(hand, obj)
+    tips = list(world.tip_geoms)
+
+    geoms_of = _hand_geoms(hand.geom_model, contact)
+    children: dict[int, list[int]] = {}
+    for j in range(1, model.njoints):
+        children.setdefault(int(model.parents[j]), []).append(j)
+    a_obj, g_obj = _shape_xml(doc["object"], base_dir, "object")
+    obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
+    assets = [a_obj, *obstacle_assets]
+    start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
+    actuators = "\n".join(
+        f'    <position name="a_{n}" joint="{n}" kp="{KP:g}" dampratio="1" '
+        f'ctrlrange="{model.lowerPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g} '
+        f'{model.upperPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g}"/>'
+        for n in hand.joint_names
+    )
+    palm = "\n".join("    " + g for g in geoms_of.get(0, []))
+    tree = "\n".join(_body_xml(model, c, "    ", geoms_of, children) for c in children.get(0, []))
+    xml = f"""<mujoco model="dexplan replay">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{TIMESTEP:g}" gravity="{_f(gravity)}" cone="elliptic" impratio="10"
+          integrator="implicitfast"/>
+  <asset>
+{chr(10).join(a for a in assets if a)}
+  </asset>
+  <worldbody>
+{palm}
+{chr(10).join(obstacles)}
+    <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">
+      <freejoint name="object"/>
+      <geom name="object" {g_obj} mass="{mass:.9g}" contype="2" conaffinity="3" {contact}/>
+    </body>
+{tree}
+  </worldbody>
+  <actuator>
+{actuators}
+  </actuator>
+</mujoco>
+"""
+    return xml, tips
+
+
+def _contact_attrs(doc: Mapping[str, Any]) -> str:
+    """MJCF contact attributes of every geom: ``condim``, friction ``mu`` (and torsion), solver.
+
+    Args:
+        doc: a validated plan (``mu``, ``contact_model``, ``torsion``).
+    """
+    mu = float(doc["mu"])
+    soft = doc.get("contact_model", "point") == "soft"
+    torsion = float(doc.get("torsion", 0.0))
+    condim = 4 if soft else 3
+    fr = f'friction="{mu:.6g} {max(torsion, 1e-6) if soft else 0.0:.6g} 0"'
+    return f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
+
+
+def _hand_geoms(gm: Any, contact: str) -> dict[int, list[str]]:
+    """MJCF geoms of the hand's collision geometry, by parent joint.
+
+    Args:
+        gm: the hand's Pinocchio geometry model.
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        Per Pinocchio joint, its ``<geom name="hand{k}" .../>`` lines (geometry
+        that is no collision shape is left out).
+    """
+    geoms_of: dict[int, list[str]] = {}
+    for k, go in enumerate(gm.geometryObjects):
+        g = _geom_xml(go.geometry)
+        if g is None:
+            continue
+        pos = _pose_attrs(go.placement)
+        if ' pos="' in g:  # a bounding box centred off the geometry frame
+            c = np.array([float(x) for x in g.split(' pos="')[1].split('"')[0].split()])
+            M = go.placement * pin.SE3(np.eye(3), c)
+            g = g.split(' pos="')[0]
+            pos = _pose_attrs(M)
+        geoms_of.setdefault(int(go.parentJoint), []).append(
+            f'<geom name="hand{k}" {g} {pos} contype="1" conaffinity="2" {contact}/>'
+        )
+    return geoms_of
+
+
+def _body_xml(
+    model: pin.Model,
+    j: int,
+    indent: str,
+    geoms_of: Mapping[int, list[str]],
+    children: Mapping[int, list[int]],
+) -> str:
+    """MJCF body of Pinocchio joint ``j`` and, nested, of every joint below it.
+
+    Args:
+        model: the hand's Pinocchio model.
+        j: the joint.
+        indent: the body's indentation.
+        geoms_of: the hand geoms by joint (:func:`_hand_geoms`).
+        children: the child joints of each joint.
+    """
+    name = model.names[j]
+    jm = model.joints[j]
+    short = jm.shortname()
+    kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
+    axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
+    if axis is None:
+        axis = tuple(np.asarray(jm.extract().axis, dtype=float))
+    inertia = model.inertias[j]
+    m = max(float(inertia.mass), 1e-4)
+    Ic = np.asarray(inertia.inertia, dtype=float)
+    Ic = Ic + np.eye(3) * 1e-8
+    full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
+    iq = jm.idx_q
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    parts = [
+        f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
+        f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
+        f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
+        f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
+    ]
+    parts += [indent + "  " + g for g in geoms_of.get(j, [])]
+    for c in children.get(j, []):
+        parts.append(_body_xml(model, c, indent + "  ", geoms_of, children))
+    parts.append(f"{indent}</body>")
+    return "\n".join(parts)
+
+
+def _obstacles_xml(
+    doc: Mapping[str, Any], base_dir: Path, contact: str
+) -> tuple[list[str], list[str]]:
+    """The obstacles' mesh assets and static geoms.
+
+    Args:
+        doc: a validated plan (its ``obstacles``).
+        base_dir: the plan's folder (mesh paths).
+        contact: the contact attributes (:func:`_contact_attrs`).
+
+    Returns:
+        ``(assets, geoms)``: one asset line per obstacle (empty for a
+        primitive) and one ``<geom name="obstacle{k}" .../>`` line each.
+    """
+    assets = []
+    geoms = []
+    for k, ob in enumerate(doc.get("obstacles", [])):
+        sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
+        a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
+        assets.append(a)
+        p = np.asarray(ob["pose_xyzquat"], dtype=float)
+        geoms.append(
+            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
+            f'contype="2" conaffinity="1" {contact}/>'
+        )
+    return assets, geoms
