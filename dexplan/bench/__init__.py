@@ -9,7 +9,8 @@ medians, success rates and ratios against a baseline planner.
 
 The package, along its seams:
 
-- :mod:`~dexplan.bench.schema`: output names, statuses, stages, run columns, SQL schema.
+- :mod:`~dexplan.bench.schema`: output names, statuses, stages, run columns, SQL
+  schema; the closed sets of names are StrEnums (:class:`RunStatus`, ...).
 - :mod:`~dexplan.bench.tasks`: scenarios resolved and hashed, run tasks, resume keys.
 - :mod:`~dexplan.bench.records` and :mod:`~dexplan.bench.worker`: one run, in a
   worker process, and the record it returns.
@@ -28,8 +29,14 @@ from __future__ import annotations
 from dexplan.bench.database import BenchDatabase, code_fingerprint
 from dexplan.bench.extras import require_matplotlib
 from dexplan.bench.plots import plot_results
-from dexplan.bench.records import failure_record, segments_sha256
-from dexplan.bench.report import format_summary, summarize, write_csv, write_summary_csv
+from dexplan.bench.records import RunRecord, RunRow, failure_record, segments_sha256
+from dexplan.bench.report import (
+    SummaryRow,
+    format_summary,
+    summarize,
+    write_csv,
+    write_summary_csv,
+)
 from dexplan.bench.runners import BenchProgress, ProgressCallback, default_run_timeout
 from dexplan.bench.schema import (
     CSV_COLUMNS,
@@ -46,6 +53,11 @@ from dexplan.bench.schema import (
     RUN_COLUMNS,
     STAGES,
     SUMMARY_CSV_NAME,
+    Backend,
+    Plot,
+    ReductionMethod,
+    RunStatus,
+    StartMethod,
 )
 from dexplan.bench.sweep import BenchResult, run_benchmark
 from dexplan.bench.tasks import (
@@ -56,10 +68,7 @@ from dexplan.bench.tasks import (
     validate_sweep,
 )
 from dexplan.bench.worker import execute_run
-from dexplan.model.scenario.scenario import (
-    scenario_description,
-    scenario_hash,
-)  # the one scenario identity
+from dexplan.model.scenario.scenario import scenario_description, scenario_hash
 
 __all__ = [
     "CSV_COLUMNS",
@@ -76,11 +85,19 @@ __all__ = [
     "RUN_COLUMNS",
     "STAGES",
     "SUMMARY_CSV_NAME",
+    "Backend",
     "BenchDatabase",
     "BenchProgress",
     "BenchResult",
+    "Plot",
     "ProgressCallback",
+    "ReductionMethod",
+    "RunRecord",
+    "RunRow",
+    "RunStatus",
     "RunTask",
+    "StartMethod",
+    "SummaryRow",
     "code_fingerprint",
     "default_run_timeout",
     "execute_run",

@@ -15,10 +15,12 @@ import socket
 import sqlite3
 from collections.abc import Iterable, Mapping
 from datetime import datetime
+from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
-from dexplan.bench.records import jsonable
+from dexplan import __version__
+from dexplan.bench.records import RunRecord, RunRow, jsonable
 from dexplan.bench.schema import (
     IDENTITY_COLUMNS,
     OMPL_STATUSES,
@@ -75,13 +77,9 @@ def _cpuinfo() -> str:
 
 def _dexplan_version() -> str:
     """The installed dexplan version (the source tree's when not installed)."""
-    from importlib import metadata
-
     try:
         return metadata.version("dexplan")
     except metadata.PackageNotFoundError:
-        from dexplan import __version__
-
         return __version__
 
 
@@ -212,14 +210,15 @@ class BenchDatabase:
         """Resume keys of the runs already stored."""
         return {row[0] for row in self.conn.execute("SELECT key FROM dexplan_runs")}
 
-    def add_run(self, rec: Mapping[str, Any], experiment_id: int, planner_id: int) -> int:
+    def add_run(self, rec: RunRecord, experiment_id: int, planner_id: int) -> int:
         """Store one run (``runs``, ``progress``, ``dexplan_runs``) in one transaction.
 
         Returns:
             The ``runs.id`` of the new row.
         """
         names = [name for name, _ in RUN_COLUMNS]
-        values = [_sql_value(rec.get(name)) for name in names]
+        columns: Mapping[str, object] = rec  # the columns by name, as SQL takes them
+        values = [_sql_value(columns.get(name)) for name in names]
         c = self.conn
         with c:  # one transaction: all of it or nothing
             cur = c.execute(
@@ -260,7 +259,7 @@ class BenchDatabase:
             )
         return run_id
 
-    def records(self, keys: Iterable[str] | None = None) -> list[dict[str, Any]]:
+    def records(self, keys: Iterable[str] | None = None) -> list[RunRow]:
         """Stored runs as flat records (:data:`CSV_COLUMNS` plus ``key``), in run order.
 
         Args:
@@ -274,12 +273,12 @@ class BenchDatabase:
             + " FROM dexplan_runs d JOIN runs r ON r.id = d.runid ORDER BY r.id"
         )
         wanted = None if keys is None else set(keys)
-        out = []
+        fields = ("key", *IDENTITY_COLUMNS, *names)
+        out: list[RunRow] = []
         for row in self.conn.execute(sql):
             if wanted is not None and row[0] not in wanted:
                 continue
-            rec = dict(zip(("key", *IDENTITY_COLUMNS, *names), row, strict=True))
-            out.append(rec)
+            out.append(cast(RunRow, dict(zip(fields, row, strict=True))))
         return out
 
     def counts(self) -> dict[str, int]:
@@ -290,7 +289,7 @@ class BenchDatabase:
         }
 
 
-def _sql_value(value: Any) -> Any:
+def _sql_value(value: Any) -> int | float | str | None:
     """A record value as SQLite stores it (bools as 0/1, nan and inf as NULL)."""
     if value is None:
         return None

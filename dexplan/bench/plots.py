@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Literal
 
 from dexplan.bench.extras import require_matplotlib
-from dexplan.bench.schema import DEFAULT_BASELINE, PLOT_NAMES
+from dexplan.bench.records import RunRow
+from dexplan.bench.schema import DEFAULT_BASELINE, Plot
 from dexplan.core.files import atomic_output
+
+if TYPE_CHECKING:  # matplotlib's types for annotations; at run time it loads on first use
+    from matplotlib.figure import Figure
 
 #: Widest row of box-plot panels (inches) before they wrap to a new row.
 _ROW_WIDTH = 24.0
@@ -18,12 +23,12 @@ _ROW_WIDTH = 24.0
 _MAX_BARS = 24
 
 
-def _ordered(records: Sequence[Mapping[str, Any]], key: str) -> list[str]:
-    """The distinct values of a record field, in first-seen order."""
+def _ordered(values: Iterable[str]) -> list[str]:
+    """The distinct values, in first-seen order."""
     out: list[str] = []
-    for rec in records:
-        if rec[key] not in out:
-            out.append(str(rec[key]))
+    for value in values:
+        if value not in out:
+            out.append(str(value))
     return out
 
 
@@ -39,13 +44,13 @@ class _Grid:
         by: the records of each (scenario, planner).
     """
 
-    plt: Any
+    plt: ModuleType
     out_dir: Path
     scenarios: list[str]
     planners: list[str]
-    by: dict[tuple[str, str], list[Mapping[str, Any]]]
+    by: dict[tuple[str, str], list[RunRow]]
 
-    def save(self, fig: Any, name: str) -> Path:
+    def save(self, fig: Figure, name: str) -> Path:
         """Write a figure as ``out_dir/name`` (PNG, atomically) and close it."""
         path = self.out_dir / name
         with atomic_output(path, "plot") as tmp:
@@ -55,7 +60,7 @@ class _Grid:
 
 
 def plot_results(
-    records: Sequence[Mapping[str, Any]],
+    records: Sequence[RunRow],
     out_dir: str | Path,
     baseline: str | None = DEFAULT_BASELINE,
 ) -> list[Path]:
@@ -78,8 +83,8 @@ def plot_results(
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 
-    scenarios = _ordered(records, "scenario")
-    planners = _ordered(records, "planner")
+    scenarios = _ordered(r["scenario"] for r in records)
+    planners = _ordered(r["planner"] for r in records)
     if baseline in planners:
         planners.remove(baseline)
         planners.insert(0, baseline)
@@ -87,15 +92,15 @@ def plot_results(
           for s in scenarios for p in planners}  # fmt: skip
     grid = _Grid(plt, Path(out_dir), scenarios, planners, by)
     return [
-        _boxes(grid, "time", "planning time per run (all runs)", "time (s)", PLOT_NAMES[0]),
-        _success(grid, PLOT_NAMES[1]),
-        _boxes(grid, "graph_states", "roadmap nodes generated (all runs)", "nodes", PLOT_NAMES[2]),
+        _boxes(grid, "time", "planning time per run (all runs)", "time (s)", Plot.TIME),
+        _success(grid, Plot.SUCCESS),
+        _boxes(grid, "graph_states", "roadmap nodes generated (all runs)", "nodes", Plot.NODES),
         _boxes(
             grid,
             "regrasps",
             "regrasps per plan (solved runs)",
             "regrasps",
-            PLOT_NAMES[3],
+            Plot.REGRASPS,
             solved_only=True,
             log=False,
         ),
@@ -104,7 +109,7 @@ def plot_results(
 
 def _boxes(
     grid: _Grid,
-    column: str,
+    column: Literal["time", "graph_states", "regrasps"],
     title: str,
     ylabel: str,
     name: str,
@@ -130,8 +135,9 @@ def _boxes(
         data, labels = [], []
         for i, p in enumerate(grid.planners):
             rs = [r for r in grid.by[(scen, p)] if r.get("solved") or not solved_only]
-            rs = [r for r in rs if r.get(column) is not None]
-            vals = [float(r[column]) for r in rs]
+            figures = [(r, r.get(column)) for r in rs]
+            rs = [r for r, v in figures if v is not None]
+            vals = [float(v) for _, v in figures if v is not None]
             data.append(vals)
             labels.append(f"{p}\n(n={len(vals)})")
             # every run as a point (deterministic jitter): solved o, unsolved x
@@ -139,7 +145,7 @@ def _boxes(
                 x = i + 1 + 0.3 * ((j * 0.618034) % 1.0 - 0.5)
                 ok = bool(r.get("solved"))
                 ax.plot(
-                    x, float(r[column]), "o" if ok else "x", ms=3, alpha=0.5,
+                    x, vals[j], "o" if ok else "x", ms=3, alpha=0.5,
                     color="tab:green" if ok else "tab:red", zorder=3,
                 )  # fmt: skip
         ax.boxplot(data, showfliers=False)

@@ -1,8 +1,12 @@
-"""Run records: the flat dict one run produces, from a worker or from a failure.
+"""Run records: what one run produces, from a worker or from a failure.
 
-A record has every key of :data:`~dexplan.bench.schema.CSV_COLUMNS`, plus
-``key`` (the resume key), ``progress`` (``[(seconds, stage), ...]``) and
-``stats`` (the planner's statistics, JSON-ready).
+A record is a :class:`~typing.TypedDict`: typed for the code that fills and
+reads it, and a plain dict for what it crosses on its way (the worker's pipe,
+Ray, SQLite, the CSV writer), so the database and CSV columns are its keys.
+:class:`RunRow` is what the database gives back (every column of
+:data:`~dexplan.bench.schema.CSV_COLUMNS` plus the resume key);
+:class:`RunRecord`, what a run returns, adds its progress and the planner's
+statistics.
 """
 
 from __future__ import annotations
@@ -12,41 +16,124 @@ import json
 import math
 import socket
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, TypedDict, cast
 
-from dexplan.bench.schema import CSV_COLUMNS, OMPL_STATUS_OF, PLAN_STATUSES, REDUCTION_METHODS
+from dexplan.bench.schema import (
+    CSV_COLUMNS,
+    OMPL_STATUS_OF,
+    PLAN_STATUSES,
+    REDUCTION_METHODS,
+    RunStatus,
+)
 from dexplan.bench.tasks import RunTask
 from dexplan.planning.stats import PlanStats
 
 
-def empty_record(task: RunTask) -> dict[str, Any]:
+class RunRow(TypedDict):
+    """One stored run: the resume key, then the columns of ``runs.csv``.
+
+    Figures a run did not produce are None (an empty CSV cell, SQL NULL).
+    The columns are described with :data:`~dexplan.bench.schema.RUN_COLUMNS`
+    and :data:`~dexplan.bench.schema.IDENTITY_COLUMNS`.
+    """
+
+    key: str
+    # identity (dexplan_runs)
+    scenario: str
+    scenario_hash: str
+    planner: str
+    time_limit: float
+    status_name: str | None
+    message: str
+    plan_sha256: str | None
+    backend: str | None
+    host: str | None
+    code: str | None
+    # OMPL Benchmark's columns
+    time: float | None
+    memory: float | None
+    status: int | None
+    solved: int
+    correct_solution: int | None
+    graph_states: int | None
+    graph_motions: int | None
+    solution_segments: int | None
+    # dexplan's columns
+    seed: int
+    plan_status: int | None
+    gsn_time: float | None
+    reduction_time: float | None
+    verify_time: float | None
+    verify_violations: int | None
+    plan_verify_ratio: float | None
+    components: int | None
+    graph_nodes: int | None
+    module2_attempts: int | None
+    module2_links: int | None
+    geodesic_motion_edges: int | None
+    reduction_attempts: int | None
+    reduction_method: int | None
+    regrasps: int | None
+    transfers: int | None
+    waypoints: int | None
+    object_path_m: float | None
+    object_path_rad: float | None
+    joint_travel_rad: float | None
+    states_checked: int | None
+    states_valid: int | None
+    rejected_bounds: int | None
+    rejected_joint_limits: int | None
+    rejected_collision: int | None
+    rejected_force_closure: int | None
+    sampler_attempts: int | None
+    sampler_valid: int | None
+    wall_time: float | None
+
+
+class RunRecord(RunRow):
+    """What one run returns: a :class:`RunRow` with its progress and statistics.
+
+    Attributes:
+        progress: ``[(seconds, stage), ...]``, stage a
+            :class:`dexplan.planning.progress.Stage` value.
+        stats: the planner's statistics (:meth:`PlanStats.as_dict`, JSON-ready).
+    """
+
+    progress: list[tuple[float, int]]
+    stats: dict[str, Any]
+
+
+# the record types and the schema's columns must name the same fields
+assert set(RunRow.__annotations__) == {"key", *CSV_COLUMNS}, "RunRow out of step with the schema"
+
+
+def empty_record(task: RunTask) -> RunRecord:
     """The record of a run before it ran: its identity, unsolved, no figures."""
-    rec: dict[str, Any] = dict.fromkeys(CSV_COLUMNS)
-    rec.update(
-        scenario=task.scenario.name,
-        scenario_hash=task.scenario_hash,
-        planner=task.planner,
-        seed=task.seed,
-        time_limit=task.time_limit,
-        key=task.key,
-        solved=0,
-        message="",
-        host=socket.gethostname(),
-        progress=[],
-        stats={},
-    )
+    rec = cast(RunRecord, dict.fromkeys(CSV_COLUMNS))  # every figure None until a run sets it
+    rec["scenario"] = task.scenario.name
+    rec["scenario_hash"] = task.scenario_hash
+    rec["planner"] = task.planner
+    rec["seed"] = task.seed
+    rec["time_limit"] = task.time_limit
+    rec["key"] = task.key
+    rec["solved"] = 0
+    rec["message"] = ""
+    rec["host"] = socket.gethostname()
+    rec["progress"] = []
+    rec["stats"] = {}
     return rec
 
 
-def set_status(rec: dict[str, Any], status: str) -> None:
-    """Set a record's status (a :data:`PLAN_STATUSES` name) and the fields it decides."""
+def set_status(rec: RunRecord, status: RunStatus | str) -> None:
+    """Set a record's status (a :class:`RunStatus`) and the fields it decides."""
+    status = RunStatus(status)
     rec["status_name"] = status
     rec["plan_status"] = PLAN_STATUSES.index(status)
     rec["status"] = OMPL_STATUS_OF[status]
-    rec["solved"] = int(status == "solved")
+    rec["solved"] = int(status == RunStatus.SOLVED)
 
 
-def failure_record(task: RunTask, status: str, message: str) -> dict[str, Any]:
+def failure_record(task: RunTask, status: RunStatus, message: str) -> RunRecord:
     """The record of a run that produced no result (``crash``, ``killed``, ``error``)."""
     rec = empty_record(task)
     set_status(rec, status)
@@ -60,28 +147,25 @@ def segments_sha256(segments: Sequence[Mapping[str, Any]]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def fill_stats(rec: dict[str, Any], stats: PlanStats) -> None:
+def fill_stats(rec: RunRecord, stats: PlanStats) -> None:
     """Copy the planner's statistics into a record's columns."""
     rec["time"] = stats.time_s
     rec["gsn_time"] = stats.gsn_time_s
     rec["reduction_time"] = stats.reduction_time_s
     rec["graph_states"] = stats.roadmap_nodes
     rec["graph_motions"] = stats.roadmap_edges
-    for name in (
-        "components",
-        "graph_nodes",
-        "module2_attempts",
-        "module2_links",
-        "geodesic_motion_edges",
-        "reduction_attempts",
-        "regrasps",
-        "transfers",
-        "waypoints",
-        "object_path_m",
-        "object_path_rad",
-        "joint_travel_rad",
-    ):
-        rec[name] = getattr(stats, name)
+    rec["components"] = stats.components
+    rec["graph_nodes"] = stats.graph_nodes
+    rec["module2_attempts"] = stats.module2_attempts
+    rec["module2_links"] = stats.module2_links
+    rec["geodesic_motion_edges"] = stats.geodesic_motion_edges
+    rec["reduction_attempts"] = stats.reduction_attempts
+    rec["regrasps"] = stats.regrasps
+    rec["transfers"] = stats.transfers
+    rec["waypoints"] = stats.waypoints
+    rec["object_path_m"] = stats.object_path_m
+    rec["object_path_rad"] = stats.object_path_rad
+    rec["joint_travel_rad"] = stats.joint_travel_rad
     method = stats.reduction_method
     known = method in REDUCTION_METHODS
     rec["reduction_method"] = REDUCTION_METHODS.index(method) if known else None
@@ -91,8 +175,10 @@ def fill_stats(rec: dict[str, Any], stats: PlanStats) -> None:
     rec["states_checked"] = validity.get("checked")
     rec["states_valid"] = validity.get("valid")
     rejected = validity.get("rejected") or {}
-    for reason in ("bounds", "joint_limits", "collision", "force_closure"):
-        rec[f"rejected_{reason}"] = rejected.get(reason)
+    rec["rejected_bounds"] = rejected.get("bounds")
+    rec["rejected_joint_limits"] = rejected.get("joint_limits")
+    rec["rejected_collision"] = rejected.get("collision")
+    rec["rejected_force_closure"] = rejected.get("force_closure")
     rec["sampler_attempts"] = stats.sampler.get("attempts")
     rec["sampler_valid"] = stats.sampler.get("valid")
 

@@ -7,13 +7,42 @@ import math
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
+from dexplan.bench.records import RunRow
 from dexplan.bench.schema import CSV_COLUMNS, DEFAULT_BASELINE
 from dexplan.core.files import atomic_output
 
 
-def _median(values: Iterable[Any]) -> float:
+class SummaryRow(TypedDict):
+    """One row of the summary of a sweep (``summary.csv``): a planner on a scenario.
+
+    Medians are NaN when no run gives the figure; ``*_vs_base`` divide by the
+    baseline planner's figure on the same scenario (NaN without a baseline).
+    """
+
+    scenario: str
+    planner: str
+    runs: int
+    solved: int
+    success_rate: float
+    time_median: float
+    time_solved_median: float
+    nodes_median: float
+    components_median: float
+    regrasps_median: float
+    transfers_median: float
+    verify_ok: int
+    verify_time_median: float
+    plan_verify_ratio_median: float
+    memory_median: float
+    success_rate_vs_base: float
+    time_median_vs_base: float
+    nodes_median_vs_base: float
+    regrasps_median_vs_base: float
+
+
+def _median(values: Iterable[float | None]) -> float:
     """Median of the finite values (None and NaN left out); NaN when there are none."""
     vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
     return statistics.median(vals) if vals else math.nan
@@ -27,8 +56,8 @@ def _ratio(a: float, b: float) -> float:
 
 
 def summarize(
-    records: Sequence[Mapping[str, Any]], baseline: str | None = DEFAULT_BASELINE
-) -> list[dict[str, Any]]:
+    records: Sequence[RunRow], baseline: str | None = DEFAULT_BASELINE
+) -> list[SummaryRow]:
     """Per scenario and planner: success rate, medians, and ratios to the baseline.
 
     Medians of ``time`` and ``graph_states`` are over all runs (failed runs
@@ -38,12 +67,12 @@ def summarize(
     on the same scenario (NaN without a baseline).
 
     Returns:
-        One dict per (scenario, planner), in first-seen order.
+        One row per (scenario, planner), in first-seen order.
     """
-    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    groups: dict[tuple[str, str], list[RunRow]] = {}
     for rec in records:
         groups.setdefault((str(rec["scenario"]), str(rec["planner"])), []).append(rec)
-    rows = []
+    rows: list[SummaryRow] = []
     for (scen, planner), recs in groups.items():
         solved = [r for r in recs if r.get("solved")]
         rows.append(
@@ -63,13 +92,20 @@ def summarize(
                 "verify_time_median": _median(r.get("verify_time") for r in solved),
                 "plan_verify_ratio_median": _median(r.get("plan_verify_ratio") for r in solved),
                 "memory_median": _median(r.get("memory") for r in recs),
+                "success_rate_vs_base": math.nan,
+                "time_median_vs_base": math.nan,
+                "nodes_median_vs_base": math.nan,
+                "regrasps_median_vs_base": math.nan,
             }
         )
     base = {row["scenario"]: row for row in rows if row["planner"] == baseline}
     for row in rows:
         b = base.get(row["scenario"])
-        for name in ("success_rate", "time_median", "nodes_median", "regrasps_median"):
-            row[f"{name}_vs_base"] = _ratio(row[name], b[name]) if b else math.nan
+        if b is not None:
+            row["success_rate_vs_base"] = _ratio(row["success_rate"], b["success_rate"])
+            row["time_median_vs_base"] = _ratio(row["time_median"], b["time_median"])
+            row["nodes_median_vs_base"] = _ratio(row["nodes_median"], b["nodes_median"])
+            row["regrasps_median_vs_base"] = _ratio(row["regrasps_median"], b["regrasps_median"])
     return rows
 
 
@@ -81,7 +117,7 @@ def _fmt(value: Any, spec: str) -> str:
     return format(value, spec)
 
 
-def format_summary(rows: Sequence[Mapping[str, Any]], baseline: str | None = None) -> str:
+def format_summary(rows: Sequence[SummaryRow], baseline: str | None = None) -> str:
     """A fixed-width text table of :func:`summarize` rows (the CLI prints it)."""
     head = (
         f"{'scenario':<16} {'planner':<11} {'runs':>4} {'solved':>7} {'x base':>6} "
@@ -108,18 +144,18 @@ def format_summary(rows: Sequence[Mapping[str, Any]], baseline: str | None = Non
     return "\n".join(lines)
 
 
-def write_csv(records: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
+def write_csv(records: Sequence[RunRow], path: str | Path) -> Path:
     """Write run records (:data:`CSV_COLUMNS`) to a CSV file, atomically."""
     return _write_table(records, list(CSV_COLUMNS), path)
 
 
-def write_summary_csv(rows: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
+def write_summary_csv(rows: Sequence[SummaryRow], path: str | Path) -> Path:
     """Write :func:`summarize` rows to a CSV file, atomically."""
     fields = list(rows[0]) if rows else ["scenario", "planner"]
     return _write_table(rows, fields, path)
 
 
-def _write_table(rows: Sequence[Mapping[str, Any]], fields: list[str], path: str | Path) -> Path:
+def _write_table(rows: Sequence[Mapping[str, object]], fields: list[str], path: str | Path) -> Path:
     """Write the ``fields`` of some rows to a CSV file, atomically (other keys left out)."""
     path = Path(path)
     with atomic_output(path, "CSV") as tmp, open(tmp, "w", newline="") as fh:
@@ -130,7 +166,7 @@ def _write_table(rows: Sequence[Mapping[str, Any]], fields: list[str], path: str
     return path
 
 
-def _csv_value(value: Any) -> Any:
+def _csv_value(value: object) -> object:
     """A value as the CSV gives it: missing and NaN empty, floats in full (``repr``)."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ""

@@ -4,10 +4,9 @@ The local pool starts one process per run (``forkserver`` by default, with the
 planning modules preloaded; ``spawn`` on request), at most ``jobs`` at a time.
 On a Ray cluster (``"local"`` starts one in-process) each run is a Ray task in
 a fresh worker process too (``max_calls=1``), so a seed gives the same plan
-whichever backend ran it, for the planners that are deterministic (see
-``docs/benchmarks.md``). Either way a run that overruns its hard wall-clock
-limit is killed and recorded as ``killed``, and a worker that dies as
-``crash``.
+whichever backend ran it, for the planners that are deterministic. Either
+way a run that overruns its hard wall-clock limit is killed and recorded as
+``killed``, and a worker that dies as ``crash``.
 """
 
 from __future__ import annotations
@@ -18,14 +17,18 @@ import os
 import socket
 import time
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_connections
+from multiprocessing.context import ForkServerContext, SpawnContext
+from multiprocessing.process import BaseProcess
+from types import ModuleType
 from typing import Any, Protocol
 
 from dexplan.bench.extras import require_ray
-from dexplan.bench.records import failure_record
+from dexplan.bench.records import RunRecord, failure_record
+from dexplan.bench.schema import RunStatus, StartMethod
 from dexplan.bench.tasks import RunTask
 from dexplan.bench.worker import PRELOAD, child_main, execute_run
 from dexplan.core.errors import InvalidInputError
@@ -45,11 +48,11 @@ class BenchProgress:
     done: int
     total: int
     skipped: int
-    record: Mapping[str, Any] | None = None
+    record: RunRecord | None = None
 
 
 ProgressCallback = Callable[[BenchProgress], None]
-OnResult = Callable[[RunTask, dict[str, Any]], None]
+OnResult = Callable[[RunTask, RunRecord], None]
 """Called with each finished run's task and record, in the order they finish."""
 
 
@@ -73,7 +76,7 @@ class _Backend(Protocol):
 
     def ready(self, handles: list[Any]) -> list[Any]: ...
 
-    def collect(self, handle: Any, task: RunTask) -> dict[str, Any]: ...
+    def collect(self, handle: Any, task: RunTask) -> RunRecord: ...
 
     def kill(self, handle: Any) -> None: ...
 
@@ -102,39 +105,40 @@ def _drive(
                 backend.kill(handle)
                 del active[handle]
                 message = f"run exceeded {limit:.0f} s wall clock"
-                on_result(job.task, failure_record(job.task, "killed", message))
+                on_result(job.task, failure_record(job.task, RunStatus.KILLED, message))
 
 
 # ------------------------------------------------------------------ local processes
 
 
-def _mp_context(start_method: str) -> Any:
+def _mp_context(start_method: StartMethod | str) -> ForkServerContext | SpawnContext:
     """The multiprocessing context of a start method, its fork server preloaded.
 
     Raises:
         InvalidInputError: not ``forkserver`` or ``spawn``.
     """
-    if start_method not in ("forkserver", "spawn"):
+    if start_method not in tuple(StartMethod):
         raise InvalidInputError(
             f"start method must be 'forkserver' or 'spawn', got {start_method!r}"
         )
-    ctx = multiprocessing.get_context(start_method)
     # Python 3.11's fork server starts with `python -c` and keeps the working
     # folder first on sys.path (it ignores the parent's path): a folder named
     # `dexplan` there would shadow the installed package in every worker
     os.environ.setdefault("PYTHONSAFEPATH", "1")
-    if start_method == "forkserver":
-        # imports happen once in the server; every run still forks a fresh process
-        ctx.set_forkserver_preload(list(PRELOAD))
+    if start_method == StartMethod.SPAWN:
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    # imports happen once in the server; every run still forks a fresh process
+    ctx.set_forkserver_preload(list(PRELOAD))
     return ctx
 
 
 class _ProcessPool:
     """One process per run, its record sent back through a pipe (the handle)."""
 
-    def __init__(self, ctx: Any) -> None:
+    def __init__(self, ctx: ForkServerContext | SpawnContext) -> None:
         self.ctx = ctx
-        self.procs: dict[Connection, Any] = {}
+        self.procs: dict[Connection, BaseProcess] = {}
 
     def start(self, task: RunTask) -> Connection:
         recv, send = self.ctx.Pipe(duplex=False)
@@ -147,13 +151,14 @@ class _ProcessPool:
     def ready(self, handles: list[Any]) -> list[Any]:
         return list(wait_connections(handles, timeout=0.5))
 
-    def collect(self, handle: Connection, task: RunTask) -> dict[str, Any]:
+    def collect(self, handle: Connection, task: RunTask) -> RunRecord:
         proc = self.procs.pop(handle)
         try:
             rec = handle.recv()
         except (EOFError, OSError):
             proc.join(5.0)
-            rec = failure_record(task, "crash", f"worker process died (exit code {proc.exitcode})")
+            message = f"worker process died (exit code {proc.exitcode})"
+            rec = failure_record(task, RunStatus.CRASH, message)
         handle.close()
         proc.join(10.0)
         if proc.is_alive():
@@ -178,7 +183,7 @@ def run_local(
     jobs: int,
     on_result: OnResult,
     *,
-    start_method: str,
+    start_method: StartMethod | str,
     run_timeout: Callable[[RunTask], float],
 ) -> None:
     """Run each task in its own process, at most ``jobs`` at a time.
@@ -222,7 +227,7 @@ def check_ray_address(address: str) -> None:
         raise InvalidInputError(f"--ray {address!r}: no Ray cluster answers there ({exc})") from exc
 
 
-def _init_ray(ray: Any, address: str, jobs: int | None) -> bool:
+def _init_ray(ray: ModuleType, address: str, jobs: int | None) -> bool:
     """Start or join a Ray cluster unless Ray is initialised already.
 
     Returns:
@@ -254,7 +259,7 @@ def _init_ray(ray: Any, address: str, jobs: int | None) -> bool:
 class _RayTasks:
     """One Ray task per run, in a fresh worker process (``max_calls=1``)."""
 
-    def __init__(self, ray: Any) -> None:
+    def __init__(self, ray: ModuleType) -> None:
         self.ray = ray
         self.remote = ray.remote(num_cpus=1, max_calls=1, max_retries=0)(execute_run)
 
@@ -265,11 +270,12 @@ class _RayTasks:
         ready, _ = self.ray.wait(handles, num_returns=1, timeout=0.5)
         return list(ready)
 
-    def collect(self, handle: Any, task: RunTask) -> dict[str, Any]:
+    def collect(self, handle: Any, task: RunTask) -> RunRecord:
         try:
-            return self.ray.get(handle)
+            rec: RunRecord = self.ray.get(handle)
         except Exception as exc:  # worker died or the task was lost
-            return failure_record(task, "crash", f"Ray task failed: {type(exc).__name__}")
+            return failure_record(task, RunStatus.CRASH, f"Ray task failed: {type(exc).__name__}")
+        return rec
 
     def kill(self, handle: Any) -> None:
         self.ray.cancel(handle, force=True)

@@ -5,9 +5,14 @@ The ``runs`` columns, ``enums`` and views follow OMPL's Planner Arena
 ``enums``, ``runs``, ``progress`` and the ``bestPlannerConfigs*`` views);
 dexplan's bookkeeping goes to two extra tables (``dexplan_experiments``,
 ``dexplan_runs``). This module holds data only.
+
+The closed sets of names are :class:`~enum.StrEnum` classes: a member equals
+its string, so the database, the CSV files and the JSON stay plain text.
 """
 
 from __future__ import annotations
+
+from enum import StrEnum
 
 DEFAULT_PLANNERS: tuple[str, ...] = ("PRM", "RRTConnect", "KPIECE1")
 """Planners of ``dexplan bench`` when none are given."""
@@ -18,12 +23,42 @@ DEFAULT_BASELINE = "PRM"
 DB_NAME = "bench.db"
 CSV_NAME = "runs.csv"
 SUMMARY_CSV_NAME = "summary.csv"
-PLOT_NAMES: tuple[str, ...] = (
-    "bench_time.png",
-    "bench_success.png",
-    "bench_nodes.png",
-    "bench_regrasps.png",
-)
+
+
+class Plot(StrEnum):
+    """The PNG plots of a sweep, by file name."""
+
+    TIME = "bench_time.png"
+    """Box plots of planning time per planner, one panel per scenario."""
+    SUCCESS = "bench_success.png"
+    """Success rate per planner and scenario."""
+    NODES = "bench_nodes.png"
+    """Box plots of roadmap nodes generated."""
+    REGRASPS = "bench_regrasps.png"
+    """Box plots of regrasps per solved plan."""
+
+
+PLOT_NAMES: tuple[str, ...] = tuple(Plot)
+"""File names of the plots, in the order they are written."""
+
+
+class Backend(StrEnum):
+    """Where a sweep's runs execute."""
+
+    LOCAL = "local"
+    """A pool of local processes."""
+    RAY = "ray"
+    """Ray tasks on a cluster."""
+
+
+class StartMethod(StrEnum):
+    """How the local backend starts its worker processes (:mod:`multiprocessing`)."""
+
+    FORKSERVER = "forkserver"
+    """Forks of a server that imported the planning modules once."""
+    SPAWN = "spawn"
+    """Fresh interpreters."""
+
 
 # ------------------------------------------------------------------ statuses
 
@@ -43,38 +78,58 @@ OMPL_STATUSES: tuple[str, ...] = (
 ``status`` enum (the 2.0.1 wheel's ``asString`` says "Unknown status" for Abort
 and Infeasible; the upstream names are used here)."""
 
-FAILED_RUN_STATUSES = frozenset({"error", "crash"})
+
+class RunStatus(StrEnum):
+    """How a run ended, in the order of the ``plan status`` enum.
+
+    The planner's statuses (:class:`dexplan.planning.progress.PlanStatus`) first,
+    then the run's own failures.
+    """
+
+    SOLVED = "solved"
+    NO_START_GRASP = "no_start_grasp"
+    NO_GOAL_GRASP = "no_goal_grasp"
+    NO_GSN_PATH = "no_gsn_path"
+    REDUCTION_FAILED = "reduction_failed"
+    INVALID_PLAN = "invalid_plan"
+    ERROR = "error"
+    """The run raised."""
+    CRASH = "crash"
+    """The worker process died."""
+    KILLED = "killed"
+    """The run overran its hard wall-clock limit."""
+
+
+PLAN_STATUSES: tuple[str, ...] = tuple(RunStatus)
+"""Run outcomes, in the order of the ``plan status`` enum (its values are indexes here)."""
+
+FAILED_RUN_STATUSES = frozenset({RunStatus.ERROR, RunStatus.CRASH})
 """Statuses of runs that failed as runs (see :attr:`BenchResult.failed`)."""
 
-PLAN_STATUSES: tuple[str, ...] = (
-    "solved",
-    "no_start_grasp",
-    "no_goal_grasp",
-    "no_gsn_path",
-    "reduction_failed",
-    "invalid_plan",
-    "error",
-    "crash",
-    "killed",
-)
-"""dexplan run outcomes, in the order of the ``plan status`` enum: the planner's
-statuses, then ``error`` (the run raised), ``crash`` (the worker process died)
-and ``killed`` (the run overran its hard wall-clock limit)."""
 
-REDUCTION_METHODS: tuple[str, ...] = ("gaits", "edges")
-"""How a solved run's GSn path became transfers and regrasps, in the order of
-the ``reduction method`` enum (see :func:`dexplan.planning.planner.plan`)."""
+class ReductionMethod(StrEnum):
+    """How a solved run's GSn path became transfers and regrasps.
 
-OMPL_STATUS_OF: dict[str, int] = {
-    "solved": 6,  # Exact solution
-    "no_start_grasp": 1,  # Invalid start
-    "no_goal_grasp": 2,  # Invalid goal
-    "no_gsn_path": 4,  # Timeout
-    "reduction_failed": 4,  # the reduction retries until the deadline
-    "invalid_plan": 5,  # Approximate solution: a plan that fails the verifier
-    "error": 8,  # Abort
-    "crash": 7,  # Crash
-    "killed": 7,  # OMPL's Benchmark calls an overrunning planner a crash too
+    In the order of the ``reduction method`` enum (see :func:`dexplan.planning.planner.plan`).
+    """
+
+    GAITS = "gaits"
+    EDGES = "edges"
+
+
+REDUCTION_METHODS: tuple[str, ...] = tuple(ReductionMethod)
+"""Reduction method names, in the order of the ``reduction method`` enum."""
+
+OMPL_STATUS_OF: dict[RunStatus, int] = {
+    RunStatus.SOLVED: 6,  # Exact solution
+    RunStatus.NO_START_GRASP: 1,  # Invalid start
+    RunStatus.NO_GOAL_GRASP: 2,  # Invalid goal
+    RunStatus.NO_GSN_PATH: 4,  # Timeout
+    RunStatus.REDUCTION_FAILED: 4,  # the reduction retries until the deadline
+    RunStatus.INVALID_PLAN: 5,  # Approximate solution: a plan that fails the verifier
+    RunStatus.ERROR: 8,  # Abort
+    RunStatus.CRASH: 7,  # Crash
+    RunStatus.KILLED: 7,  # OMPL's Benchmark calls an overrunning planner a crash too
 }
 """The ``ompl::base::PlannerStatus`` value (:data:`OMPL_STATUSES`) of each plan status."""
 

@@ -17,12 +17,12 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from dexplan.bench.database import BenchDatabase, code_fingerprint
 from dexplan.bench.extras import require_matplotlib, require_ray
 from dexplan.bench.plots import plot_results
-from dexplan.bench.report import summarize, write_csv, write_summary_csv
+from dexplan.bench.records import RunRecord, RunRow
+from dexplan.bench.report import SummaryRow, summarize, write_csv, write_summary_csv
 from dexplan.bench.runners import (
     BenchProgress,
     OnResult,
@@ -39,6 +39,8 @@ from dexplan.bench.schema import (
     DEFAULT_PLANNERS,
     FAILED_RUN_STATUSES,
     SUMMARY_CSV_NAME,
+    Backend,
+    StartMethod,
 )
 from dexplan.bench.tasks import (
     RunTask,
@@ -52,6 +54,7 @@ from dexplan.bench.tasks import (
 )
 from dexplan.core.errors import InvalidInputError
 from dexplan.model.scenario.scenario import Scenario
+from dexplan.planning.ompl import check_planner
 
 
 @dataclass
@@ -80,16 +83,16 @@ class BenchResult:
     csv: Path
     summary_csv: Path
     plots: list[Path]
-    records: list[dict[str, Any]]
-    summary: list[dict[str, Any]]
+    records: list[RunRow]
+    summary: list[SummaryRow]
     new_runs: int
     skipped: int
-    backend: str
+    backend: Backend
     planners: list[str]
     counts: dict[str, int] = field(default_factory=dict)
 
     @property
-    def failed(self) -> list[dict[str, Any]]:
+    def failed(self) -> list[RunRow]:
         """Records of runs that failed as runs (``error``, ``crash``), not as plans.
 
         "No plan within the time limit" and a killed overrun are results;
@@ -111,7 +114,7 @@ def run_benchmark(
     baseline: str | None = DEFAULT_BASELINE,
     plots: bool = True,
     save_plans: bool = False,
-    start_method: str = "forkserver",
+    start_method: StartMethod | str = StartMethod.FORKSERVER,
     run_timeout: float | None = None,
     progress: ProgressCallback | None = None,
 ) -> BenchResult:
@@ -160,7 +163,7 @@ def run_benchmark(
     )
     out, plan_dir = _output_folder(out_dir, save_plans)
     tasks = make_tasks(unique, names, range(first_seed, first_seed + seeds), time_limit, plan_dir)
-    backend = "local" if ray_address is None else "ray"
+    backend = Backend.LOCAL if ray_address is None else Backend.RAY
     execute = functools.partial(
         _execute,
         jobs=jobs,
@@ -220,8 +223,6 @@ def _check_sweep(
     if run_timeout is not None and not (math.isfinite(run_timeout) and run_timeout > 0):
         raise InvalidInputError(f"run timeout must be > 0, got {run_timeout!r}")
     unique = _load_scenarios(scenarios)
-    from dexplan.planning.ompl import check_planner
-
     for s in unique:  # planner parameters of the scenario must suit every planner
         for name in scenario_planners(s, names):
             check_planner(name, s.planner.params)
@@ -242,11 +243,12 @@ def _load_scenarios(scenarios: Sequence[str | Path | Scenario]) -> list[Scenario
     """
     if not scenarios:
         raise InvalidInputError("give at least one scenario")
-    loaded = [
-        s if isinstance(s, Scenario) else resolve_scenario(f)
-        for s in scenarios
-        for f in ([s] if isinstance(s, Scenario) else scenario_files(s))
-    ]
+    loaded: list[Scenario] = []
+    for s in scenarios:
+        if isinstance(s, Scenario):
+            loaded.append(s)
+        else:
+            loaded.extend(resolve_scenario(f) for f in scenario_files(s))
     seen: dict[str, str] = {}
     unique: list[Scenario] = []
     for s in loaded:
@@ -287,7 +289,7 @@ def _execute(
     *,
     jobs: int | None,
     ray_address: str | None,
-    start_method: str,
+    start_method: StartMethod | str,
     run_timeout: float | None,
 ) -> None:
     """Run tasks on the local pool (no ``ray_address``) or on Ray."""
@@ -306,7 +308,7 @@ def _run_new(
     db: BenchDatabase,
     tasks: Sequence[RunTask],
     seeds: int,
-    backend: str,
+    backend: Backend,
     execute: Callable[[Sequence[RunTask], OnResult], None],
     progress: ProgressCallback | None,
 ) -> tuple[int, int]:
@@ -332,7 +334,7 @@ def _run_new(
     say(BenchProgress(0, len(todo), skipped))
     code = code_fingerprint()
 
-    def on_result(task: RunTask, rec: dict[str, Any]) -> None:
+    def on_result(task: RunTask, rec: RunRecord) -> None:
         nonlocal done
         rec["backend"] = backend
         rec["code"] = code
@@ -351,7 +353,7 @@ def _run_new(
 
 def _sweep_records(
     db: BenchDatabase, tasks: Sequence[RunTask], unique: Sequence[Scenario], names: Sequence[str]
-) -> list[dict[str, Any]]:
+) -> list[RunRow]:
     """Every stored run of the sweep's scenarios, planners and time limits.
 
     Seeds of earlier, longer sweeps into the same folder count too. Ordered by

@@ -20,6 +20,7 @@ from dexplan.model.scenario.scenario import (
     load_scenario,
     scenario_hash,
 )
+from dexplan.planning.ompl import available_planners
 
 
 def resolve_scenario(arg: str | Path) -> Scenario:
@@ -107,8 +108,6 @@ def parse_planners(planners: str | Sequence[str]) -> list[str]:
     Raises:
         InvalidInputError: no planner name.
     """
-    from dexplan.planning.ompl import available_planners
-
     names = planners.split(",") if isinstance(planners, str) else list(planners)
     out: list[str] = []
     for name in (str(n).strip() for n in names):
@@ -145,8 +144,6 @@ def validate_sweep(
         raise InvalidInputError(f"--time-limit must be a finite number > 0, got {time_limit!r}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InvalidInputError(f"--jobs must be an integer >= 1, got {jobs!r}")
-    from dexplan.planning.ompl import available_planners
-
     valid = available_planners()
     for name in [*planners, *([baseline] if baseline else [])]:
         if name not in valid and name != SCENARIO_PLANNER:

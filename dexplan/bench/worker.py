@@ -2,9 +2,8 @@
 
 Each run gets a fresh process (OMPL's random generator is process-global and
 PRM solves with two threads, so runs that share a process are neither
-independent nor reproducible). The fork server preloads this module
-(:data:`PRELOAD`); it imports lightly, the planner being imported inside
-:func:`execute_run`.
+independent nor reproducible). The fork server imports this module and the
+planner once (:data:`PRELOAD`), so every forked run starts with them loaded.
 """
 
 from __future__ import annotations
@@ -15,16 +14,17 @@ import signal
 import time
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
 
+from dexplan.api import plan
 from dexplan.bench.records import (
+    RunRecord,
     empty_record,
     fill_stats,
     jsonable,
     segments_sha256,
     set_status,
 )
-from dexplan.bench.schema import PLAN_STATUSES
+from dexplan.bench.schema import PLAN_STATUSES, RunStatus
 from dexplan.bench.tasks import RunTask
 from dexplan.planning.progress import ProgressEvent, Stage
 
@@ -32,22 +32,19 @@ PRELOAD: tuple[str, ...] = (__name__, "dexplan.planning.planner")
 """Modules a fork server imports once, before it forks the workers."""
 
 
-def execute_run(task: RunTask) -> dict[str, Any]:
+def execute_run(task: RunTask) -> RunRecord:
     """Plan one run, time ``dexplan verify`` on its plan, and return its record.
 
     Meant to run in a fresh process (see the module docstring). Never raises:
     an exception becomes a record with status ``error``.
 
     Returns:
-        A dict with every key of :data:`CSV_COLUMNS`, plus ``key``, ``progress``
-        (``[(seconds, stage), ...]``) and ``stats`` (the planner's statistics).
+        The run's record.
     """
     t_wall = time.perf_counter()
     rec = empty_record(task)
     events: list[tuple[float, int]] = [(0.0, 0)]
     try:
-        from dexplan.api import plan
-
         t0 = time.perf_counter()
 
         def on_event(event: ProgressEvent) -> None:
@@ -67,13 +64,15 @@ def execute_run(task: RunTask) -> dict[str, Any]:
         rec["stats"] = jsonable(stats.as_dict())
         rec["message"] = result.message
         fill_stats(rec, stats)
-        set_status(rec, result.status if result.status in PLAN_STATUSES else "error")
+        known = result.status in PLAN_STATUSES
+        set_status(rec, RunStatus(result.status) if known else RunStatus.ERROR)
         if result.solved or result.violations:
             rec["verify_time"] = stats.verify_time_s
             rec["correct_solution"] = int(result.solved)
             rec["verify_violations"] = len(result.violations)
-            if rec["verify_time"] and rec["time"] is not None:
-                rec["plan_verify_ratio"] = rec["time"] / rec["verify_time"]
+            verify_time, plan_time = rec["verify_time"], rec["time"]
+            if verify_time and plan_time is not None:
+                rec["plan_verify_ratio"] = plan_time / verify_time
         if result.solved:
             base = task.scenario.base_dir
             rec["plan_sha256"] = segments_sha256(planned.to_document(base)["segments"])
@@ -82,7 +81,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
                 planned.save(Path(task.plan_dir) / name)
         events.append((time.perf_counter() - t0, int(Stage.DONE)))
     except Exception as exc:  # a run that raises is a data point, not the end of a sweep
-        set_status(rec, "error")
+        set_status(rec, RunStatus.ERROR)
         rec["message"] = f"{type(exc).__name__}: {exc}"
     rec["memory"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     rec["wall_time"] = time.perf_counter() - t_wall
