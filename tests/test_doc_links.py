@@ -41,7 +41,10 @@ def _broken(page: Path, root: Path = ROOT) -> list[str]:
             if re.match(r"^[a-z][a-z0-9+.-]*:", target) or target.startswith("#"):
                 continue  # http(s), mailto, ... and anchors within the page
             path = target.split("#", 1)[0]
-            if path and not (page.parent / path).exists():
+            if not path:
+                continue
+            resolved = (page.parent / path).resolve()
+            if not resolved.exists() or not resolved.is_relative_to(root.resolve()):
                 bad.append(f"{page.relative_to(root)}:{lineno}: link to {target}")
         for path in PATH.findall(line):
             if "*" in path or "<" in path:
@@ -61,9 +64,9 @@ def test_the_checker_sees_a_broken_link(tmp_path: Path) -> None:
     page = tmp_path / "page.md"
     page.write_text(
         "[ok](page.md#top) [web](https://example.org) [here](#x)\n"
-        "[gone](missing.md) `dexplan/no_such_module.py`\n"
+        "[gone](missing.md) `dexplan/no_such_module.py` [out](../elsewhere.md)\n"
         "```\n[in code](also_missing.md)\n```\n"
     )
     bad = _broken(page, root=tmp_path)
-    assert len(bad) == 2, bad
-    assert "missing.md" in bad[0] and "no_such_module.py" in bad[1]
+    assert len(bad) == 3, bad
+    assert "missing.md" in bad[0] and "elsewhere.md" in bad[1] and "no_such_module" in bad[2]
