@@ -1,6 +1,6 @@
-"""Grip forces at a plan file's waypoints (the model is :mod:`dexplan.model.grasp.grip`).
+"""Grip forces at a plan file's waypoints (the model is :mod:`dexplan.model.grasp.grip_forces`).
 
-:func:`plan_waypoint_forces` solves :class:`~dexplan.model.grasp.grip.GripForceSolver` at
+:func:`plan_waypoint_forces` solves :class:`~dexplan.model.grasp.grip_forces.GripForceSolver` at
 every waypoint of a validated plan, with the plan's object mass and gravity
 (:func:`force_settings_from_plan`); the export, the timing and the replay
 read their forces here. The model's names are re-exported.
@@ -15,7 +15,7 @@ from typing import Any, cast
 import numpy as np
 
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp.grip import (
+from dexplan.model.grasp.grip_forces import (
     BALANCE_TOL,
     DEFAULT_CONE_MARGIN,
     DEFAULT_GRAVITY,

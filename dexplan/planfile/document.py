@@ -32,7 +32,7 @@ from dexplan.core.files import atomic_output, file_sha256
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planfile import schema as plan_schema
 from dexplan.planfile.models import hand_table
 from dexplan.planfile.schema import FORMAT, validate_plan

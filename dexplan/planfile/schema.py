@@ -26,10 +26,12 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, get_args
 
 from dexplan.core.errors import DexplanError, PlanFileError, shorten, unknown_field
-from dexplan.model.grasp import MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
+from dexplan.core.segments import SegmentKind
+from dexplan.model.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
+from dexplan.model.objects import shape_from_dict
 
 __all__ = [
     "CONTACT_MODELS",
@@ -74,30 +76,30 @@ MAX_ABS_VALUE = 1e6
 #: the verifier then holds waypoints to 1e-6.
 QUAT_NORM_TOL = 1e-3
 
-#: Values of ``contact_model`` (DESIGN.md, Contact models).
-CONTACT_MODELS: tuple[str, ...] = ("point", "soft")
-#: Values of a segment's ``kind``.
-SEGMENT_KINDS: tuple[str, ...] = ("transfer", "regrasp")
+#: Values of a segment's ``kind`` (those of ``contact_model`` are the grasp
+#: model's :data:`~dexplan.model.grasp.CONTACT_MODELS`).
+SEGMENT_KINDS: tuple[str, ...] = get_args(SegmentKind)
 
 # ------------------------------------------------------------------ tables
 # (required fields, optional fields) of every strict table. Shape tables
 # (object, obstacles) are checked by dexplan.model.objects.shape_from_dict; stats may
 # hold anything.
-_TOP = (
+_Fields = tuple[set[str], set[str]]
+_TOP: _Fields = (
     {"format", "hand", "object", "mu", "start", "goal", "segments"},
     {"scenario", "friction_edges", "contact_model", "torsion", "obstacles", "world", "stats"},
 )
-_HAND = (
+_HAND: _Fields = (
     {"urdf_xml", "joint_names", "fingertip_frames", "fingertip_radius"},
     {"collision_exclude"},
 )
-_START = ({"object_pose_xyzquat"}, {"q"})
-_GOAL = ({"object_pose_xyzquat"}, {"position_tol", "angle_tol"})
-_SEGMENT = ({"kind", "finger", "waypoints"}, set())
-_WAYPOINT = ({"object_pose_xyzquat", "q", "contacts"}, set())
+_START: _Fields = ({"object_pose_xyzquat"}, {"q"})
+_GOAL: _Fields = ({"object_pose_xyzquat"}, {"position_tol", "angle_tol"})
+_SEGMENT: _Fields = ({"kind", "finger", "waypoints"}, set())
+_WAYPOINT: _Fields = ({"object_pose_xyzquat", "q", "contacts"}, set())
 _OBSTACLE_EXTRA = ("pose_xyzquat", "name")
 _OBJECT_EXTRA = ("mass",)  # a property of the object, not of its shape
-_WORLD = (set(), {"gravity"})
+_WORLD: _Fields = (set(), {"gravity"})
 
 _POSE = "7 numbers [x, y, z, qx, qy, qz, qw]"
 
@@ -118,9 +120,7 @@ def _join(prefix: str, key: str) -> str:
     return f"{prefix}.{key}" if prefix else key
 
 
-def _table(
-    value: Any, path: str, fields: tuple[set[str], set[str]], what: str = "a table"
-) -> Mapping[str, Any]:
+def _table(value: Any, path: str, fields: _Fields, what: str = "a table") -> Mapping[str, Any]:
     """``value`` as a mapping with every required field and no unknown one."""
     if not isinstance(value, Mapping):
         _fail(path or "the plan", f"must be {what}", value)
@@ -231,8 +231,6 @@ def _hand(h: Any) -> tuple[int, int]:
 
 def _shape(d: Any, path: str, base_dir: Path | None) -> None:
     """A shape table, checked by :func:`dexplan.model.objects.shape_from_dict`."""
-    from dexplan.model.objects import shape_from_dict
-
     if isinstance(d, Mapping):  # numbers are bounded as everywhere in a plan
         for key, value in d.items():
             entries = value if isinstance(value, list | tuple) else [value]

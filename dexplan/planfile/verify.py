@@ -337,6 +337,7 @@ class _Checker:
 
     def regrasp(self, si: int, seg: Segment) -> None:
         """The ``regrasp_*`` rules of a regrasp of finger ``seg.finger``."""
+        assert seg.finger is not None, "validate_plan: a regrasp names its finger"
         f = int(seg.finger)  # in [0, n): validate_plan
         wps = seg.waypoints
         if len(wps) < 3:

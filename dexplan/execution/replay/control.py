@@ -7,8 +7,8 @@ rigid fingertip sphere (radius ``r``) turns with its link, so the tip's
 material point at the contact would have to slide on the object by
 ``r (w_object - w_link) x n``. Friction resists that: in physics the tips
 roll, the contacts move on the object and, driven open loop by the planned
-joints, the object turns less than planned (paper_sphere seed 1: a third of
-each transfer's rotation, dropped after 9 s). A robot executing such a plan
+joints, the object turns less than planned (a fraction of each transfer's
+rotation), and the error grows until it drops. A robot executing such a plan
 tracks the object and corrects its fingers; :class:`ObjectFeedback` does the
 same, every :data:`CONTROL_PERIOD`:
 
@@ -35,12 +35,18 @@ the measured object against the plan.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
+from dexplan.execution.forces import GripForceError, GripForceSolver
+from dexplan.execution.trajectory import Trajectory
+from dexplan.model.hand.hand import Hand
+from dexplan.planfile import shape_of
 
 __all__ = [
     "CONTROL_PERIOD",
@@ -57,7 +63,7 @@ FORCE_EVERY = 10
 #: A released finger's offset from the plan fades out as the plan lifts its tip this far (m).
 LIFT_BLEND = 0.01
 #: A free finger's tip kept this far off the object (m) until LAND_TIME (s) before it lands
-#: (planned regrasp paths may graze the object: paper_sphere seed 6 passes 0.04 mm from it).
+#: (planned regrasp paths may graze the object, a fraction of a millimetre from it).
 CLEARANCE = 0.002
 LAND_TIME = 0.4
 #: Pull of a redundant finger's null space toward the planned joints (per update).
@@ -92,13 +98,13 @@ class ObjectFeedback:
 
     Args:
         hand: the plan's :class:`~dexplan.model.hand.hand.Hand`.
-        traj: the sampled trajectory (:class:`dexplan.execution.export.Trajectory`).
+        traj: the sampled trajectory (:class:`dexplan.execution.trajectory.Trajectory`).
         solver: the plan's :class:`~dexplan.execution.forces.GripForceSolver` (the
             replay's gravity): the feed-forward forces are recomputed at the
             measured contacts; None keeps the planned ones.
     """
 
-    def __init__(self, hand: Any, traj: Any, solver: Any = None) -> None:
+    def __init__(self, hand: Hand, traj: Trajectory, solver: GripForceSolver | None = None) -> None:
         self.hand = hand
         self.traj, self.solver = traj, solver
         self.holding = ~np.isnan(traj.forces[:, :, 0])
@@ -199,8 +205,6 @@ class ObjectFeedback:
             sim_pose: (7,) the measured object pose, world frame.
             planned: (nq,) the planned feed-forward torques now.
         """
-        from dexplan.execution.forces import GripForceError
-
         if self.solver is None or np.isnan(self.traj.margins[i]):
             return planned
         Xm = pose_se3(sim_pose)
@@ -219,7 +223,7 @@ class ObjectFeedback:
         return np.asarray(g.joint_torques, dtype=float)
 
 
-def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
+def planned_tip_slip(doc: Mapping[str, Any], hand: Hand) -> FloatArray:
     """The sliding each transfer of a plan asks of the rigid fingertips (the open-loop gap).
 
     Along a transfer the plan keeps each contact fixed on the object while the
@@ -237,10 +241,6 @@ def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
         (transfers, n) slip length (m) per transfer segment and finger (0 for a
         finger not in contact).
     """
-    from pathlib import Path
-
-    from dexplan.planfile import shape_of
-
     obj = shape_of(doc["object"], Path("."), "object")
     r = float(hand.fingertip_radius)
     rows = []
@@ -264,7 +264,7 @@ def planned_tip_slip(doc: Any, hand: Any) -> FloatArray:
     return np.array(rows).reshape(-1, hand.n_fingers)
 
 
-def _tip_rotations(hand: Any, q: Any) -> list[FloatArray]:
+def _tip_rotations(hand: Hand, q: Any) -> list[FloatArray]:
     """World rotation of each fingertip frame (it turns with its link) at ``q``."""
     pin.framesForwardKinematics(hand.model, hand.data, np.asarray(q, dtype=float))
     return [hand.data.oMf[fid].rotation.copy() for fid in hand.tip_frame_ids]
