@@ -68,7 +68,7 @@ from dexplan.bench.tasks import (
     validate_sweep,
 )
 from dexplan.bench.worker import execute_run
-from dexplan.model.scenario.scenario import scenario_description, scenario_hash
+from dexplan.model.scenario import scenario_description, scenario_hash
 
 __all__ = [
     "CSV_COLUMNS",

@@ -31,7 +31,7 @@ from dexplan.bench.schema import (
     VIEWS,
 )
 from dexplan.core.errors import InvalidInputError
-from dexplan.model.scenario.scenario import Scenario, scenario_description
+from dexplan.model.scenario import Scenario, scenario_description
 
 _NOT_PLANNING = frozenset({"bench", "cli", "viz"})
 """Top-level modules and packages of dexplan that no plan depends on."""

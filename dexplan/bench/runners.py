@@ -24,7 +24,7 @@ from multiprocessing.connection import wait as wait_connections
 from multiprocessing.context import ForkServerContext, SpawnContext
 from multiprocessing.process import BaseProcess
 from types import ModuleType
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 from dexplan.bench.extras import require_ray
 from dexplan.bench.records import RunRecord, failure_record
@@ -69,16 +69,20 @@ class _Job:
     started: float
 
 
-class _Backend(Protocol):
+Handle = TypeVar("Handle")
+"""What a backend knows a run in flight by (a pipe, a Ray object reference)."""
+
+
+class _Backend(Protocol[Handle]):
     """Starts runs, says which have finished, collects their records, kills overruns."""
 
-    def start(self, task: RunTask) -> Any: ...
+    def start(self, task: RunTask) -> Handle: ...
 
-    def ready(self, handles: list[Any]) -> list[Any]: ...
+    def ready(self, handles: list[Handle]) -> list[Handle]: ...
 
-    def collect(self, handle: Any, task: RunTask) -> RunRecord: ...
+    def collect(self, handle: Handle, task: RunTask) -> RunRecord: ...
 
-    def kill(self, handle: Any) -> None: ...
+    def kill(self, handle: Handle) -> None: ...
 
 
 def _drive(
@@ -86,11 +90,11 @@ def _drive(
     window: int,
     on_result: OnResult,
     run_timeout: Callable[[RunTask], float],
-    backend: _Backend,
+    backend: _Backend[Handle],
 ) -> None:
     """Keep ``window`` runs in flight until all are done; kill those that overrun."""
     pending = deque(tasks)
-    active: dict[Any, _Job] = {}
+    active: dict[Handle, _Job] = {}
     while pending or active:
         while pending and len(active) < window:
             task = pending.popleft()
@@ -148,8 +152,8 @@ class _ProcessPool:
         self.procs[recv] = proc
         return recv
 
-    def ready(self, handles: list[Any]) -> list[Any]:
-        return list(wait_connections(handles, timeout=0.5))
+    def ready(self, handles: list[Connection]) -> list[Connection]:
+        return [c for c in wait_connections(handles, timeout=0.5) if isinstance(c, Connection)]
 
     def collect(self, handle: Connection, task: RunTask) -> RunRecord:
         proc = self.procs.pop(handle)

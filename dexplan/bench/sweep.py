@@ -53,11 +53,11 @@ from dexplan.bench.tasks import (
     validate_sweep,
 )
 from dexplan.core.errors import InvalidInputError
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planning.ompl import check_planner
 
 
-@dataclass
+@dataclass(frozen=True)
 class BenchResult:
     """Outcome of :func:`run_benchmark`.
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from dexplan.bench.schema import DEFAULT_BASELINE
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
-from dexplan.model.scenario.scenario import (
+from dexplan.model.scenario import (
     Scenario,
     builtin_scenario_path,
     load_scenario,

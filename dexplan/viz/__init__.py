@@ -50,6 +50,7 @@ from dexplan.viz.session import (
     ROADMAP_NODE,
     STEP_SECONDS,
     TIME,
+    Timeline,
     require_rerun,
 )
 from dexplan.viz.viewer import show, write_recording
@@ -64,6 +65,7 @@ __all__ = [
     "STEP_SECONDS",
     "TIME",
     "RoadmapSummary",
+    "Timeline",
     "record_plan",
     "record_rejections",
     "record_roadmap",

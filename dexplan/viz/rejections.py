@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planning.gsn.validity import RejectedSample
 from dexplan.viz.blueprints import rejections_blueprint
 from dexplan.viz.scene import log_scene_static, scene_from_scenario, send_configurations

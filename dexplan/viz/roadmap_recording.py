@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from dexplan.core.errors import PlanFileError
 from dexplan.core.typing import FloatArray, IntArray
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.viz.blueprints import roadmap_blueprint
 from dexplan.viz.scene import (

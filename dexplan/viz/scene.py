@@ -21,7 +21,7 @@ from dexplan.core.errors import PlanFileError
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planfile import hand_from_plan, models_from_document, shape_of, validate_plan
 from dexplan.planning.context import build_hand
 from dexplan.viz.session import (
@@ -42,9 +42,22 @@ if TYPE_CHECKING:  # rerun's types for annotations; at run time rerun loads on f
     import rerun
 
 
-@dataclass
+@dataclass(frozen=True)
 class Scene:
-    """Models rebuilt from a plan document or a scenario."""
+    """Models rebuilt from a plan document or a scenario.
+
+    Attributes:
+        hand: the hand (None: none to draw).
+        obj: the object's shape (None: none to draw).
+        obstacles: ``(name, shape, pose_xyzquat (7,))`` per obstacle, world frame.
+        mu: friction coefficient.
+        friction_edges: edges of the linearized friction cone.
+        contact_model: ``point`` or ``soft``.
+        torsion: soft-contact torsion coefficient (m).
+        goal_pose: ``(7,)`` goal object pose, world frame (None: no goal).
+        start_pose: ``(7,)`` start object pose, world frame (None: not given).
+        start_q: ``(nq,)`` start joints (None: not given).
+    """
 
     hand: Hand | None
     obj: Shape | None
@@ -58,7 +71,7 @@ class Scene:
     start_q: FloatArray | None = None
 
 
-@dataclass
+@dataclass(frozen=True)
 class HandLayout:
     """Where each hand link and geometry is logged."""
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import uuid
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from enum import StrEnum
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
@@ -61,11 +62,24 @@ COMPONENTS = (
     (23, 190, 207),
 )
 
-# Timelines.
-PLAN_STEP = "plan_step"
-TIME = "time"
-ROADMAP_NODE = "roadmap_node"
-REJECTED_SAMPLE = "rejected_sample"
+
+class Timeline(StrEnum):
+    """The timelines of dexplan's recordings (a member equals its name)."""
+
+    PLAN_STEP = "plan_step"
+    """One step per waypoint of a plan (sequence)."""
+    TIME = "time"
+    """Seconds: :data:`STEP_SECONDS` per plan step, or a replay's time (duration)."""
+    ROADMAP_NODE = "roadmap_node"
+    """One step per roadmap vertex (sequence)."""
+    REJECTED_SAMPLE = "rejected_sample"
+    """One step per state a validity checker rejected (sequence)."""
+
+
+PLAN_STEP = Timeline.PLAN_STEP
+TIME = Timeline.TIME
+ROADMAP_NODE = Timeline.ROADMAP_NODE
+REJECTED_SAMPLE = Timeline.REJECTED_SAMPLE
 
 
 def require_rerun() -> None:
