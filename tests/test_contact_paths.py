@@ -16,12 +16,9 @@ from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.contact_paths import ContactPaths
-from dexplan.planning.local.reduction import (
-    ReductionSettings,
-    _EdgeReducer,
-    grasp_from_state,
-    reduce_gsn_path,
-)
+from dexplan.planning.local.edge_reduction import EdgeReducer as _EdgeReducer
+from dexplan.planning.local.edge_reduction import reduce_gsn_path
+from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
 from dexplan.planning.local.transitions import GraspContacts
 from dexplan.planning.planner import start_state
 

@@ -12,7 +12,8 @@ from dexplan.model.scenario.scenario import builtin_scenario_path, default_scena
 from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
-from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state, reduce_gsn_path
+from dexplan.planning.local.edge_reduction import reduce_gsn_path
+from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
 from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.planner import plan, start_state
 

@@ -34,11 +34,11 @@ from dexplan.model.scenario.scenario import Scenario
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.edge_reduction import reduce_gsn_path
 from dexplan.planning.local.reduction import (
     ReductionResult,
     grasp_follow,
     grasp_from_state,
-    reduce_gsn_path,
     reduce_object_path,
 )
 from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path

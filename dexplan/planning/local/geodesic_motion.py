@@ -14,9 +14,9 @@ branch jump); every state after the first goes through the validity
 checker (the first is the caller's, a roadmap state).
 
 OMPL's projected interpolation (module 1's motions) joins other pairs of
-states than this motion does (docs/meshes.md: accepting either joins
-1.25-2.8x the pairs); this is the motion a Python ``ob.MotionValidator``
-would add. ``scripts/section6_motions.py`` compares the two.
+states than this motion does, so accepting either joins more pairs than
+either alone; this is the motion a Python ``ob.MotionValidator`` would add.
+``scripts/section6_motions.py`` compares the two.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import enum
 import math
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,8 @@ import numpy as np
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import interpolate_pose, inverse_transform_points, quat_angle, quat_to_matrix
 from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects.geodesic import SurfacePath
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.gsn.validity import GraspValidity
 from dexplan.planning.local.contact_paths import ContactPaths
@@ -137,74 +140,124 @@ def geodesic_motion(
             f"{list(validity.gsn.contact_ids)} of {hand.n_fingers}"
         )
     empty = np.zeros((0, len(a)))
-    pa, pb = np.array(a[:POSE_DIM], dtype=float), np.array(b[:POSE_DIM], dtype=float)
-    pa[3:] /= np.linalg.norm(pa[3:])
-    pb[3:] /= np.linalg.norm(pb[3:])
-    if float(pa[3:] @ pb[3:]) < 0.0:  # the same rotation's nearer sign
-        pb[3:] = -pb[3:]
+    pa, pb = _end_poses(a, b)
     curves = paths.paths(
         grasp_from_state(trans, pa, a[POSE_DIM:]), grasp_from_state(trans, pb, b[POSE_DIM:])
     )
     if curves is None:
         return GeodesicMotion(empty, MotionFailure.NO_GEODESIC)
-    r = hand.fingertip_radius
+    steps = _CurveFollower(hand, curves, pa, pb, a[POSE_DIM:], b[POSE_DIM:], s)
+    # the states first (IK only, cheap), then the validity checker on them in
+    # bisection order, as OMPL's motion validators: an invalid stretch is met early
+    failed = steps.follow(_step_count(curves, pa, pb, s), deadline)
+    if failed is not None:
+        return GeodesicMotion(empty, failed)
+    for i in bisection_order(len(steps.out) - 1):
+        if time.perf_counter() >= deadline:
+            return GeodesicMotion(empty, MotionFailure.DEADLINE)
+        verdict = validity.check(steps.out[i + 1])
+        if not verdict.valid:
+            return GeodesicMotion(empty, MotionFailure.INVALID, str(verdict.reason))
+    return GeodesicMotion(np.array(steps.out))
 
-    def offsets(pose: FloatArray, q: FloatArray, t: float) -> FloatArray:
-        """(n, 3) fingertip centres minus the curves' offset points at ``t``, object frame."""
-        tips = inverse_transform_points(pose, hand.fingertip_positions(q))
-        on = [p + r * n_out for p, _, n_out in (c.at(t) for c in curves)]
-        return tips - np.array(on)
 
-    off_a, off_b = offsets(pa, a[POSE_DIM:], 0.0), offsets(pb, b[POSE_DIM:], 1.0)
-    n = max(
+def _end_poses(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Object poses ``(7,)`` of states ``a``, ``b``: unit quaternions, ``b``'s sign nearer."""
+    pa, pb = np.array(a[:POSE_DIM], dtype=float), np.array(b[:POSE_DIM], dtype=float)
+    pa[3:] /= np.linalg.norm(pa[3:])
+    pb[3:] /= np.linalg.norm(pb[3:])
+    if float(pa[3:] @ pb[3:]) < 0.0:  # the same rotation's nearer sign
+        pb[3:] = -pb[3:]
+    return pa, pb
+
+
+def _step_count(
+    curves: Sequence[SurfacePath], pa: FloatArray, pb: FloatArray, s: GeodesicMotionSettings
+) -> int:
+    """Steps from ``pa`` to ``pb`` within the settings' contact travel, translation, rotation."""
+    return max(
         1,
         math.ceil(max(c.length for c in curves) / s.step_m),
         math.ceil(float(np.linalg.norm(pb[:3] - pa[:3])) / s.step_m),
         math.ceil(quat_angle(pa[3:], pb[3:]) / s.step_rad),
     )
-    out: list[FloatArray] = [np.concatenate([pa, a[POSE_DIM:]])]
 
-    def state(t: float, q_prev: FloatArray) -> FloatArray | MotionFailure:
-        pose = interpolate_pose(pa, pb, t)
+
+class _CurveFollower:
+    """The hand states of a section VI motion, by IK along the contacts' curves.
+
+    Args:
+        hand: the hand.
+        curves: one contact curve per finger (object frame).
+        pa: (7,) the start's object pose; ``pb`` the end's (sign nearer ``pa``).
+        q_a: (nq,) the start's joints; ``q_b`` the end's.
+        settings: the steps.
+
+    Attributes:
+        out: (7 + nq,) states so far, the start's first.
+    """
+
+    def __init__(
+        self,
+        hand: Hand,
+        curves: Sequence[SurfacePath],
+        pa: FloatArray,
+        pb: FloatArray,
+        q_a: FloatArray,
+        q_b: FloatArray,
+        settings: GeodesicMotionSettings,
+    ) -> None:
+        self.hand = hand
+        self.curves = curves
+        self.pa, self.pb = pa, pb
+        self.settings = settings
+        self.r = hand.fingertip_radius
+        self.off_a, self.off_b = self._offsets(pa, q_a, 0.0), self._offsets(pb, q_b, 1.0)
+        self.out: list[FloatArray] = [np.concatenate([pa, q_a])]
+
+    def _offsets(self, pose: FloatArray, q: FloatArray, t: float) -> FloatArray:
+        """(n, 3) fingertip centres minus the curves' offset points at ``t``, object frame."""
+        tips = inverse_transform_points(pose, self.hand.fingertip_positions(q))
+        on = [p + self.r * n_out for p, _, n_out in (c.at(t) for c in self.curves)]
+        return tips - np.array(on)
+
+    def follow(self, n: int, deadline: float) -> MotionFailure | None:
+        """Append the states of ``n`` steps to the end; a failure, or None."""
+        for k in range(1, n + 1):
+            if time.perf_counter() >= deadline:
+                return MotionFailure.DEADLINE
+            failed = self._advance((k - 1) / n, k / n, 0)
+            if failed is not None:
+                return failed
+        return None
+
+    def _state(self, t: float, q_prev: FloatArray) -> FloatArray | MotionFailure:
+        """The state ``(7 + nq,)`` at fraction ``t`` by IK from ``q_prev``, or an IK failure."""
+        hand = self.hand
+        pose = interpolate_pose(self.pa, self.pb, t)
         R = quat_to_matrix(pose[3:])
         q = q_prev.copy()
-        for f, curve in enumerate(curves):
+        for f, curve in enumerate(self.curves):
             p, _, n_out = curve.at(t)
-            tip = p + r * n_out + (1.0 - t) * off_a[f] + t * off_b[f]
+            tip = p + self.r * n_out + (1.0 - t) * self.off_a[f] + t * self.off_b[f]
             q_f = hand.finger_ik_fast(f, R @ tip + pose[:3], q_prev, -(R @ n_out))
             if q_f is None:
                 return MotionFailure.IK
             q[hand.finger_q_index[f]] = q_f
         return np.concatenate([pose, q])
 
-    def advance(t0: float, t1: float, depth: int) -> GeodesicMotion | None:
+    def _advance(self, t0: float, t1: float, depth: int) -> MotionFailure | None:
         """Append the states from ``t0`` (the last one) to ``t1``; a failure, or None."""
-        x = state(t1, out[-1][POSE_DIM:])
+        x = self._state(t1, self.out[-1][POSE_DIM:])
         if isinstance(x, MotionFailure):
-            return GeodesicMotion(empty, x)
-        if np.max(np.abs(x[POSE_DIM:] - out[-1][POSE_DIM:])) > s.jump_rad:
-            if depth >= s.max_splits:
-                return GeodesicMotion(empty, MotionFailure.JOINT_JUMP)
+            return x
+        if np.max(np.abs(x[POSE_DIM:] - self.out[-1][POSE_DIM:])) > self.settings.jump_rad:
+            if depth >= self.settings.max_splits:
+                return MotionFailure.JOINT_JUMP
             mid = 0.5 * (t0 + t1)
-            return advance(t0, mid, depth + 1) or advance(mid, t1, depth + 1)
-        out.append(x)
+            return self._advance(t0, mid, depth + 1) or self._advance(mid, t1, depth + 1)
+        self.out.append(x)
         return None
-
-    # the states first (IK only, cheap), then the validity checker on them in
-    # bisection order, as OMPL's motion validators: an invalid stretch is met early
-    for k in range(1, n + 1):
-        if time.perf_counter() >= deadline:
-            return GeodesicMotion(empty, MotionFailure.DEADLINE)
-        failed = advance((k - 1) / n, k / n, 0)
-        if failed is not None:
-            return failed
-    for i in bisection_order(len(out) - 1):
-        if time.perf_counter() >= deadline:
-            return GeodesicMotion(empty, MotionFailure.DEADLINE)
-        verdict = validity.check(out[i + 1])
-        if not verdict.valid:
-            return GeodesicMotion(empty, MotionFailure.INVALID, str(verdict.reason))
-    return GeodesicMotion(np.array(out))
 
 
 def bisection_order(n: int) -> list[int]:

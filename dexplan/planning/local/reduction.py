@@ -1,9 +1,9 @@
-"""Reduction of a GSn path to transfer and regrasp segments (paper, section IV).
+"""Reduction of a dense object trajectory to finger gaits (paper, section IV).
 
 The reduction property says a path in valid GSn can be replaced by a finite
 alternation of transfer and regrasp paths. On symmetric objects the GSn path
 itself mostly slides the contacts, so the physical plan is made here, and made
-to look like a finger gait (see MEASURED.md):
+to look like a finger gait:
 
 1. follow the object trajectory with one transfer on the current grasp for as
    long as it stays valid;
@@ -17,40 +17,62 @@ to look like a finger gait (see MEASURED.md):
 
 Only the object trajectory of the GSn path is followed; its contacts are
 offered as landing hints. A clear failure status is returned when no regrasp
-works or no progress is made.
-
-When that fails, :func:`reduce_gsn_path` applies the reduction property edge
-by edge: each GSn edge ``(pose_a, contacts_a) -> (pose_b, contacts_b)`` becomes
-a transfer on the current grasp, or regrasps onto ``contacts_b`` then a
-transfer, or regrasps onto ``contacts_a`` then a transfer; when none is valid
-the edge is bisected on GSn until every piece is, or a resolution limit is
-hit. The bisection's midpoint is the object pose slerp and contacts halfway:
-first the world fingertip centres averaged and projected onto the surface;
-on a mesh, an edge that fails so is reduced again with each contact halfway
-along its surface geodesic (the paper's section VI,
-:mod:`dexplan.planning.local.contact_paths`; :attr:`ReductionSettings.midpoints`).
+works or no progress is made. The paper's own edge-by-edge reduction, the
+fallback, is :mod:`dexplan.planning.local.edge_reduction`; the settings, the
+result and the regrasps onto given contacts here serve both.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Iterator, Sequence
+import enum
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from dexplan.core.errors import InvalidInputError
-from dexplan.core.pose import interpolate_pose, inverse_transform_points
+from dexplan.core.pose import inverse_transform_points
 from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
-from dexplan.planning.local.contact_paths import ContactPaths
-from dexplan.planning.local.transitions import GraspContacts, Transitions, densify_poses
+from dexplan.planning.local.transitions import GraspContacts, TransferResult, Transitions
 
-#: Landings of another finger tried by the look-ahead (:func:`_passes`, ``"enable"``).
+#: Landings of another finger tried by the look-ahead (:attr:`RegraspPass.ENABLE`).
 _ENABLE_LANDINGS = 12
+#: Landings of a finger tried by the other passes.
+_LANDINGS = 8
 
-MIDPOINTS = ("chord", "geodesic")
+
+class Midpoint(enum.StrEnum):
+    """How a bisected GSn edge's midpoint places the contacts (:attr:`ReductionSettings.midpoints`).
+
+    Attributes:
+        CHORD: the world fingertip centres averaged and projected onto the
+            surface (as OMPL's projected interpolation moves them).
+        GEODESIC: each contact halfway along its surface geodesic (meshes
+            with geodesics only; the paper's section VI).
+    """
+
+    CHORD = "chord"
+    GEODESIC = "geodesic"
+
+
+MIDPOINTS: tuple[Midpoint, ...] = tuple(Midpoint)
 """Contact interpolations of :attr:`ReductionSettings.midpoints`."""
+
+
+class RegraspPass(enum.StrEnum):
+    """What a regrasp's landing must do (:func:`_passes`).
+
+    Attributes:
+        GAIN: the finger follows further than it does now.
+        ENABLE: afterwards the blocking finger has a landing of its own.
+        ANY: any landing (moving a finger out of the way may clear the
+            blocking finger's path in other ways).
+    """
+
+    GAIN = "gain"
+    ENABLE = "enable"
+    ANY = "any"
 
 
 @dataclass(frozen=True)
@@ -64,16 +86,14 @@ class ReductionSettings:
             (the Allegro: the ring finger's distal link meets a ball after a
             few degrees) need long runs of regrasps without progress; on a
             sphere every pose is like the others, so carrying on beats
-            starting the trajectory again (allegro_sphere seeds 1, 4: 8 stalls
-            at 146 degrees on every attempt, 30 solves in 12 s).
+            starting the trajectory again, which meets the same stalls.
         max_blind: give up after this many regrasps since the last object
             progress that moved a finger other than the blocking one without
             giving the blocking one a landing (the look-ahead found none; see
-            :func:`_passes`). Each costs a look-ahead (about 1 s on a box), and
-            a run of them rarely ends in progress: box_tilt90 seed 4 spent 30 s
-            on 35 at one step, then a fresh attempt solved in 2 s; module 2's
-            link tests run this reduction too. The four box scenarios, seeds
-            1-20: 80/80 with 4 (slowest 9.5 s), 80/80 with no limit (40 s).
+            :func:`_passes`). Each costs a look-ahead (about a second on a
+            box), and a long run of them rarely ends in progress where a fresh
+            attempt often does; module 2's link tests run this reduction too,
+            so a small limit saves time without losing solutions.
         regrasp_retries: a regrasp search that finds no feasible regrasp is
             run again this many times (the landing candidates are random
             samples; a fresh set often holds one) before the reduction gives up.
@@ -83,8 +103,8 @@ class ReductionSettings:
             ``backtrack_steps`` trajectory steps before the stuck one, and go
             on from there with fresh random landings: where the fingers
             stand when they reach a hard stretch decides whether they pass
-            it (allegro_cube: the ring finger blocked at 65 degrees on most
-            grasps that reach it, passed on others). Gaits stuck within
+            it (a finger blocked on most grasps that reach a stretch passes
+            it on others). Gaits stuck within
             ``backtrack_steps`` of the start give up at once: the start grasp
             itself is the trouble, which the caller changes (module 2).
         backtrack_steps: see ``backtracks``.
@@ -101,9 +121,9 @@ class ReductionSettings:
             and projected onto the surface, as OMPL's projected interpolation
             moves them) and ``geodesic`` (on a mesh, each contact halfway
             along its surface geodesic, the paper's section VI; skipped on
-            primitives and on meshes without geodesics). Measured on
-            egg_tilt90 (docs/meshes.md): ``chord`` first solves more edges
-            than ``geodesic`` first; the second only adds.
+            primitives and on meshes without geodesics). ``chord`` first
+            solves more edges than ``geodesic`` first, and the second then
+            only adds solutions; strings equal to the members are accepted.
     """
 
     max_regrasps: int = 200
@@ -115,7 +135,7 @@ class ReductionSettings:
     max_depth: int = 5
     same_contact_m: float = 1e-3
     resync_m: float = 0.01
-    midpoints: tuple[str, ...] = MIDPOINTS
+    midpoints: tuple[Midpoint, ...] = MIDPOINTS
 
     def __post_init__(self) -> None:
         bad = [m for m in self.midpoints if m not in MIDPOINTS]
@@ -124,6 +144,7 @@ class ReductionSettings:
                 f"midpoints must be a non-empty sequence of {', '.join(MIDPOINTS)}, "
                 f"got {self.midpoints!r}"
             )
+        object.__setattr__(self, "midpoints", tuple(Midpoint(m) for m in self.midpoints))
 
 
 @dataclass(frozen=True)
@@ -173,94 +194,152 @@ def reduce_object_path(
         A :class:`ReductionResult`.
     """
     settings = settings or ReductionSettings()
-    segments: list[Segment] = []
-    idx, q = 0, q_start.copy()
-    regrasps = stall = blind = 0
-    # (segments kept, trajectory index, q, grasp) after each transfer that moved the object
-    checkpoints: list[tuple[int, int, FloatArray, GraspContacts]] = [(0, 0, q.copy(), grasp)]
-    backtracks = 0
-
-    def backtracked() -> bool:
-        """Go back to an earlier checkpoint (True), or not (False: give up)."""
-        nonlocal segments, idx, q, grasp, regrasps, stall, blind, backtracks
-        if (
-            backtracks >= settings.backtracks
-            or idx < settings.backtrack_steps  # stuck near the start: another grasp's turn
-            or trans.deadline.expired()
-        ):
-            return False
-        backtracks += 1
-        trans.stats["backtracks"] += 1
-        # the latest checkpoint far enough back (checkpoints go forward in idx)
-        limit = idx - settings.backtrack_steps
-        k = max((i for i, c in enumerate(checkpoints) if c[1] <= limit), default=0)
-        kept, idx, q, grasp = checkpoints[k]
-        del checkpoints[k + 1 :]
-        segments = segments[:kept]
-        q = q.copy()
-        regrasps = sum(seg.kind == "regrasp" for seg in segments)
-        stall = blind = 0
-        return True
-
+    gait = _GaitState(trans, settings, q_start, grasp)
     while True:
         if trans.deadline.expired():
-            return ReductionResult(
-                False, tuple(segments), idx, "time limit reached", _stats(trans, regrasps)
-            )
-        tr = trans.transfer(poses, idx, q, grasp)
-        if len(tr.waypoints) > 1:
-            segments.append(Segment("transfer", None, tr.waypoints))
-            stall = blind = 0
-        idx, q = tr.reached, tr.waypoints[-1].q
-        if len(tr.waypoints) > 1:
-            checkpoints.append((len(segments), idx, q.copy(), grasp))
+            return gait.result("time limit reached")
+        tr = gait.transfer(poses)
         if tr.reason is None:
-            return ReductionResult(True, tuple(segments), idx, None, _stats(trans, regrasps))
+            return gait.result(None)
         if tr.blocking is None:
-            return ReductionResult(
-                False,
-                tuple(segments),
-                idx,
-                f"transfer blocked: {tr.reason}",
-                _stats(trans, regrasps),
-                final=tr.reason == "object_collision",
-            )
-        hint_row = None if hints is None else hints[min(idx, len(hints) - 1)]
+            reason = f"transfer blocked: {tr.reason}"
+            return gait.result(reason, final=tr.reason == "object_collision")
+        hint_row = None if hints is None else hints[min(gait.idx, len(hints) - 1)]
         found = _regrasp_retrying(
-            trans, poses, idx, q, grasp, tr.blocking, hint_row, settings.regrasp_retries
+            trans,
+            poses,
+            gait.idx,
+            gait.q,
+            gait.grasp,
+            tr.blocking,
+            hint_row,
+            settings.regrasp_retries,
         )
         if found is None:
-            why = (
-                f"no feasible regrasp at trajectory step {idx} (blocked by finger "
-                f"{tr.blocking}: {tr.reason})"
-            )
-            if backtracked():
+            why = _no_regrasp(gait.idx, tr)
+            if gait.backtrack():
                 continue
-            return ReductionResult(False, tuple(segments), idx, why, _stats(trans, regrasps))
-        seg, grasp, mode = found
-        segments.append(seg)
-        q = seg.end.q
-        regrasps += 1
-        stall += 1
-        blind += mode == "any"
-        if regrasps > settings.max_regrasps:
-            return ReductionResult(
-                False,
-                tuple(segments),
-                idx,
-                f"no progress after {regrasps} regrasps at trajectory step {idx}",
-                _stats(trans, regrasps),
+            return gait.result(why)
+        gait.regrasped(*found)
+        if gait.regrasps > settings.max_regrasps:
+            return gait.result(gait.no_progress())
+        why = gait.stuck(tr.blocking)
+        if why is not None and not gait.backtrack():
+            return gait.result(why)
+
+
+def _no_regrasp(idx: int, tr: TransferResult) -> str:
+    """The failure reason when no regrasp lets the transfer blocked at step ``idx`` go on."""
+    return (
+        f"no feasible regrasp at trajectory step {idx} (blocked by finger "
+        f"{tr.blocking}: {tr.reason})"
+    )
+
+
+class _GaitState:
+    """State of :func:`reduce_object_path`: segments so far, the hand's state, counters.
+
+    Attributes:
+        segments: the transfer and regrasp segments kept.
+        idx: index of the current pose in the dense trajectory.
+        q: (nq,) the hand's joints there.
+        grasp: the contacts held there, object frame.
+        regrasps: regrasps among ``segments``.
+        stall: regrasps since the object last moved.
+        blind: regrasps since the object last moved that moved another
+            finger than the blocking one without giving it a landing.
+        checkpoints: ``(segments kept, idx, q, grasp)`` after each transfer
+            that moved the object (and the start), for backtracking.
+        backtracks: backtracks made.
+    """
+
+    def __init__(
+        self,
+        trans: Transitions,
+        settings: ReductionSettings,
+        q_start: FloatArray,
+        grasp: GraspContacts,
+    ) -> None:
+        self.trans = trans
+        self.settings = settings
+        self.segments: list[Segment] = []
+        self.idx = 0
+        self.q = q_start.copy()
+        self.grasp = grasp
+        self.regrasps = self.stall = self.blind = 0
+        self.checkpoints: list[tuple[int, int, FloatArray, GraspContacts]] = [
+            (0, 0, self.q.copy(), grasp)
+        ]
+        self.backtracks = 0
+
+    def result(self, reason: str | None, *, final: bool = False) -> ReductionResult:
+        """The outcome so far: success when ``reason`` is None."""
+        stats = reduction_stats(self.trans, self.regrasps)
+        return ReductionResult(
+            reason is None, tuple(self.segments), self.idx, reason, stats, final=final
+        )
+
+    def transfer(self, poses: FloatArray) -> TransferResult:
+        """Transfer along ``poses`` from the current step for as long as it stays valid."""
+        tr = self.trans.transfer(poses, self.idx, self.q, self.grasp)
+        moved = len(tr.waypoints) > 1
+        if moved:
+            self.segments.append(Segment("transfer", None, tr.waypoints))
+            self.stall = self.blind = 0
+        self.idx, self.q = tr.reached, tr.waypoints[-1].q
+        if moved:
+            self.checkpoints.append((len(self.segments), self.idx, self.q.copy(), self.grasp))
+        return tr
+
+    def regrasped(self, seg: Segment, grasp: GraspContacts, mode: RegraspPass) -> None:
+        """Keep a regrasp found by :func:`_regrasp_retrying` in pass ``mode``."""
+        self.segments.append(seg)
+        self.grasp = grasp
+        self.q = seg.end.q
+        self.regrasps += 1
+        self.stall += 1
+        self.blind += mode == RegraspPass.ANY
+
+    def no_progress(self) -> str:
+        """The failure reason of too many regrasps."""
+        return f"no progress after {self.regrasps} regrasps at trajectory step {self.idx}"
+
+    def stuck(self, blocking: int) -> str | None:
+        """Why the gaits are stuck (``max_stall`` or ``max_blind`` passed), or None."""
+        if self.stall > self.settings.max_stall:
+            return self.no_progress()
+        if self.blind > self.settings.max_blind:
+            return (
+                f"no landing for finger {blocking} at trajectory step {self.idx} after "
+                f"{self.blind} moves of other fingers"
             )
-        why = None
-        if stall > settings.max_stall:
-            why = f"no progress after {regrasps} regrasps at trajectory step {idx}"
-        elif blind > settings.max_blind:
-            why = (
-                f"no landing for finger {tr.blocking} at trajectory step {idx} after "
-                f"{blind} moves of other fingers"
-            )
-        if why is not None and not backtracked():
-            return ReductionResult(False, tuple(segments), idx, why, _stats(trans, regrasps))
+        return None
+
+    def backtrack(self) -> bool:
+        """Go back to an earlier checkpoint (True), or not (False: give up).
+
+        Not near the start (the start grasp itself is the trouble, another
+        grasp's turn), nor past the deadline or the settings' backtracks.
+        """
+        s = self.settings
+        if (
+            self.backtracks >= s.backtracks
+            or self.idx < s.backtrack_steps
+            or self.trans.deadline.expired()
+        ):
+            return False
+        self.backtracks += 1
+        self.trans.stats["backtracks"] += 1
+        # the latest checkpoint far enough back (checkpoints go forward in idx)
+        limit = self.idx - s.backtrack_steps
+        k = max((i for i, c in enumerate(self.checkpoints) if c[1] <= limit), default=0)
+        kept, self.idx, q, self.grasp = self.checkpoints[k]
+        del self.checkpoints[k + 1 :]
+        self.segments = self.segments[:kept]
+        self.q = q.copy()
+        self.regrasps = sum(seg.kind == "regrasp" for seg in self.segments)
+        self.stall = self.blind = 0
+        return True
 
 
 def _regrasp_retrying(
@@ -272,7 +351,7 @@ def _regrasp_retrying(
     blocking: int,
     hint_row: FloatArray | None,
     retries: int,
-) -> tuple[Segment, GraspContacts, str] | None:
+) -> tuple[Segment, GraspContacts, RegraspPass] | None:
     """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
 
     The landing candidates are random samples: a fresh set often holds a
@@ -293,7 +372,7 @@ def _regrasp_one(
     grasp: GraspContacts,
     blocking: int,
     hint_row: FloatArray | None,
-) -> tuple[Segment, GraspContacts, str] | None:
+) -> tuple[Segment, GraspContacts, RegraspPass] | None:
     """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
 
     The blocking finger first, then the others, least remaining follow first
@@ -313,14 +392,14 @@ def _regrasp_one(
         if not trans.can_release(f, poses[idx], q, grasp):
             continue  # the other fingers cannot hold the object within the effort limits
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
-        limit = _ENABLE_LANDINGS if mode == "enable" else 8
+        limit = _ENABLE_LANDINGS if mode == RegraspPass.ENABLE else _LANDINGS
         for point, normal, score in trans.landing_candidates(
             f, poses[idx], q, grasp, future, hint, limit
         ):
-            if f != blocking and mode == "gain" and score <= follow[f]:
+            if f != blocking and mode == RegraspPass.GAIN and score <= follow[f]:
                 break  # moving this finger would not help it follow further
             new = grasp.replace(f, point, normal)
-            if mode == "enable":
+            if mode == RegraspPass.ENABLE:
                 if pool is None:
                     pool = trans.landing_pool(blocking, poses[idx], future)
                 if pool is None:
@@ -341,26 +420,25 @@ def _passes(
     q: FloatArray,
     grasp: GraspContacts,
     future: FloatArray,
-) -> Iterator[tuple[int, bool]]:
+) -> Iterator[tuple[int, RegraspPass]]:
     """Fingers to regrasp, in order, with what their landing must do.
 
-    ``"gain"``: follow further than the finger does now. The blocking finger;
-    then the others, least remaining follow first (the follows are computed
-    only here, into ``follow``). When nothing works, the others again even
-    onto a landing they follow less far from: first ``"enable"``, a landing
+    :attr:`RegraspPass.GAIN`: the blocking finger; then the others, least
+    remaining follow first (the follows are computed only here, into
+    ``follow``). When nothing works, the others again even onto a landing
+    they follow less far from: first :attr:`RegraspPass.ENABLE`, a landing
     after which the blocking finger has one of its own
     (:meth:`Transitions.can_land`: on a box held by two fingers on each of
     two faces, most landings of the blocking finger break some subgrasp's
-    force closure, and moving a neighbour where it does not help led to
-    runs of 30 regrasps without progress); then ``"any"`` landing (moving
-    one out of the way may clear the blocker's path in other ways).
+    force closure, and moving a neighbour where it does not help gives long
+    runs of regrasps without progress); then :attr:`RegraspPass.ANY`.
     """
-    yield blocking, "gain"
+    yield blocking, RegraspPass.GAIN
     follow.update({i: current_follow(trans, i, q, grasp, future) for i in others})
     order = sorted(others, key=lambda i: follow[i])
     for f in order:
-        yield f, "gain"
-    for mode in ("enable", "any"):
+        yield f, RegraspPass.GAIN
+    for mode in (RegraspPass.ENABLE, RegraspPass.ANY):
         for f in order:
             yield f, mode
 
@@ -371,9 +449,9 @@ def grasp_follow(
     """How far each finger of the grasp held at ``(pose, q)`` follows ``future``, ascending.
 
     The IK-only bound of :meth:`Transitions.follow_scores` per finger (joint
-    limits, no link collisions: tracking the links too cost 0.28 s for 8
-    paper-hand grasps on a 90-degree turn, ranked them nearly alike, and the
-    reduction tracks the grasp it keeps), sorted: compared as tuples, a grasp
+    limits, no link collisions: tracking the links too costs far more,
+    ranks the grasps nearly alike, and the reduction tracks the grasp it
+    keeps), sorted: compared as tuples, a grasp
     whose first blocked finger goes further, then whose second does, ranks
     higher (a transfer stops at the first blocked finger).
     """
@@ -446,7 +524,8 @@ def regrasps_onto(
     return segs, q, grasp
 
 
-def _stats(trans: Transitions, regrasps: int) -> dict[str, int]:
+def reduction_stats(trans: Transitions, regrasps: int) -> dict[str, int]:
+    """The local planners' counters with the reduction's regrasps (``reduction_regrasps``)."""
     out = dict(trans.stats)
     out["reduction_regrasps"] = regrasps
     return out
@@ -454,220 +533,6 @@ def _stats(trans: Transitions, regrasps: int) -> dict[str, int]:
 
 def grasp_from_state(trans: Transitions, pose: FloatArray, q: FloatArray) -> GraspContacts:
     """Contacts (object frame) of the fingertips of ``q`` at an object pose."""
-    from dexplan.core.pose import inverse_transform_points
-
     tips = inverse_transform_points(pose, trans.hand.fingertip_positions(q))
     pts, n_out = trans.obj.closest_point(tips)
     return GraspContacts(np.asarray(pts), np.asarray(n_out))
-
-
-def reduce_gsn_path(
-    trans: Transitions,
-    poses: FloatArray,
-    grasps: Sequence[GraspContacts],
-    q_start: FloatArray,
-    settings: ReductionSettings | None = None,
-    deadline: float | None = None,
-) -> ReductionResult:
-    """The reduction property, edge by edge: transfers and regrasps along a GSn path.
-
-    Every edge of the path is replaced by (first that is valid)
-
-    1. a transfer on the current grasp;
-    2. regrasps onto the edge's end contacts, then a transfer;
-    3. regrasps onto the edge's start contacts, then a transfer;
-
-    or else it is bisected and both halves are reduced in turn, at most
-    ``settings.max_depth`` times. The grasp is changed only where a transfer
-    needs it, so a path that one grasp can follow gives a single transfer.
-
-    Args:
-        trans: local planners.
-        poses: (K, 7) object poses of the GSn path, XYZW, unit quaternions.
-        grasps: K contact sets (object frame), one per GSn state.
-        q_start: (nq,) hand configuration holding ``grasps[0]`` at ``poses[0]``.
-        settings: limits (``max_depth`` is the resolution limit).
-        deadline: ``time.perf_counter()`` value after which it gives up.
-
-    Returns:
-        A :class:`ReductionResult`; ``reached`` is the index of the last GSn
-        state reached. The failure reason names the edge and the limit hit.
-    """
-    if len(poses) != len(grasps):
-        raise InvalidInputError(f"{len(poses)} poses but {len(grasps)} contact sets")
-    # quaternion signs continuous along the path: a transfer ends on the sign
-    # its slerp arrives with, and the next edge's regrasps must start there
-    poses = np.array(poses, dtype=float)
-    for k in range(1, len(poses)):
-        if float(np.dot(poses[k - 1, 3:], poses[k, 3:])) < 0.0:
-            poses[k, 3:] *= -1.0
-    reducer = _EdgeReducer(trans, settings or ReductionSettings(), deadline, q_start, grasps[0])
-    for k in range(len(poses) - 1):
-        if not reducer.whole_edge(poses[k], grasps[k], poses[k + 1], grasps[k + 1]):
-            return ReductionResult(
-                False,
-                tuple(reducer.segments),
-                k,
-                f"GSn edge {k} -> {k + 1} of {len(poses) - 1}: {reducer.failure}",
-                reducer.stats(),
-            )
-    return ReductionResult(True, tuple(reducer.segments), len(poses) - 1, None, reducer.stats())
-
-
-class _EdgeReducer:
-    """State of :func:`reduce_gsn_path`: the hand's current configuration and grasp."""
-
-    def __init__(
-        self,
-        trans: Transitions,
-        settings: ReductionSettings,
-        deadline: float | None,
-        q: FloatArray,
-        grasp: GraspContacts,
-    ) -> None:
-        self.trans = trans
-        self.settings = settings
-        self.deadline = deadline
-        self.q = q.copy()
-        self.grasp = grasp
-        self.segments: list[Segment] = []
-        self.regrasps = 0
-        self.bisections = 0
-        self.failure = ""
-        self.contact_paths = ContactPaths(trans.obj)
-        self.midpoint = settings.midpoints[0]
-        self.geodesic_midpoints = 0
-        self.retries = 0
-
-    def stats(self) -> dict[str, int]:
-        out = _stats(self.trans, self.regrasps)
-        out["reduction_bisections"] = self.bisections
-        out["reduction_geodesic_midpoints"] = self.geodesic_midpoints
-        out["reduction_midpoint_retries"] = self.retries
-        return out
-
-    def whole_edge(
-        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
-    ) -> bool:
-        """Reduce one GSn edge, with each of the settings' midpoint interpolations in turn.
-
-        A failed attempt leaves nothing behind: segments, joints, grasp and
-        regrasp count are restored before the next.
-        """
-        kept = (len(self.segments), self.q, self.grasp, self.regrasps)
-        modes = [m for m in self.settings.midpoints if m != "geodesic" or self.contact_paths.active]
-        for k, mode in enumerate(modes):
-            if k:
-                self.retries += 1
-                del self.segments[kept[0] :]
-                self.q, self.grasp, self.regrasps = kept[1], kept[2], kept[3]
-            self.midpoint = mode
-            if self.edge(pa, ca, pb, cb, 0):
-                return True
-            if self.failure == "time limit reached":
-                break
-        return False
-
-    def edge(
-        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts, depth: int
-    ) -> bool:
-        """Reduce the edge ``(pa, ca) -> (pb, cb)``; the hand is at ``pa`` on ``self.grasp``."""
-        if self.deadline is not None and time.perf_counter() > self.deadline:
-            self.failure = "time limit reached"
-            return False
-        s = self.trans.settings
-        dense = densify_poses(np.stack([pa, pb]), s.max_step_m, s.max_step_rad)
-        if self._transfer(dense, [], self.q, self.grasp):
-            self._resync(pb, cb)
-            return True
-        for target in (cb, ca):
-            moved = self._regrasps_to(pa, target)
-            if moved is not None and self._transfer(dense, *moved):
-                return True
-        if depth >= self.settings.max_depth:
-            self.failure = (
-                f"resolution limit: no transfer or regrasp sequence is valid after "
-                f"{depth} bisections (max_depth={self.settings.max_depth})"
-            )
-            return False
-        self.bisections += 1
-        pm, cm = self._midpoint(pa, ca, pb, cb)
-        return self.edge(pa, ca, pm, cm, depth + 1) and self.edge(pm, cm, pb, cb, depth + 1)
-
-    def _transfer(
-        self, dense: FloatArray, regrasps: list[Segment], q: FloatArray, grasp: GraspContacts
-    ) -> bool:
-        """Transfer along ``dense`` after ``regrasps``; commit all of it when it is valid."""
-        tr = self.trans.transfer(dense, 0, q, grasp)
-        if tr.reason is not None:
-            return False
-        self.segments.extend(regrasps)
-        self.regrasps += len(regrasps)
-        last = self.segments[-1] if self.segments else None
-        if last is not None and last.kind == "transfer":
-            # consecutive edges on one grasp make a single transfer
-            self.segments[-1] = Segment("transfer", None, last.waypoints + tr.waypoints[1:])
-        elif len(tr.waypoints) > 1:
-            self.segments.append(Segment("transfer", None, tr.waypoints))
-        self.q, self.grasp = tr.waypoints[-1].q, grasp
-        return True
-
-    def _resync(self, pose: FloatArray, target: GraspContacts) -> None:
-        """Regrasp fingers that drifted far from the GSn path's contacts, where possible.
-
-        Transfers keep the grasp while the path's contacts slide on; a grasp
-        far from the path's can no longer be regrasped onto it finger by
-        finger, so fingers more than ``settings.resync_m`` away are moved back
-        (each only when its landing keeps every (n-1) subgrasp force closure).
-        """
-        trans = self.trans
-        gap = np.linalg.norm(self.grasp.points - target.points, axis=1)
-        for f in np.argsort(-gap):
-            if gap[f] <= self.settings.resync_m:
-                break
-            f = int(f)
-            new = self.grasp.replace(f, target.points[f], target.normals_out[f])
-            if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
-                continue
-            point, normal = target.points[f], target.normals_out[f]
-            seg = trans.regrasp(pose, self.q, self.grasp, f, point, normal)
-            if seg is not None:
-                self.segments.append(seg)
-                self.regrasps += 1
-                self.q, self.grasp = seg.end.q, new
-
-    def _regrasps_to(
-        self, pose: FloatArray, target: GraspContacts
-    ) -> tuple[list[Segment], FloatArray, GraspContacts] | None:
-        """:func:`regrasps_onto` from the current grasp; None also when it is ``target``.
-
-        (The same grasp: the transfer on it already failed.)
-        """
-        out = regrasps_onto(
-            self.trans, pose, self.q, self.grasp, target, self.settings.same_contact_m
-        )
-        return None if out is None or not out[0] else out
-
-    def _midpoint(
-        self, pa: FloatArray, ca: GraspContacts, pb: FloatArray, cb: GraspContacts
-    ) -> tuple[FloatArray, GraspContacts]:
-        """GSn midpoint of an edge: the object pose slerp and the contacts halfway.
-
-        The contacts per the current midpoint interpolation
-        (:attr:`ReductionSettings.midpoints`): halfway along each contact's
-        surface geodesic (object frame, :class:`ContactPaths`), or as OMPL's
-        projected interpolation moves them (interpolating the hand joints
-        moves the fingertips roughly along the chord between their world
-        positions: the world fingertip centres are averaged and projected
-        onto the surface).
-        """
-        trans = self.trans
-        pm = interpolate_pose(pa, pb, 0.5)
-        if self.midpoint == "geodesic":
-            halfway = self.contact_paths.between(ca, cb, 0.5)
-            if halfway is not None:
-                self.geodesic_midpoints += 1
-                return pm, halfway
-        tips_world = 0.5 * (trans.tip_targets(pa, ca) + trans.tip_targets(pb, cb))
-        pts, n_out = trans.obj.closest_point(inverse_transform_points(pm, tips_world))
-        return pm, GraspContacts(np.asarray(pts).reshape(-1, 3), np.asarray(n_out).reshape(-1, 3))
