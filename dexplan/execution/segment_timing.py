@@ -11,7 +11,7 @@ computed by :mod:`dexplan.execution.timing` (toppra).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -174,7 +174,7 @@ class SegmentTiming:
     rest_q: FloatArray
     x0: FloatArray | None = None
     moving: np.ndarray | None = None
-    _path: Any = field(repr=False, compare=False, default=None)
+    _path: Callable[..., FloatArray] | None = field(repr=False, compare=False, default=None)
 
     def sample(self, times: Sequence[float] | FloatArray) -> TrajectorySample:
         """States at ``times`` (s from the segment's start, clipped to [0, duration])."""

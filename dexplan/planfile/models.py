@@ -12,10 +12,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from dexplan.core.errors import DexplanError, PlanFileError, one_line, shorten
 from dexplan.model.collision import CollisionWorld, Obstacle
+from dexplan.model.grasp import ContactModel
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
 
@@ -93,7 +94,7 @@ class PlanModels:
     world: CollisionWorld
     mu: float
     friction_edges: int
-    contact_model: str
+    contact_model: ContactModel
     torsion: float
 
 
@@ -142,6 +143,7 @@ def models_from_document(
         world=CollisionWorld(hand, obj, list(obstacles)),
         mu=float(doc["mu"]),
         friction_edges=int(doc.get("friction_edges", 8)),
-        contact_model=str(doc.get("contact_model", "point")),
+        # one of CONTACT_MODELS: validate_plan checked it
+        contact_model=cast("ContactModel", str(doc.get("contact_model", "point"))),
         torsion=float(doc.get("torsion", 0.0)),
     )

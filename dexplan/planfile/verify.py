@@ -287,7 +287,7 @@ class _Checker:
             edges=self.edges,
             torque_scale=ts,
             subgrasps=subgrasps,
-            contact_model=self.contact_model,  # type: ignore[arg-type]
+            contact_model=self.contact_model,
             torsion=self.torsion,
         )
 

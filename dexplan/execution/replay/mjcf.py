@@ -188,7 +188,7 @@ def _contact_attrs(doc: Mapping[str, Any]) -> str:
     return f'condim="{condim}" {fr} solref="0.002 1" solimp="0.95 0.99 0.001"'
 
 
-def _hand_geoms(gm: Any, contact: str) -> dict[int, list[str]]:
+def _hand_geoms(gm: pin.GeometryModel, contact: str) -> dict[int, list[str]]:
     """MJCF geoms of the hand's collision geometry, by parent joint.
 
     Args:
