@@ -2,7 +2,7 @@
 
 :func:`validate_plan` is the one gate every plan document passes before it is
 used: :func:`dexplan.planfile.document.read_plan` calls it (so ``dexplan verify``, ``dexplan
-show`` and the benchmark all get it), and :func:`dexplan.planfile.document.verify_plan` and
+show`` and the benchmark all get it), and :func:`dexplan.planfile.verify.verify_plan` and
 :func:`dexplan.viz.record_plan` call it for documents given in memory.
 
 A document that passes is *well formed*: every table holds only known fields,
@@ -12,7 +12,7 @@ numbers, ``q`` one per ``hand.joint_names`` entry, ``contacts`` one per
 ``hand.fingertip_frames`` entry) and every size is within the limits below, so
 a hostile file cannot make a reader hang or crash. Whether a well-formed plan
 obeys the rules (force closure, steps, contacts, goal) is the verifier's
-business (:func:`dexplan.planfile.document.verify_plan`); whether the URDF text builds a
+business (:func:`dexplan.planfile.verify.verify_plan`); whether the URDF text builds a
 hand is settled when the hand is built.
 
 Errors are :class:`~dexplan.core.errors.PlanFileError` naming the field path
