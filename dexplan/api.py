@@ -29,7 +29,7 @@ import numpy as np
 
 from dexplan.core.segments import Segment
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario.scenario import GoalSpec, Scenario, default_scenario, load_scenario
+from dexplan.model.scenario import GoalSpec, Scenario, default_scenario, load_scenario
 from dexplan.planfile import (
     VerifyReport,
     build_plan_document,
@@ -37,17 +37,12 @@ from dexplan.planfile import (
     verify_plan,
     write_plan,
 )
-from dexplan.planning.context import build_hand
+from dexplan.planning.context import build_hand, learning_context
 from dexplan.planning.planner import PlanResult
 from dexplan.planning.planner import plan as _plan
 from dexplan.planning.progress import PlanStatus, Progress
-from dexplan.planning.roadmap.learning import (
-    BuildSettings,
-    BuildStats,
-    build_roadmap,
-    learning_context,
-)
-from dexplan.planning.roadmap.roadmap import Roadmap, scenario_key
+from dexplan.planning.roadmap.graph import Roadmap, scenario_key
+from dexplan.planning.roadmap.learning import BuildSettings, BuildStats, build_roadmap
 
 __all__ = ["Plan", "RoadmapPlanner", "load_scenario", "plan", "verify"]
 

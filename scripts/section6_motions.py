@@ -31,12 +31,12 @@ import sys
 
 import numpy as np
 
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.local.contact_paths import ContactPaths
 from dexplan.planning.local.geodesic_motion import MotionFailure, geodesic_motion
+from dexplan.planning.roadmap.graph import pose_distances
 from dexplan.planning.roadmap.queries import query_problem
-from dexplan.planning.roadmap.roadmap import pose_distances
 
 
 def main() -> None:

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import dexplan
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.roadmap import tasks as bt
+from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.planning.roadmap.learning import BuildSettings, build_roadmap
-from dexplan.planning.roadmap.roadmap import Roadmap
 from tests.cli_contract import assert_bad_input, run_cli
 
 PAPER = Path(dexplan.__file__).resolve().parent / "data" / "scenarios" / "paper_sphere.toml"

@@ -6,13 +6,16 @@ import numpy as np
 import pytest
 
 from dexplan.core.errors import InvalidInputError
-from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.chart import ChartProblem, ContactChart, DirectionCaps
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import RoadmapData
+from dexplan.planning.ompl.registry import CAPPED_PLANNERS
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap.roadmap import CAPPED_PLANNERS, GsnQuery, chart_problem, explore_gsn
+from dexplan.planning.roadmap.module1 import explore_gsn
+from dexplan.planning.roadmap.problems import chart_problem
+from dexplan.planning.roadmap.search import GsnQuery
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import pytest
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import quat_angle
-from dexplan.model.scenario.scenario import default_scenario, load_scenario
+from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
 from dexplan.planning.gsn.validity import GraspValidity
@@ -20,13 +20,9 @@ from dexplan.planning.local.geodesic_motion import (
 )
 from dexplan.planning.local.reduction import grasp_from_state
 from dexplan.planning.ompl import PlanningProblem
+from dexplan.planning.roadmap.graph import pose_distances
+from dexplan.planning.roadmap.problems import constraint_spec, geodesic_fallback, gsn_problem
 from dexplan.planning.roadmap.queries import query_problem
-from dexplan.planning.roadmap.roadmap import (
-    constraint_spec,
-    geodesic_fallback,
-    gsn_problem,
-    pose_distances,
-)
 
 EGG = "dexplan/data/scenarios/suite/egg_tilt90.toml"
 

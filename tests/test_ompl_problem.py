@@ -23,7 +23,7 @@ from toy_sphere import (
 from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.planning.ompl import PLANNERS, ConstraintSpec, PlanningProblem
 from dexplan.planning.ompl.registry import FIRST_SOLUTION_PLANNERS, RESTARTED_PLANNERS
-from dexplan.planning.roadmap.roadmap import connected_components
+from dexplan.planning.roadmap.graph import connected_components
 
 
 @pytest.mark.timeout(60)

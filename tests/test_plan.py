@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dexplan.core.errors import PlanFileError
-from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 from dexplan.planfile import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planning.context import build_hand
 from dexplan.planning.planner import plan
@@ -151,7 +151,7 @@ def test_same_seed_same_plan_with_an_obstacle(planner: str) -> None:
 
 def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
     from dexplan.planning.context import build_context
-    from dexplan.planning.roadmap.roadmap import Roadmap, scenario_key
+    from dexplan.planning.roadmap.graph import Roadmap, scenario_key
 
     scenario, result, _ = solved
     path = tmp_path / "rm.npz"

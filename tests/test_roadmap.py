@@ -7,23 +7,19 @@ import time
 import numpy as np
 import pytest
 
-import dexplan.planning.roadmap.roadmap as rm
+import dexplan.planning.roadmap.module2 as rm
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import quat_angle
-from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.gsn.validity import GraspValidity
 from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.planner import goal_reached, start_state
-from dexplan.planning.roadmap.roadmap import (
-    GsnQuery,
-    Roadmap,
-    connected_components,
-    explore_gsn,
-    link_query,
-    try_link,
-)
+from dexplan.planning.roadmap.graph import Roadmap, connected_components
+from dexplan.planning.roadmap.module1 import explore_gsn
+from dexplan.planning.roadmap.module2 import link_query, try_link
+from dexplan.planning.roadmap.search import GsnQuery
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +110,7 @@ def test_module2_link_turns_the_object(scenario) -> None:
 def test_gsn_state_space_properties(scenario) -> None:
     """In the spirit of OMPL's StateSpaceTest, on GSn itself."""
     from dexplan.planning.ompl import PlanningProblem
-    from dexplan.planning.roadmap.roadmap import constraint_spec
+    from dexplan.planning.roadmap.problems import constraint_spec
 
     ctx = build_context(scenario, seed=6)
     problem = PlanningProblem(
@@ -148,9 +144,9 @@ def test_validity_keeps_the_object_clear_of_obstacles(scenario) -> None:
 def test_roadmap_key_depends_on_the_contact_model():
     import dataclasses
 
-    from dexplan.model.scenario.scenario import default_scenario
+    from dexplan.model.scenario import default_scenario
     from dexplan.planning.context import build_context
-    from dexplan.planning.roadmap.roadmap import scenario_key
+    from dexplan.planning.roadmap.graph import scenario_key
 
     point = default_scenario()
     soft = dataclasses.replace(point, contact_model="soft", torsion=0.005)
@@ -162,7 +158,7 @@ def test_module2_starts_no_attempt_after_its_share_and_never_cuts_one(
 ) -> None:
     """Attempts start within MODULE2_SHARE of the time left; each runs with the
     query's own deadline (a fake clock: each attempt takes 10 s of 100)."""
-    from dexplan.planning.roadmap import roadmap as rm
+    from dexplan.planning.roadmap import module2 as rm
 
     ctx = build_context(scenario, seed=1)
     x0 = start_state(ctx)
@@ -256,7 +252,7 @@ def test_a_link_via_another_start_grasp_regrasps_onto_it_first(scenario) -> None
     """Module 2's second try from the start: regrasps (object fixed) onto another
     start grasp, then the gaits from there, one reduction from the start's joints."""
     from dexplan.planning.local.reduction import grasp_from_state
-    from dexplan.planning.roadmap.roadmap import link_reduction
+    from dexplan.planning.roadmap.module2 import link_reduction
 
     ctx = build_context(scenario, seed=1)
     x0 = start_state(ctx)

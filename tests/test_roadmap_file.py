@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from dexplan.core.errors import PlanFileError, RoadmapFileError
 from dexplan.planning.roadmap.file import MAX_ROADMAP_VERTICES, ROADMAP_FORMAT, read_roadmap_arrays
-from dexplan.planning.roadmap.roadmap import Roadmap
+from dexplan.planning.roadmap.graph import Roadmap
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenarios" / "paper_sphere.toml"
@@ -377,9 +377,9 @@ def test_cli_roadmap_of_another_hand_width(capfd, tmp_path: Path) -> None:
     ``dexplan plan`` passes ``ambient_dim`` to :meth:`Roadmap.load`, so the
     width is refused before any progress line.
     """
-    from dexplan.model.scenario.scenario import load_scenario
+    from dexplan.model.scenario import load_scenario
     from dexplan.planning.context import build_context
-    from dexplan.planning.roadmap.roadmap import scenario_key
+    from dexplan.planning.roadmap.graph import scenario_key
 
     key = scenario_key(build_context(load_scenario(PAPER)))
     bad = tmp_path / "wide.npz"

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dexplan.planning.roadmap.roadmap import Roadmap
+from dexplan.planning.roadmap.graph import Roadmap
 
 pytest.importorskip("rerun")
 

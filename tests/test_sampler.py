@@ -6,7 +6,7 @@ import pytest
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.model.collision import pose_to_se3
-from dexplan.model.scenario.scenario import default_scenario, load_scenario
+from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.sampler import SamplerSettings
 from dexplan.planning.gsn.space import POSE_DIM
@@ -202,9 +202,9 @@ def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
     bean_yaw180 seed 7's start grasp was 1.33e-5 off and the query ended in
     an error. Such candidate contacts are not offered.
     """
-    from dexplan.planning.gsn.sampler import FIT_TOL
+    from dexplan.planning.gsn.finger_reach import FIT_TOL
     from dexplan.planning.planner import start_state
-    from dexplan.planning.roadmap.roadmap import constraint_spec
+    from dexplan.planning.roadmap.problems import constraint_spec
 
     ctx = build_context(load_scenario("dexplan/data/scenarios/suite/bean_yaw180.toml"), seed=7)
     r = ctx.hand.fingertip_radius
@@ -223,7 +223,7 @@ def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
 def test_samples_at_pose_share_one_pose_and_start_with_the_single_sample() -> None:
     """``samples_at_pose(pose, k)``: k distinct valid grasps at the pose, the first one
     the grasp ``sample_at_pose`` finds from the same seed (so ``k = 1`` plans as before)."""
-    from dexplan.model.scenario.scenario import default_scenario
+    from dexplan.model.scenario import default_scenario
     from dexplan.planning.context import build_context
 
     scenario = default_scenario()

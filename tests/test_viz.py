@@ -104,7 +104,7 @@ def make_plan_doc(hand: Hand) -> dict:
 def make_roadmap(doc: dict):
     """Vertices from the plan's waypoints plus a detached pair: 3 GSn components, 1 link."""
     try:
-        from dexplan.planning.roadmap.roadmap import Roadmap
+        from dexplan.planning.roadmap.graph import Roadmap
     except ImportError as exc:  # the planning stack is not importable yet
         pytest.skip(f"dexplan.planning.roadmap.roadmap unavailable: {exc}")
     wps = [w for s in doc["segments"] for w in s["waypoints"]]

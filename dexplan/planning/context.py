@@ -7,16 +7,22 @@ regrasp local planners, all wired to one seeded random generator.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from dexplan.core.errors import DexplanError, ScenarioError
 from dexplan.model.collision import CollisionWorld, Obstacle
-from dexplan.model.grasp.grip import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings, GripForceSolver
+from dexplan.model.grasp.grip_forces import (
+    DEFAULT_GRAVITY,
+    DEFAULT_MASS,
+    ForceSettings,
+    GripForceSolver,
+)
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn.sampler import GraspSampler, SamplerSettings
 from dexplan.planning.gsn.space import GraspSubspace
@@ -209,3 +215,21 @@ def build_context(
     return PlanningContext(
         scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline, seed
     )
+
+
+def learning_scenario(scenario: Scenario) -> Scenario:
+    """The scenario without its goal: the goal pose set to the start pose.
+
+    The GSn bounds then are the ``[workspace]`` box around the start position,
+    for every query whose goal lies in it (a query's own bounds contain them):
+    the roadmap of a learning phase serves them all.
+    """
+    goal = dataclasses.replace(
+        scenario.goal, object_pose_xyzquat=scenario.start.object_pose_xyzquat.copy()
+    )
+    return dataclasses.replace(scenario, goal=goal)
+
+
+def learning_context(scenario: Scenario, seed: int, hand: Hand | None = None) -> PlanningContext:
+    """The planning context of a roadmap's learning phase (:func:`learning_scenario`)."""
+    return build_context(learning_scenario(scenario), seed, hand=hand)

@@ -2,12 +2,12 @@
 
 A query runs in three stages:
 
-1. **Module 1** (:mod:`dexplan.planning.roadmap.roadmap`): an OMPL planner explores
+1. **Module 1** (:mod:`dexplan.planning.roadmap.module1`): an OMPL planner explores
    GSn from the start state towards the goal region (single query), or a
    loaded roadmap answers the query (multi query).
-2. **Module 2**: when start and goal are in different GSn components, the
-   components are linked by transfer-regrasp sequences (the same local
-   planners as the reduction).
+2. **Module 2** (:mod:`dexplan.planning.roadmap.module2`): when start and
+   goal are in different GSn components, the components are linked by
+   transfer-regrasp sequences (the same local planners as the reduction).
 3. **Reduction and smoothing**: the object trajectory of the GSn path is
    shortcut, reduced to transfer and regrasp segments (finger gaits), needless
    regrasps are merged, and the result is checked by the plan verifier before
@@ -30,7 +30,7 @@ from dexplan.core.pose import quat_angle
 from dexplan.core.segments import Segment, count_kinds, joint_travel, object_path_length
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
@@ -45,8 +45,10 @@ from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shor
 from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.ompl import check_planner
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
+from dexplan.planning.roadmap.graph import Roadmap
+from dexplan.planning.roadmap.module1 import explore_gsn
 from dexplan.planning.roadmap.queries import answer_query
-from dexplan.planning.roadmap.roadmap import GsnQuery, GsnResult, Roadmap, explore_gsn
+from dexplan.planning.roadmap.search import GsnQuery, GsnResult
 from dexplan.planning.stats import PlanStats
 
 Verifier = Callable[["PlanResult"], Sequence[str]]

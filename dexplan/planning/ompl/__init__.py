@@ -51,8 +51,10 @@ from dexplan.planning.ompl.registry import (
     PLANNERS,
     PROJECTION_PLANNERS,
     UNSUPPORTED_PLANNERS,
+    PlannerTraits,
     available_planners,
     check_planner,
+    planner_traits,
 )
 from dexplan.planning.ompl.results import PathCheck, RoadmapData, SolveResult
 from dexplan.planning.ompl.runtime import get_log_level, set_log_level
@@ -67,6 +69,7 @@ __all__ = [
     "ConstraintSpec",
     "GoalSpec",
     "PathCheck",
+    "PlannerTraits",
     "PlanningProblem",
     "ProjectionSpec",
     "RoadmapData",
@@ -75,5 +78,6 @@ __all__ = [
     "check_planner",
     "get_log_level",
     "plan_joint_path",
+    "planner_traits",
     "set_log_level",
 ]

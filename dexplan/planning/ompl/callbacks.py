@@ -1,4 +1,4 @@
-"""Python callbacks handed to OMPL, the error sink, and termination conditions.
+"""Python callbacks handed to OMPL, and termination conditions.
 
 - ``is_valid(x) -> bool`` becomes the state validity checker (:func:`make_validity`);
 - an optional ``valid_sampler() -> x | None`` becomes an ``ob.ValidStateSampler``
@@ -14,8 +14,9 @@
   termination condition (:func:`termination`).
 
 A callback never lets an exception unwind through OMPL's C++ frames: it records it
-in the :class:`ErrorSink`, answers "invalid" and terminates the running solve; the
-caller re-raises it as a :class:`~dexplan.core.errors.PlannerError`.
+in the :class:`~dexplan.planning.ompl.error_sink.ErrorSink`, answers "invalid" and
+terminates the running solve; the caller re-raises it as a
+:class:`~dexplan.core.errors.PlannerError`.
 
 Binding facts (ompl 2.0.1 PyPI wheel, nanobind):
 
@@ -34,10 +35,9 @@ Binding facts (ompl 2.0.1 PyPI wheel, nanobind):
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from ompl import base as ob
@@ -45,13 +45,11 @@ from ompl import base as ob
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int
-
-if TYPE_CHECKING:
-    from dexplan.planning.ompl.spaces import ConstraintSpec, Frame
+from dexplan.planning.ompl.error_sink import ErrorSink
+from dexplan.planning.ompl.spaces import ConstraintSpec, Frame
 
 __all__ = [
     "Accept",
-    "ErrorSink",
     "GoalSpec",
     "draw_goal",
     "make_goal_region",
@@ -59,46 +57,6 @@ __all__ = [
     "make_validity",
     "termination",
 ]
-
-# ------------------------------------------------------------------ error sink
-
-
-class ErrorSink:
-    """First exception raised by a Python callback during a solve.
-
-    Exceptions must not unwind through OMPL's C++ frames (or its threads): callbacks
-    record them here, answer "invalid", and terminate the running solve.
-    """
-
-    __slots__ = ("error", "ptc")
-
-    def __init__(self) -> None:
-        self.error: BaseException | None = None
-        self.ptc: Any = None
-
-    def record(self, exc: BaseException) -> None:
-        """Keep ``exc`` (unless one is already kept) and terminate the running solve."""
-        if self.error is None:
-            self.error = exc
-        if self.ptc is not None:
-            self.ptc.terminate()
-
-    @contextmanager
-    def watching(self, ptc: Any) -> Iterator[Any]:
-        """Let callbacks terminate ``ptc`` while the ``with`` block runs.
-
-        Args:
-            ptc: the planner termination condition of the running solve.
-
-        Yields:
-            ``ptc``.
-
-        """
-        self.ptc = ptc
-        try:
-            yield ptc
-        finally:
-            self.ptc = None
 
 
 def termination(

@@ -20,8 +20,9 @@ from ompl import geometric as og
 from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int, as_pos
-from dexplan.planning.ompl.callbacks import ErrorSink, make_validity, termination
-from dexplan.planning.ompl.registry import MULTI_QUERY_PLANNERS, PLANNERS, check_planner_name
+from dexplan.planning.ompl.callbacks import make_validity, termination
+from dexplan.planning.ompl.error_sink import ErrorSink
+from dexplan.planning.ompl.registry import PLANNERS, check_planner_name, planner_traits
 from dexplan.planning.ompl.results import STATUS_NAMES
 from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
 from dexplan.planning.ompl.spaces import Frame, real_vector_space
@@ -71,7 +72,7 @@ def plan_joint_path(
         PlannerError: ``is_valid`` raised.
     """
     check_planner_name(planner)
-    if planner in MULTI_QUERY_PLANNERS:
+    if planner_traits(planner).multi_query:
         raise InvalidInputError(f"plan_joint_path needs a single-query planner, not {planner}")
     lo, hi, ends = _checked_box(start, goal, lower, upper)
     n = lo.shape[0]

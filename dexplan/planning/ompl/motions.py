@@ -42,17 +42,15 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from ompl import base as ob
 
 from dexplan.core.errors import PlannerError
 from dexplan.core.typing import FloatArray
-
-if TYPE_CHECKING:
-    from dexplan.planning.ompl.callbacks import ErrorSink
-    from dexplan.planning.ompl.spaces import ConstraintSpec, Frame
+from dexplan.planning.ompl.error_sink import ErrorSink
+from dexplan.planning.ompl.spaces import ConstraintSpec, Frame
 
 __all__ = ["FallbackMotions", "MotionFallback"]
 

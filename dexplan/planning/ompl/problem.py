@@ -26,7 +26,6 @@ from dexplan.core.typing import FloatArray, as_vector
 from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import (
     Accept,
-    ErrorSink,
     GoalSpec,
     draw_goal,
     make_goal_region,
@@ -34,16 +33,15 @@ from dexplan.planning.ompl.callbacks import (
     make_validity,
     termination,
 )
+from dexplan.planning.ompl.error_sink import ErrorSink
 from dexplan.planning.ompl.motions import FallbackMotions, MotionFallback
 from dexplan.planning.ompl.registry import (
-    FIRST_SOLUTION_PLANNERS,
     MULTI_QUERY_PLANNERS,
     PLANNERS,
-    PROJECTION_PLANNERS,
-    RESTARTED_PLANNERS,
     check_planner_name,
     declared_params,
     first_solution_objective,
+    planner_traits,
     set_planner_param,
     settable_params,
 )
@@ -156,7 +154,7 @@ class PlanningProblem:
                 raise InvalidInputError(
                     f"motion_fallback must be callable, got {motion_fallback!r}"
                 )
-            if planner not in MULTI_QUERY_PLANNERS:
+            if not planner_traits(planner).multi_query:
                 raise InvalidInputError(
                     f"motion_fallback is for the PRM family "
                     f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {planner}"
@@ -269,13 +267,13 @@ class PlanningProblem:
     @property
     def is_multi_query(self) -> bool:
         """Whether the planner keeps its roadmap across queries (PRM family)."""
-        return self._planner_name in MULTI_QUERY_PLANNERS
+        return planner_traits(self._planner_name).multi_query
 
     # ----------------------------------------------------------------- planner
 
     def _new_planner(self) -> Any:
         planner = PLANNERS[self._planner_name](self._si)
-        if self._projection is not None and self._planner_name in PROJECTION_PLANNERS:
+        if self._projection is not None and planner_traits(self._planner_name).needs_projection:
             planner.setProjectionEvaluator(self._projection)
         if self._spec.space != "projected" and callable(getattr(planner, "setRange", None)):
             planner.setRange(float(self._css.getRho_s()))  # as OMPL's demos; params override
@@ -398,7 +396,7 @@ class PlanningProblem:
                     self._si, spec, self._frame, self._accept, self._sink, first, self._anchor()
                 )
         pdef.setGoal(goal)
-        if self._planner_name in FIRST_SOLUTION_PLANNERS:
+        if planner_traits(self._planner_name).first_solution:
             pdef.setOptimizationObjective(first_solution_objective(self._si))
         self._pdef = pdef
         if self.is_multi_query:
@@ -515,7 +513,7 @@ class PlanningProblem:
                     "(its solution checker runs in a second thread)"
                 )
             budget = as_int(max_iterations, "max_iterations", 1)
-        if self._planner_used and self._planner_name in RESTARTED_PLANNERS:
+        if self._planner_used and planner_traits(self._planner_name).restarted:
             # a batch planner cut short cannot resume: a fresh batch, the budget given
             self._planner = self._new_planner()
             self._planner.setup()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -24,15 +25,22 @@ from dexplan.core.errors import PlannerError
 from dexplan.planning.ompl.spaces import real_vector_space
 
 __all__ = [
+    "CAPPED_PLANNERS",
+    "FIRST_SOLUTION_PLANNERS",
     "MULTI_QUERY_PLANNERS",
     "PLANNERS",
     "PLANNER_NOTES",
+    "PLANNER_TRAITS",
     "PROJECTION_PLANNERS",
+    "RESTARTED_PLANNERS",
     "UNSUPPORTED_PLANNERS",
+    "PlannerTraits",
     "available_planners",
     "check_planner",
     "check_planner_name",
     "declared_params",
+    "planner_traits",
+    "planners_with",
     "set_planner_param",
     "settable_params",
 ]
@@ -50,96 +58,167 @@ def _factory(name: str) -> Callable[[Any], Any]:
     return make
 
 
+@dataclass(frozen=True)
+class PlannerTraits:
+    """What dexplan must know of one OMPL planner to run it well.
+
+    Attributes:
+        multi_query: its roadmap survives a new start and goal (``clearQuery``);
+            it runs a solution-checking thread, so its goal is always one C++
+            goal state.
+        needs_projection: it uses a
+            :class:`~dexplan.planning.ompl.spaces.ProjectionSpec`
+            (``setProjectionEvaluator``).
+        first_solution: optimizing, stopped at its first solution. Its problem
+            gets a path-length objective whose cost threshold every path meets
+            (:func:`first_solution_objective`): module 1 needs a GSn path, not a
+            short one (the reduction follows the shortcut object trajectory
+            whatever path led there), and once these planners have a solution
+            their informed samplers (``PathLengthDirectInfSampler``) draw
+            ambient states, project them and reject those outside the informed
+            ellipsoid in a loop that never checks the termination condition
+            (BITstar on box_yaw90 returned after 48.6 s of a 30 s limit).
+        restarted: a batch planner that gets a fresh planner for every
+            ``solve`` after the first. FMT and BFMT draw their batch of samples
+            inside ``solve``; stopped before the batch is drawn (a module-1
+            round's budget), the next ``solve`` of the same planner returns
+            ``invalid_start`` at once, every round after. A fresh planner per
+            round draws a fresh batch within that round's (doubled) budget.
+        r_n_sampler: its informed sampler treats the space as R^n (no
+            projection): on the contact chart it gets the chart without
+            unit-sphere rows, where every point of the bounds is a state.
+        capped: its chart keeps each finger's direction within a cap
+            (:class:`~dexplan.planning.gsn.chart.DirectionCaps`). Its states
+            come only from the space's uniform sampler (FMT and BFMT: a batch
+            drawn up front) or an informed one over the same bounds, so the
+            fraction of uniform chart states that are valid grasps decides how
+            fast it searches: on cube_post 5 of 10,000 uniform chart states
+            were valid, caps of 75 degrees about each finger's mean direction
+            raised it to about 1 % and keep 89 % of the RLG sampler's valid
+            states.
+        waypoints: module 2 adds RLG waypoints when it has no link to try.
+            BFMT's planner data holds only its two trees (no sample it left
+            unconnected), on cube_post no other vertex at all: with the straight
+            turn blocked by the post, module 2 had nothing to link. Given to the
+            other planners, waypoints replaced the next round's growth with
+            detours through random poses: more regrasps, and failures where
+            there were none.
+        unsupported: why the planner is deliberately not registered, or empty.
+        note: caveats (informational).
+    """
+
+    multi_query: bool = False
+    needs_projection: bool = False
+    first_solution: bool = False
+    restarted: bool = False
+    r_n_sampler: bool = False
+    capped: bool = False
+    waypoints: bool = False
+    unsupported: str = ""
+    note: str = ""
+
+
+_INFORMED = (
+    "optimizing, stopped at its first solution; informed sampling treats the "
+    "constrained space as R^n (states are re-checked on the returned path)"
+)
+
+PLANNER_TRAITS: dict[str, PlannerTraits] = {
+    "AORRTC": PlannerTraits(
+        unsupported="hangs inside solve() on a constrained state space, ignoring the "
+        "termination condition, and returns a zero-length path on a plain R^2 problem "
+        "(ompl 2.0.1 wheel)"
+    ),
+    "BFMT": PlannerTraits(
+        restarted=True,
+        capped=True,
+        waypoints=True,
+        note="batch of num_samples states; timed out on the tangent-bundle space",
+    ),
+    "BITstar": PlannerTraits(first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED),
+    "BKPIECE1": PlannerTraits(needs_projection=True),
+    "FMT": PlannerTraits(
+        restarted=True,
+        capped=True,
+        note="batch of num_samples states drawn uniformly up front; timed out on the "
+        "tangent-bundle space",
+    ),
+    "InformedRRTstar": PlannerTraits(
+        first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED
+    ),
+    "KPIECE1": PlannerTraits(needs_projection=True),
+    "LBKPIECE1": PlannerTraits(
+        needs_projection=True,
+        note="lazy: OMPL's ConstrainedMotionValidator does not check a motion's end "
+        "state, so it can return invalid waypoints; the re-check reports them as "
+        "path_invalid",
+    ),
+    "PRM": PlannerTraits(
+        multi_query=True, note="multi-query roadmap; uses the custom valid state sampler"
+    ),
+    "PRMstar": PlannerTraits(
+        multi_query=True, note="optimizing: uses the whole time limit; multi-query roadmap"
+    ),
+    "RRT": PlannerTraits(),
+    "RRTConnect": PlannerTraits(),
+    "RRTstar": PlannerTraits(first_solution=True, note="optimizing, stopped at its first solution"),
+    "SORRTstar": PlannerTraits(first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED),
+}
+"""The planners of the wheel dexplan knows, with their traits.
+
+Every registered one solved the unit-sphere test problem on the projected,
+atlas and tangent-bundle spaces (FMT/BFMT only timed out on the tangent
+bundle, cleanly)."""
+
+_NO_TRAITS = PlannerTraits()
+
+
+def planner_traits(name: str) -> PlannerTraits:
+    """The :class:`PlannerTraits` of planner ``name`` (none set for an unknown name)."""
+    return PLANNER_TRAITS.get(name, _NO_TRAITS)
+
+
+def planners_with(trait: str) -> frozenset[str]:
+    """The registered planners whose boolean ``trait`` (a :class:`PlannerTraits` field) is set."""
+    return frozenset(n for n in PLANNERS if getattr(planner_traits(n), trait))
+
+
 PLANNERS: dict[str, Callable[[Any], Any]] = {
     name: _factory(name)
-    for name in (
-        "BFMT",
-        "BITstar",
-        "BKPIECE1",
-        "FMT",
-        "InformedRRTstar",
-        "KPIECE1",
-        "LBKPIECE1",
-        "PRM",
-        "PRMstar",
-        "RRT",
-        "RRTConnect",
-        "RRTstar",
-        "SORRTstar",
-    )
-    if hasattr(og, name)
+    for name, traits in PLANNER_TRAITS.items()
+    if not traits.unsupported and hasattr(og, name)
 }
-"""Planner name -> factory ``f(space_information) -> ompl planner``.
-
-Every entry solved the unit-sphere test problem on the projected, atlas and
-tangent-bundle spaces (FMT/BFMT only timed out on the tangent bundle, cleanly)."""
+"""Planner name -> factory ``f(space_information) -> ompl planner``."""
 
 UNSUPPORTED_PLANNERS: dict[str, str] = {
-    "AORRTC": (
-        "hangs inside solve() on a constrained state space, ignoring the termination "
-        "condition, and returns a zero-length path on a plain R^2 problem (ompl 2.0.1 wheel)"
-    ),
+    name: t.unsupported for name, t in PLANNER_TRAITS.items() if t.unsupported
 }
 """Geometric planners of the wheel that are deliberately not registered, with the reason."""
 
-PLANNER_NOTES: dict[str, str] = {
-    "BITstar": "optimizing, stopped at its first solution (FIRST_SOLUTION_PLANNERS); "
-    "informed sampling treats the "
-    "constrained space as R^n (states are re-checked on the returned path)",
-    "InformedRRTstar": "optimizing, stopped at its first solution (FIRST_SOLUTION_PLANNERS); "
-    "informed sampling treats the "
-    "constrained space as R^n (states are re-checked on the returned path)",
-    "SORRTstar": "optimizing, stopped at its first solution (FIRST_SOLUTION_PLANNERS); "
-    "informed sampling treats the "
-    "constrained space as R^n (states are re-checked on the returned path)",
-    "RRTstar": "optimizing, stopped at its first solution (FIRST_SOLUTION_PLANNERS)",
-    "PRMstar": "optimizing: uses the whole time limit; multi-query roadmap",
-    "PRM": "multi-query roadmap; uses the custom valid state sampler",
-    "FMT": "batch of num_samples states drawn uniformly up front; timed out on the "
-    "tangent-bundle space",
-    "LBKPIECE1": "lazy: OMPL's ConstrainedMotionValidator does not check a motion's end "
-    "state, so it can return invalid waypoints; the re-check reports them as path_invalid",
-    "BFMT": "batch of num_samples states; timed out on the tangent-bundle space",
-}
+PLANNER_NOTES: dict[str, str] = {name: t.note for name, t in PLANNER_TRAITS.items() if t.note}
 """Caveats per registered planner (informational)."""
 
-FIRST_SOLUTION_PLANNERS: frozenset[str] = frozenset(
-    {"BITstar", "InformedRRTstar", "RRTstar", "SORRTstar"}
-)
-"""Optimizing single-query planners that stop at their first solution.
+FIRST_SOLUTION_PLANNERS = planners_with("first_solution")
+"""Planners with :attr:`PlannerTraits.first_solution`."""
 
-Their problem gets a path-length objective whose cost threshold every path
-meets (:func:`first_solution_objective`). Module 1 needs a GSn path, not a
-short one (the reduction follows the shortcut object trajectory whatever
-path led there), and once these planners have a solution their informed
-samplers (``PathLengthDirectInfSampler``) draw ambient states, project them
-and reject those outside the informed ellipsoid in a loop that never checks
-the termination condition: BITstar on box_yaw90 seed 1 found its path in
-round 1 and returned after 48.6 s of a 30 s limit."""
+RESTARTED_PLANNERS = planners_with("restarted")
+"""Planners with :attr:`PlannerTraits.restarted`."""
 
-RESTARTED_PLANNERS: frozenset[str] = frozenset({"BFMT", "FMT"})
-"""Batch planners that get a fresh planner for every ``solve`` after the first.
+MULTI_QUERY_PLANNERS = planners_with("multi_query")
+"""Planners with :attr:`PlannerTraits.multi_query` (the PRM family)."""
 
-FMT and BFMT draw their batch of samples inside ``solve``; stopped before
-the batch is drawn (a module-1 round's budget), the next ``solve`` of the
-same planner returns ``invalid_start`` at once, every round after (BFMT on
-cube_post: 0 roadmap vertices in every round of 30 s). A fresh planner per
-round draws a fresh batch within that round's (doubled) budget."""
+PROJECTION_PLANNERS = planners_with("needs_projection")
+"""Planners with :attr:`PlannerTraits.needs_projection` (the KPIECE family)."""
 
-MULTI_QUERY_PLANNERS: frozenset[str] = frozenset({"PRM", "PRMstar"})
-"""Planners whose roadmap survives a new start/goal (``clearQuery``); they run a
-solution-checking thread, so their goal is always one C++ goal state."""
-
-PROJECTION_PLANNERS: frozenset[str] = frozenset({"KPIECE1", "BKPIECE1", "LBKPIECE1"})
-"""Planners that use a :class:`~dexplan.planning.ompl.spaces.ProjectionSpec`
-(``setProjectionEvaluator``)."""
+CAPPED_PLANNERS = planners_with("capped")
+"""Planners with :attr:`PlannerTraits.capped`."""
 
 
 def first_solution_objective(si: Any) -> Any:
     """A path-length objective that every path satisfies (cost threshold +inf).
 
     OMPL's optimizing planners stop as soon as their best cost satisfies the
-    objective; see :data:`FIRST_SOLUTION_PLANNERS`.
+    objective; see :attr:`PlannerTraits.first_solution`.
     """
     objective = ob.PathLengthOptimizationObjective(si)
     objective.setCostThreshold(ob.Cost(math.inf))

@@ -41,7 +41,7 @@ from ompl import base as ob
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_vector
 from dexplan.planning.ompl._checks import as_int, as_pos
-from dexplan.planning.ompl.callbacks import ErrorSink
+from dexplan.planning.ompl.error_sink import ErrorSink
 
 __all__ = [
     "ATLAS_SETTERS",

@@ -6,7 +6,7 @@ text: the format, the planner, the scenario key and the build statistics).
 :func:`read_roadmap_arrays` checks sizes from the zip headers before loading
 anything, then shapes, dtypes, finiteness, unit quaternions and indices, so a
 malformed or hostile file fails with one :class:`RoadmapFileError` line.
-:class:`dexplan.planning.roadmap.roadmap.Roadmap` writes and loads it.
+:class:`dexplan.planning.roadmap.graph.Roadmap` writes and loads it.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ a scenario, without its goal:
    box around the start position, orientations uniform), in rounds of doubling
    size, single-threaded.
 2. **Module 2**: components are joined by transfer-regrasp links
-   (:func:`~dexplan.planning.roadmap.roadmap.try_link`), nearest vertex pairs first,
+   (:func:`~dexplan.planning.roadmap.module2.try_link`), nearest vertex pairs first,
    until one component is left or the budget ends.
 
 With ``nodes`` the build is deterministic for a seed (growth stops at a
@@ -22,27 +22,28 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario.scenario import Scenario
-from dexplan.planning.context import PlanningContext, build_context
+from dexplan.model.scenario import Scenario
+from dexplan.planning.context import PlanningContext, learning_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import MULTI_QUERY_PLANNERS, PlanningProblem, check_planner
 from dexplan.planning.progress import Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap import tasks as bt
-from dexplan.planning.roadmap.roadmap import (
-    Roadmap,
-    gsn_problem,
+from dexplan.planning.roadmap.graph import Roadmap, scenario_key
+from dexplan.planning.roadmap.module2 import (
+    Pair,
+    component_groups,
+    link_pass,
     object_move_free,
-    pose_distances,
-    scenario_key,
     try_link,
 )
+from dexplan.planning.roadmap.problems import gsn_problem
 from dexplan.planning.roadmap.tasks import MAX_JOBS
 
 FIRST_ROUND_MILESTONES = 16
@@ -50,9 +51,6 @@ FIRST_ROUND_MILESTONES = 16
 
 MODULE1_SHARE = 0.6
 """Fraction of a ``time_limit`` module 1 may use; module 2 gets the rest."""
-
-PAIRS_PER_COMPONENT = 3
-"""Nearest vertex pairs tried between two components before giving up on them."""
 
 MAX_TIME_LIMIT = 86_400.0
 """Longest build (s)."""
@@ -148,23 +146,6 @@ class BuildStats:
     def as_dict(self) -> dict[str, object]:
         """The stats as a JSON-ready mapping."""
         return dataclasses.asdict(self)
-
-
-def learning_scenario(scenario: Scenario) -> Scenario:
-    """The scenario without its goal: the goal pose set to the start pose.
-
-    The GSn bounds then are the ``[workspace]`` box around the start position,
-    for every query whose goal lies in it (a query's own bounds contain them).
-    """
-    goal = dataclasses.replace(
-        scenario.goal, object_pose_xyzquat=scenario.start.object_pose_xyzquat.copy()
-    )
-    return dataclasses.replace(scenario, goal=goal)
-
-
-def learning_context(scenario: Scenario, seed: int, hand: Hand | None = None) -> PlanningContext:
-    """The planning context of the learning phase (:func:`learning_scenario`)."""
-    return build_context(learning_scenario(scenario), seed, hand=hand)
 
 
 def build_roadmap(
@@ -375,15 +356,18 @@ def link_components(
     roadmap: Roadmap,
     settings: BuildSettings,
     deadline: float,
-    say: object,
+    say: Callable[..., None],
 ) -> int:
     """Module 2 of the learning phase: link components until one is left.
 
     Every other component is linked to the largest one (merged ones grow it):
-    the :data:`PAIRS_PER_COMPONENT` nearest vertex pairs (object-pose
-    distance) are tried in turn, and a component none of them links is left
-    for the next pass. Stops when one component is left, a pass links
-    nothing, the attempts run out or the deadline passes.
+    the :data:`~dexplan.planning.roadmap.module2.PAIRS_PER_COMPONENT` nearest
+    vertex pairs (object-pose distance) are tried in turn
+    (:func:`~dexplan.planning.roadmap.module2.link_pass` over
+    :func:`~dexplan.planning.roadmap.module2.component_groups`), and a
+    component none of them links is left for the next pass. Stops when one
+    component is left, a pass links nothing, the attempts run out or the
+    deadline passes.
 
     Returns:
         The number of link attempts.
@@ -393,78 +377,45 @@ def link_components(
     if limit is None and settings.time_limit is None:
         limit = 20 * n_comp
     ctx.reseed_local_planners(settings.seed, 3)
-    attempts, tried = 0, set()
-    while n_comp > 1 and time.perf_counter() < deadline:
-        if limit is not None and attempts >= limit:
-            break
-        attempts, linked, n_comp = _link_pass(ctx, roadmap, tried, attempts, limit, deadline, say)
-        if not linked:
+    attempts = 0
+    tried: set[Pair] = set()
+
+    def attempt(pairs: Sequence[Pair]) -> list[bool]:
+        nonlocal attempts
+        attempts += len(pairs)
+        v = roadmap.vertices
+        return [try_link(ctx, v[a], v[b][:POSE_DIM]) for a, b in pairs]
+
+    def move_free(a: int, b: int) -> bool:
+        return object_move_free(ctx, roadmap.vertices[a], roadmap.vertices[b])
+
+    def stop() -> bool:
+        return time.perf_counter() >= deadline or (limit is not None and attempts >= limit)
+
+    def after() -> None:
+        count = roadmap.components()[0]
+        say(
+            Stage.MODULE2,
+            f"module 2: {attempts} link attempts, {len(roadmap.links)} links, {count} components",
+            attempts=attempts,
+            links=len(roadmap.links),
+            components=count,
+        )
+
+    while n_comp > 1 and not stop():
+        done = link_pass(
+            roadmap,
+            component_groups(roadmap),
+            attempt,
+            move_free,
+            stop=stop,
+            tried=tried,
+            after=after,
+        )
+        n_comp = roadmap.components()[0]
+        if not done.links:
             break
     return attempts
-
-
-def _link_pass(
-    ctx: PlanningContext,
-    roadmap: Roadmap,
-    tried: set[tuple[int, int]],
-    attempts: int,
-    limit: int | None,
-    deadline: float,
-    say: object,
-) -> tuple[int, bool, int]:
-    """One pass over the components: ``(attempts, linked any, components)``."""
-    n_comp, labels = roadmap.components()
-    sizes = np.bincount(labels, minlength=n_comp)
-    first = np.unique(labels, return_index=True)[1]  # first vertex of each component
-    order = np.argsort(-sizes, kind="stable")
-    main_rep = int(first[order[0]])
-    linked = False
-    for rep in (int(first[c]) for c in order[1:]):
-        if time.perf_counter() >= deadline or (limit is not None and attempts >= limit):
-            break
-        _, labels = roadmap.components()
-        if labels[rep] == labels[main_rep]:
-            continue  # merged on the way
-        src = np.flatnonzero(labels == labels[main_rep])
-        dst = np.flatnonzero(labels == labels[rep])
-        for a, b in _nearest_pairs(roadmap.vertices, src, dst, PAIRS_PER_COMPONENT):
-            if (a, b) in tried or time.perf_counter() >= deadline:
-                continue
-            tried.add((a, b))
-            if not object_move_free(ctx, roadmap.vertices[a], roadmap.vertices[b]):
-                continue
-            attempts += 1
-            ok = try_link(ctx, roadmap.vertices[a], roadmap.vertices[b][:POSE_DIM])
-            if ok:
-                roadmap.add_link(a, b)
-                linked = True
-            count = roadmap.components()[0]
-            say(  # type: ignore[operator]
-                Stage.MODULE2,
-                f"module 2: {attempts} link attempts, {len(roadmap.links)} links, "
-                f"{count} components",
-                attempts=attempts,
-                links=len(roadmap.links),
-                components=count,
-            )
-            if ok or (limit is not None and attempts >= limit):
-                break
-    return attempts, linked, roadmap.components()[0]
-
-
-def _nearest_pairs(
-    vertices: np.ndarray, src: np.ndarray, dst: np.ndarray, k: int
-) -> list[tuple[int, int]]:
-    """The ``k`` nearest ``(a in src, b in dst)`` pairs by object-pose distance."""
-    best: list[tuple[float, int, int]] = []
-    for chunk in np.array_split(src, max(1, len(src) // 512)):
-        d = pose_distances(vertices[chunk][:, None, :], vertices[dst][None, :, :])
-        flat = np.argsort(d, axis=None, kind="stable")[:k]
-        for f in flat:
-            i, j = divmod(int(f), len(dst))
-            best.append((float(d[i, j]), int(chunk[i]), int(dst[j])))
-    best.sort()
-    return [(a, b) for _, a, b in best[:k]]
 
 
 def _build_in_tasks(

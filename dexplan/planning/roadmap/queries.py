@@ -6,7 +6,7 @@ object-pose distance. The shortest path of the roadmap's GSn edges and
 module-2 links then joins them. Only when it cannot (start and goal in
 different components, or not joined at all) is the roadmap grown: start and
 goal become vertices with the edges found, and module 2 links components
-(:func:`~dexplan.planning.roadmap.roadmap.link_query`); what it adds stays in the
+(:func:`~dexplan.planning.roadmap.module2.link_query`); what it adds stays in the
 roadmap, so a later query (and ``--save-roadmap``) has it.
 
 The roadmap is not changed by a query it answers.
@@ -25,16 +25,10 @@ from dexplan.core.errors import RoadmapFileError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.ompl import PlanningProblem
-from dexplan.planning.roadmap.roadmap import (
-    GsnQuery,
-    GsnResult,
-    Roadmap,
-    constraint_spec,
-    geodesic_fallback,
-    link_query,
-    object_move_free,
-    pose_distances,
-)
+from dexplan.planning.roadmap.graph import Roadmap, pose_distances
+from dexplan.planning.roadmap.module2 import link_query, object_move_free
+from dexplan.planning.roadmap.problems import constraint_spec, geodesic_fallback
+from dexplan.planning.roadmap.search import GsnQuery, GsnResult
 
 NEAREST = 10
 """Roadmap vertices tried, nearest first, when joining a start or goal state."""
@@ -61,7 +55,7 @@ def query_problem(ctx: PlanningContext, space: str = "projected") -> PlanningPro
     and a function of their two states, so workers agree); on meshes
     :meth:`~PlanningProblem.interpolate_path` densifies a roadmap edge that
     OMPL's motion does not join along module 1's section VI motion
-    (:func:`~dexplan.planning.roadmap.roadmap.geodesic_fallback`), which joined it
+    (:func:`~dexplan.planning.roadmap.problems.geodesic_fallback`), which joined it
     when the roadmap grew.
     """
     return PlanningProblem(

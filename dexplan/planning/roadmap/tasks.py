@@ -25,7 +25,9 @@ hand once and then runs tasks.
 
 from __future__ import annotations
 
+import enum
 import math
+import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -36,10 +38,20 @@ import numpy as np
 from dexplan.core.errors import DexplanError, InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario.scenario import Scenario
+from dexplan.model.scenario import Scenario
+from dexplan.planning.context import PlanningContext, build_hand, learning_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.progress import Stage
-from dexplan.planning.roadmap.roadmap import Roadmap, constraint_spec, object_move_free
+from dexplan.planning.roadmap.graph import Roadmap
+from dexplan.planning.roadmap.module2 import (
+    Pair,
+    component_groups,
+    link_pass,
+    object_move_free,
+    try_link,
+)
+from dexplan.planning.roadmap.problems import constraint_spec
+from dexplan.planning.roadmap.queries import query_problem
 
 SAMPLES_PER_TASK = 8
 """GSn states a sample task draws."""
@@ -53,15 +65,34 @@ LINKS_PER_ROUND = 8
 NEIGHBOURS = 10
 """Nearest vertices (scaled ambient distance) each vertex tries to join, as PRM's default."""
 
-_KINDS = {"sample": 1, "edge": 2, "link": 3}
+
+class TaskKind(enum.StrEnum):
+    """The kinds of build task; a task is a tuple whose first item is its kind.
+
+    - ``(SAMPLE, seed, count)``: up to ``count`` RLG states -> ``(k, 7 + nq)`` array;
+    - ``(EDGE, [(x_a, x_b), ...])``: GSn motion checks -> ``(m,)`` bool array;
+    - ``(LINK, seed, x_a, b_pose)``: one module-2 link attempt -> bool.
+    """
+
+    SAMPLE = "sample"
+    EDGE = "edge"
+    LINK = "link"
+
+
+Task = tuple[Any, ...]
+"""A build task: ``(TaskKind, arguments...)`` (see :class:`TaskKind`); plain
+tuples pickle cheaply to worker processes and Ray actors."""
+
+_KIND_NUMBERS = {TaskKind.SAMPLE: 1, TaskKind.EDGE: 2, TaskKind.LINK: 3}
 
 MAX_JOBS = 256
 """Most local worker processes."""
 
 
 def task_seed(seed: int, kind: str, index: int) -> int:
-    """The seed of task ``index`` of a ``kind`` (``sample``, ``edge``, ``link``) of a build."""
-    return int(np.random.SeedSequence([seed, _KINDS[kind], index]).generate_state(1)[0])
+    """The seed of task ``index`` of a ``kind`` (a :class:`TaskKind`) of a build."""
+    number = _KIND_NUMBERS[TaskKind(kind)]
+    return int(np.random.SeedSequence([seed, number, index]).generate_state(1)[0])
 
 
 # ------------------------------------------------------------------ workers
@@ -69,30 +100,23 @@ class TaskWorker:
     """Runs build tasks for one scenario (one per process or Ray actor)."""
 
     def __init__(self, scenario: Scenario, space: str, hand: Hand | None = None) -> None:
-        from dexplan.planning.context import build_hand
-        from dexplan.planning.roadmap.learning import learning_context
-        from dexplan.planning.roadmap.queries import query_problem
-
         self.scenario = scenario
         self.hand = hand or build_hand(scenario)
         self._ctx = learning_context(scenario, 0, self.hand)
         self._problem = query_problem(self._ctx, space)
 
-    def run(self, task: tuple[Any, ...]) -> Any:
+    def run(self, task: Task) -> Any:
         """One task's answer: states ``(k, n)``, edge verdicts ``(m,)`` or a link verdict."""
-        from dexplan.planning.roadmap.learning import learning_context
-        from dexplan.planning.roadmap.roadmap import try_link
-
         kind = task[0]
-        if kind == "sample":
+        if kind == TaskKind.SAMPLE:
             _, seed, count = task
             sampler = learning_context(self.scenario, seed, self.hand).sampler
             got = [x for x in (sampler.sample() for _ in range(count)) if x is not None]
             return np.array(got, dtype=float).reshape(len(got), -1)
-        if kind == "edge":
+        if kind == TaskKind.EDGE:
             pairs = task[1]
             return np.array([self._problem.check_motion(a, b) for a, b in pairs], dtype=bool)
-        if kind == "link":
+        if kind == TaskKind.LINK:
             _, seed, a, b_pose = task
             return bool(try_link(learning_context(self.scenario, seed, self.hand), a, b_pose))
         raise ValueError(f"unknown build task {kind!r}")
@@ -106,7 +130,7 @@ def _init_process(scenario: Scenario, space: str) -> None:
     _WORKER = TaskWorker(scenario, space)
 
 
-def _run_in_process(task: tuple[Any, ...]) -> Any:
+def _run_in_process(task: Task) -> Any:
     assert _WORKER is not None
     return _WORKER.run(task)
 
@@ -116,7 +140,7 @@ class Runner(Protocol):
 
     workers: int
 
-    def map(self, tasks: Sequence[tuple[Any, ...]]) -> list[Any]:
+    def map(self, tasks: Sequence[Task]) -> list[Any]:
         """The tasks' answers, in task order."""
         ...
 
@@ -132,7 +156,7 @@ class InlineRunner:
         self.worker = TaskWorker(scenario, space, hand)
         self.workers = 1
 
-    def map(self, tasks: Sequence[tuple[Any, ...]]) -> list[Any]:
+    def map(self, tasks: Sequence[Task]) -> list[Any]:
         """The tasks' answers, in task order."""
         return [self.worker.run(t) for t in tasks]
 
@@ -144,8 +168,6 @@ class ProcessRunner:
     """Tasks over ``jobs`` local processes (forkserver, or spawn)."""
 
     def __init__(self, scenario: Scenario, space: str, jobs: int) -> None:
-        import multiprocessing as mp
-
         method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         self.workers = jobs
         context = mp.get_context(method)
@@ -153,7 +175,7 @@ class ProcessRunner:
             context.set_forkserver_preload(["dexplan.planning.roadmap.tasks"])
         self._pool = context.Pool(jobs, initializer=_init_process, initargs=(scenario, space))
 
-    def map(self, tasks: Sequence[tuple[Any, ...]]) -> list[Any]:
+    def map(self, tasks: Sequence[Task]) -> list[Any]:
         """The tasks' answers, in task order."""
         return self._pool.map(_run_in_process, tasks, chunksize=1)
 
@@ -191,7 +213,7 @@ class RayRunner:
         actor = ray.remote(num_cpus=1)(TaskWorker)
         self._actors = [actor.remote(scenario, space) for _ in range(self.workers)]
 
-    def map(self, tasks: Sequence[tuple[Any, ...]]) -> list[Any]:
+    def map(self, tasks: Sequence[Task]) -> list[Any]:
         """The tasks' answers, in task order (round-robin over the actors)."""
         n = len(self._actors)
         refs = [self._actors[k % n].run.remote(t) for k, t in enumerate(tasks)]
@@ -245,7 +267,8 @@ def grow_round(runner: Runner, st: _State, seed: int, target: int, scale: FloatA
     first = st.sample_tasks
     n_tasks = math.ceil(need / SAMPLES_PER_TASK)
     tasks = [
-        ("sample", task_seed(seed, "sample", first + k), SAMPLES_PER_TASK) for k in range(n_tasks)
+        (TaskKind.SAMPLE, task_seed(seed, TaskKind.SAMPLE, first + k), SAMPLES_PER_TASK)
+        for k in range(n_tasks)
     ]
     st.sample_tasks += n_tasks
     got = [x for x in runner.map(tasks) if len(x)]
@@ -255,7 +278,7 @@ def grow_round(runner: Runner, st: _State, seed: int, target: int, scale: FloatA
     st.checked.update(pairs)
     chunks = [pairs[k : k + PAIRS_PER_TASK] for k in range(0, len(pairs), PAIRS_PER_TASK)]
     v = st.vertices
-    verdicts = runner.map([("edge", [(v[a], v[b]) for a, b in c]) for c in chunks])
+    verdicts = runner.map([(TaskKind.EDGE, [(v[a], v[b]) for a, b in c]) for c in chunks])
     st.edge_tasks += len(chunks)
     for chunk, ok in zip(chunks, verdicts, strict=True):
         st.edges.extend(p for p, good in zip(chunk, ok, strict=True) if good)
@@ -282,44 +305,46 @@ def _candidate_pairs(
     return sorted(out - checked)
 
 
-def link_round(runner: Runner, st: _State, ctx: Any, seed: int, room: int) -> int:
+def link_round(runner: Runner, st: _State, ctx: PlanningContext, seed: int, room: int) -> int:
     """One module-2 round: up to :data:`LINKS_PER_ROUND` link attempts, one per component.
 
     Components other than the largest, largest first, each try their nearest
     untried vertex pair to it (object-pose distance) that the object alone
-    can move along; at most ``room`` attempts. Returns the links added, or -1
-    when no pair is left to try (module 2 ends).
+    can move along (:func:`~dexplan.planning.roadmap.module2.link_pass` in
+    batches); at most ``room`` attempts, run as tasks. Returns the links
+    added, or -1 when no pair is left to try (module 2 ends).
     """
-    from dexplan.planning.roadmap.learning import PAIRS_PER_COMPONENT, _nearest_pairs
-
     rm = st_roadmap(st, "", "")
-    n_comp, labels = rm.components()
-    if n_comp < 2:
+    if rm.components()[0] < 2:
         return 0
-    sizes = np.bincount(labels, minlength=n_comp)
-    order = np.argsort(-sizes, kind="stable")
-    main = np.flatnonzero(labels == order[0])
-    batch: list[tuple[int, int]] = []
-    for c in order[1:]:
-        if len(batch) >= min(LINKS_PER_ROUND, room):
-            break
-        dst = np.flatnonzero(labels == c)
-        for a, b in _nearest_pairs(st.vertices, main, dst, PAIRS_PER_COMPONENT):
-            if (a, b) in st.tried:
-                continue
-            st.tried.add((a, b))
-            if object_move_free(ctx, st.vertices[a], st.vertices[b]):
-                batch.append((a, b))
-                break
     v = st.vertices
-    tasks = [
-        ("link", task_seed(seed, "link", st.link_attempts + k), v[a], v[b][:POSE_DIM])
-        for k, (a, b) in enumerate(batch)
-    ]
-    st.link_attempts += len(tasks)
-    ok = runner.map(tasks)
-    st.links.extend(p for p, good in zip(batch, ok, strict=True) if good)
-    return sum(bool(g) for g in ok) if batch else -1
+
+    def attempt(pairs: Sequence[Pair]) -> list[Any]:
+        tasks = [
+            (
+                TaskKind.LINK,
+                task_seed(seed, TaskKind.LINK, st.link_attempts + k),
+                v[a],
+                v[b][:POSE_DIM],
+            )
+            for k, (a, b) in enumerate(pairs)
+        ]
+        st.link_attempts += len(tasks)
+        return runner.map(tasks)
+
+    def move_free(a: int, b: int) -> bool:
+        return object_move_free(ctx, v[a], v[b])
+
+    done = link_pass(
+        rm,
+        component_groups(rm),
+        attempt,
+        move_free,
+        tried=st.tried,
+        batch=min(LINKS_PER_ROUND, room),
+    )
+    st.links.extend(done.links)
+    return len(done.links) if done.attempts else -1
 
 
 def st_roadmap(st: _State, planner: str, key: str) -> Roadmap:
@@ -338,14 +363,14 @@ def new_state(ambient_dim: int) -> _State:
     return _State(np.zeros((0, ambient_dim)), [], set(), [], set())
 
 
-def position_scale(ctx: Any, space: str) -> FloatArray:
+def position_scale(ctx: PlanningContext, space: str) -> FloatArray:
     """The ambient coordinates' scale of the GSn constraint (positions per object length)."""
     return np.asarray(constraint_spec(ctx, space).scale, dtype=float)
 
 
 def run_build(
     runner: Runner,
-    ctx: Any,
+    ctx: PlanningContext,
     seed: int,
     targets: Callable[[], int | None],
     m1_until: float,
