@@ -16,8 +16,9 @@ import pytest
 from cli_contract import assert_bad_input, run_cli
 
 from dexplan import bench
+from dexplan.cli import interrupt
 from dexplan.cli import main as cli
-from dexplan.model.scenario.scenario import default_scenario, load_scenario
+from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.local.reduction import grasp_from_state, reduce_object_path
@@ -116,7 +117,7 @@ def test_sigint_at_any_moment_stops_the_run_and_writes_nothing(tmp_path, delay):
 
 def test_sigint_noted_while_a_library_swallows_it_is_acted_on(monkeypatch, capfd, tmp_path):
     """A KeyboardInterrupt eaten by `except BaseException` still ends the run at once."""
-    monkeypatch.setattr(cli, "_interrupted", True)
+    monkeypatch.setattr(interrupt, "_interrupted", True)
     code, _, err = run_cli(capfd, "plan", "-o", tmp_path / "p.json")
     assert code == 130 and "interrupted" in err
     assert not (tmp_path / "p.json").exists()

@@ -1,0 +1,23 @@
+"""``dexplan show``: open (or save) a Rerun recording of a plan, roadmap or recording."""
+
+from __future__ import annotations
+
+import sys
+
+from dexplan import viz
+from dexplan.cli.console import ExitCode
+from dexplan.cli.options import ShowOptions
+
+__all__ = ["run"]
+
+
+def run(opts: ShowOptions) -> int:
+    """Open the source in the Rerun viewer, or with ``--save`` write the recording."""
+    viz.require_rerun()
+    if opts.save is not None:
+        out = viz.write_recording(opts.source, opts.save, roadmap=opts.roadmap, plan=opts.plan)
+        sys.stdout.write(f"recording written to {out}\n")
+        return ExitCode.OK
+    out = viz.show(opts.source, roadmap=opts.roadmap, plan=opts.plan)
+    sys.stdout.write(f"opened {out} in the Rerun viewer\n")
+    return ExitCode.OK

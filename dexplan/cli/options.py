@@ -1,0 +1,326 @@
+"""The options of each command, read once from argparse into frozen dataclasses.
+
+The parser (:mod:`dexplan.cli.main`) makes an ``argparse.Namespace``; the
+dispatcher turns it into the command's options here, at the boundary, and the
+command modules (:mod:`dexplan.cli.commands`) take only these typed records.
+This module imports nothing heavy: ``dexplan --help`` reads the choices below.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from enum import StrEnum
+
+__all__ = [
+    "BenchOptions",
+    "ExportOptions",
+    "GoalKind",
+    "InfoOptions",
+    "PlanOptions",
+    "Reduction",
+    "ReplayOptions",
+    "RoadmapBuildOptions",
+    "RoadmapInfoOptions",
+    "ShowOptions",
+    "StartMethod",
+    "VerifyOptions",
+]
+
+
+class Reduction(StrEnum):
+    """``plan --reduction``: how a GSn path becomes transfers and regrasps.
+
+    The planner's own list (``dexplan.planning.planner.REDUCTIONS``); repeated
+    here because importing the planner would load OMPL and Pinocchio for
+    ``dexplan --help``.
+    """
+
+    AUTO = "auto"
+    GAITS = "gaits"
+    EDGES = "edges"
+
+
+class GoalKind(StrEnum):
+    """``plan --goal-kind``: what ``--random-goals`` draws."""
+
+    ORIENTATION = "orientation"
+    POSE = "pose"
+
+
+class StartMethod(StrEnum):
+    """``bench --start-method``: how the local pool starts its worker processes.
+
+    The sweep's own list (``dexplan.bench.schema.StartMethod``); repeated here
+    because importing :mod:`dexplan.bench` would load the planner for
+    ``dexplan --help``.
+    """
+
+    FORKSERVER = "forkserver"
+    SPAWN = "spawn"
+
+
+@dataclass(frozen=True)
+class InfoOptions:
+    """``dexplan info``: the builtin hand to describe."""
+
+    hand: str
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> InfoOptions:
+        """The options of a parsed ``info`` command line."""
+        return cls(hand=args.hand)
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """``dexplan plan``: one query, or many goals (``--goals``, ``--random-goals``).
+
+    Attributes:
+        scenario: scenario TOML (None: the paper's sphere).
+        planner, seed, time_limit: overrides of the scenario's (None: its own).
+        output: plan file, or with many goals their folder (None: the default).
+        save_roadmap, load_roadmap: roadmap ``.npz`` files.
+        reduction: GSn path to transfers and regrasps.
+        rrd, debug_rrd: Rerun recordings of the plan and of the rejected states.
+        quiet: no progress on stderr.
+        goals: a TOML file of goals; random_goals: how many to draw instead.
+        goal_kind: what random goals vary.
+    """
+
+    scenario: str | None
+    planner: str | None
+    seed: int | None
+    time_limit: float | None
+    output: str | None
+    save_roadmap: str | None
+    load_roadmap: str | None
+    reduction: Reduction
+    rrd: str | None
+    debug_rrd: str | None
+    quiet: bool
+    goals: str | None
+    random_goals: int | None
+    goal_kind: GoalKind
+
+    @property
+    def many_goals(self) -> bool:
+        """Whether ``plan`` answers several queries."""
+        return self.goals is not None or self.random_goals is not None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> PlanOptions:
+        """The options of a parsed ``plan`` command line."""
+        return cls(
+            scenario=args.scenario,
+            planner=args.planner,
+            seed=args.seed,
+            time_limit=args.time_limit,
+            output=args.output,
+            save_roadmap=args.save_roadmap,
+            load_roadmap=args.load_roadmap,
+            reduction=Reduction(args.reduction),
+            rrd=args.rrd,
+            debug_rrd=args.debug_rrd,
+            quiet=args.quiet,
+            goals=args.goals,
+            random_goals=args.random_goals,
+            goal_kind=GoalKind(args.goal_kind),
+        )
+
+
+@dataclass(frozen=True)
+class RoadmapBuildOptions:
+    """``dexplan roadmap build``: the learning phase's settings and output.
+
+    Attributes:
+        scenario: scenario TOML (None: the paper's sphere).
+        time, nodes: the budget, seconds or module-1 nodes (exactly one is set).
+        planner, seed: OMPL roadmap planner and random seed.
+        link_attempts: most module-2 link attempts (None: the default).
+        jobs, ray: local processes, or a Ray cluster address, for a build in tasks.
+        output: roadmap file (.npz).
+        quiet: no progress on stderr.
+    """
+
+    scenario: str | None
+    time: float | None
+    nodes: int | None
+    planner: str
+    seed: int
+    link_attempts: int | None
+    jobs: int | None
+    ray: str | None
+    output: str
+    quiet: bool
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> RoadmapBuildOptions:
+        """The options of a parsed ``roadmap build`` command line."""
+        return cls(
+            scenario=args.scenario,
+            time=args.time,
+            nodes=args.nodes,
+            planner=args.planner,
+            seed=args.seed,
+            link_attempts=args.link_attempts,
+            jobs=args.jobs,
+            ray=args.ray,
+            output=args.output,
+            quiet=args.quiet,
+        )
+
+
+@dataclass(frozen=True)
+class RoadmapInfoOptions:
+    """``dexplan roadmap info``: the roadmap file to describe."""
+
+    roadmap: str
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> RoadmapInfoOptions:
+        """The options of a parsed ``roadmap info`` command line."""
+        return cls(roadmap=args.roadmap)
+
+
+@dataclass(frozen=True)
+class VerifyOptions:
+    """``dexplan verify``: the plan file, and how many violations to print."""
+
+    plan: str
+    max_violations: int
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> VerifyOptions:
+        """The options of a parsed ``verify`` command line."""
+        return cls(plan=args.plan, max_violations=args.max_violations)
+
+
+@dataclass(frozen=True)
+class BenchOptions:
+    """``dexplan bench``: the sweep (see :func:`dexplan.bench.run_benchmark`).
+
+    Attributes:
+        scenarios: scenario files, folders of them, or builtin names.
+        planners: comma-separated planner names, ``all`` or ``default``.
+        seeds, first_seed: seeds per planner and the first one.
+        time_limit: seconds per run (None: each scenario's).
+        jobs, ray: parallel runs, or a Ray cluster address.
+        output: output folder.
+        baseline: planner compared with (None: no ratios).
+        plots, save_plans: write PNG plots; write every plan.
+        start_method: how local worker processes start.
+        run_timeout: hard wall-clock seconds per run (None: the default).
+        quiet: no progress on stderr.
+    """
+
+    scenarios: tuple[str, ...]
+    planners: str
+    seeds: int
+    first_seed: int
+    time_limit: float | None
+    jobs: int | None
+    ray: str | None
+    output: str
+    baseline: str | None
+    plots: bool
+    save_plans: bool
+    start_method: StartMethod
+    run_timeout: float | None
+    quiet: bool
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> BenchOptions:
+        """The options of a parsed ``bench`` command line (``--baseline none``: None)."""
+        return cls(
+            scenarios=tuple(args.scenarios),
+            planners=args.planners,
+            seeds=args.seeds,
+            first_seed=args.first_seed,
+            time_limit=args.time_limit,
+            jobs=args.jobs,
+            ray=args.ray,
+            output=args.output,
+            baseline=None if args.baseline.lower() == "none" else args.baseline,
+            plots=not args.no_plots,
+            save_plans=args.save_plans,
+            start_method=StartMethod(args.start_method),
+            run_timeout=args.run_timeout,
+            quiet=args.quiet,
+        )
+
+
+@dataclass(frozen=True)
+class ShowOptions:
+    """``dexplan show``: what to show, and where to save it instead (None: open it)."""
+
+    source: str
+    save: str | None
+    roadmap: str | None
+    plan: str | None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> ShowOptions:
+        """The options of a parsed ``show`` command line."""
+        return cls(source=args.source, save=args.save, roadmap=args.roadmap, plan=args.plan)
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """``dexplan export``: the plan, the trajectory file and what overrides the plan's.
+
+    Attributes:
+        plan: plan JSON file.
+        output: trajectory file (.json or .csv).
+        rate: samples per second.
+        mass: object mass, kg (None: the plan's).
+        gravity: gravity (3,), m/s^2, world frame (None: the plan's).
+        max_object_speed, max_object_angular_speed, max_acceleration: timing
+            limits, m/s, rad/s and rad/s^2 (None: the defaults).
+    """
+
+    plan: str
+    output: str
+    rate: float
+    mass: float | None
+    gravity: tuple[float, float, float] | None
+    max_object_speed: float | None
+    max_object_angular_speed: float | None
+    max_acceleration: float | None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> ExportOptions:
+        """The options of a parsed ``export`` command line."""
+        g = args.gravity
+        return cls(
+            plan=args.plan,
+            output=args.output,
+            rate=args.rate,
+            mass=args.mass,
+            gravity=None if g is None else (g[0], g[1], g[2]),
+            max_object_speed=args.max_object_speed,
+            max_object_angular_speed=args.max_object_angular_speed,
+            max_acceleration=args.max_acceleration,
+        )
+
+
+@dataclass(frozen=True)
+class ReplayOptions:
+    """``dexplan replay``: the plan, the physics settings and an optional recording."""
+
+    plan: str
+    gravity: bool
+    rate: float
+    open_loop: bool
+    rrd: str | None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> ReplayOptions:
+        """The options of a parsed ``replay`` command line."""
+        return cls(
+            plan=args.plan,
+            gravity=args.gravity,
+            rate=args.rate,
+            open_loop=args.open_loop,
+            rrd=args.rrd,
+        )
