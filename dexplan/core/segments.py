@@ -14,6 +14,7 @@ from typing import Literal
 
 import numpy as np
 
+from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 
 SegmentKind = Literal["transfer", "regrasp"]
@@ -77,8 +78,6 @@ def joint_travel(segments: list[Segment] | tuple[Segment, ...]) -> float:
 
 def object_path_length(segments: list[Segment] | tuple[Segment, ...]) -> tuple[float, float]:
     """Total object translation (m) and rotation (rad) over the transfers."""
-    from dexplan.core.pose import quat_angle
-
     trans, rot = 0.0, 0.0
     for s in segments:
         for a, b in zip(s.waypoints, s.waypoints[1:], strict=False):
