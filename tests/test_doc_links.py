@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import re
 from pathlib import Path
 
@@ -18,6 +19,10 @@ PATH = re.compile(
     r"`((?:dexplan/[\w./-]*\.py)|(?:scenarios/[\w./-]*\.toml)|(?:examples/[\w./-]+)"
     r"|(?:scripts/[\w./-]*\.py)|(?:docs/[\w./-]*\.md))`"
 )
+
+
+#: backticked dotted names of the package (``dexplan.model.hand.urdf.mount_urdf``)
+DOTTED = re.compile(r"`(dexplan(?:\.[A-Za-z_][A-Za-z0-9_]*)+)`")
 
 
 def _without_code_blocks(text: str) -> str:
@@ -70,3 +75,27 @@ def test_the_checker_sees_a_broken_link(tmp_path: Path) -> None:
     bad = _broken(page, root=tmp_path)
     assert len(bad) == 3, bad
     assert "missing.md" in bad[0] and "elsewhere.md" in bad[1] and "no_such_module" in bad[2]
+
+
+def _resolves(name: str) -> bool:
+    """Whether ``name`` is a module of the package, or an attribute path below one."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(ROOT)) for p in PAGES])
+def test_dotted_names_resolve(page: Path) -> None:
+    # after a module moves, the docs' `dexplan.x.y` names must follow it
+    names = sorted(set(DOTTED.findall(_without_code_blocks(page.read_text()))))
+    missing = [n for n in names if not _resolves(n)]
+    assert not missing, f"{page.relative_to(ROOT)} names {missing}"
