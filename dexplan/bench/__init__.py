@@ -61,6 +61,7 @@ from dexplan.bench.schema import (
 )
 from dexplan.bench.sweep import BenchResult, run_benchmark
 from dexplan.bench.tasks import (
+    PlannerWord,
     RunTask,
     make_tasks,
     resolve_scenario,
@@ -89,6 +90,7 @@ __all__ = [
     "BenchDatabase",
     "BenchProgress",
     "BenchResult",
+    "PlannerWord",
     "Plot",
     "ProgressCallback",
     "ReductionMethod",

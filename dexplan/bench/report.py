@@ -7,7 +7,7 @@ import math
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TypedDict
 
 from dexplan.bench.records import RunRow
 from dexplan.bench.schema import CSV_COLUMNS, DEFAULT_BASELINE
@@ -109,7 +109,7 @@ def summarize(
     return rows
 
 
-def _fmt(value: Any, spec: str) -> str:
+def _fmt(value: object, spec: str) -> str:
     """Format a table cell; a missing or NaN value as ``-`` in the field's width."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         width = spec.split(".")[0]

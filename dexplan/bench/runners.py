@@ -261,7 +261,10 @@ def _init_ray(ray: ModuleType, address: str, jobs: int | None) -> bool:
 
 
 class _RayTasks:
-    """One Ray task per run, in a fresh worker process (``max_calls=1``)."""
+    """One Ray task per run, in a fresh worker process (``max_calls=1``).
+
+    Its handles are Ray object references, untyped as Ray itself.
+    """
 
     def __init__(self, ray: ModuleType) -> None:
         self.ray = ray

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 
 from dexplan.bench.schema import DEFAULT_BASELINE
@@ -93,10 +94,13 @@ def scenario_files(arg: str | Path) -> list[str | Path]:
     return list(files)
 
 
-#: ``--planners`` word for every registered planner.
-ALL_PLANNERS = "all"
-#: ``--planners`` word for each scenario's own planner (its ``[planner] name``).
-SCENARIO_PLANNER = "default"
+class PlannerWord(StrEnum):
+    """Words of a sweep's planner list that stand for planners."""
+
+    ALL = "all"
+    """Every registered planner."""
+    DEFAULT = "default"
+    """Each scenario's own planner (its ``[planner] name``)."""
 
 
 def parse_planners(planners: str | Sequence[str]) -> list[str]:
@@ -111,7 +115,7 @@ def parse_planners(planners: str | Sequence[str]) -> list[str]:
     names = planners.split(",") if isinstance(planners, str) else list(planners)
     out: list[str] = []
     for name in (str(n).strip() for n in names):
-        for one in available_planners() if name == ALL_PLANNERS else [name]:
+        for one in available_planners() if name == PlannerWord.ALL else [name]:
             if one and one not in out:
                 out.append(one)
     if not out:
@@ -146,7 +150,7 @@ def validate_sweep(
         raise InvalidInputError(f"--jobs must be an integer >= 1, got {jobs!r}")
     valid = available_planners()
     for name in [*planners, *([baseline] if baseline else [])]:
-        if name not in valid and name != SCENARIO_PLANNER:
+        if name not in valid and name != PlannerWord.DEFAULT:
             raise PlannerError(f"unknown planner {name!r}; valid planners: {', '.join(valid)}")
 
 
@@ -189,7 +193,7 @@ def scenario_planners(scenario: Scenario, planners: Sequence[str]) -> list[str]:
     """The planners a scenario is run with: ``default`` is its own, without repeats."""
     out: list[str] = []
     for name in planners:
-        one = scenario.planner.name if name == SCENARIO_PLANNER else name
+        one = scenario.planner.name if name == PlannerWord.DEFAULT else name
         if one not in out:
             out.append(one)
     return out
