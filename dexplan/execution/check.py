@@ -46,7 +46,7 @@ def check_trajectory(doc: Mapping[str, Any], tol: float = CHECK_TOL) -> list[str
     out: list[str] = []
     lim = doc["limits"]
     vj = np.asarray(lim["joint_velocity"], dtype=float)
-    effort = lim.get("joint_effort")  # absent in files written before it was checked
+    effort = lim.get("joint_effort")  # optional in the format: no effort check without it
     con = doc["contact"]
     mu, model, torsion = float(con["mu"]), con["contact_model"], float(con["torsion"])
     pts = doc["points"]

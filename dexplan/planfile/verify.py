@@ -416,19 +416,20 @@ class _Checker:
             self.add(*last, "goal", msg)
 
 
+#: Hands rebuilt from plan files, by the ``hand`` table's content (most recent
+#: last), and how many are kept.
 _HANDS: dict[str, Hand] = {}
 _HANDS_SIZE = 4
-"""Hands rebuilt from plan files, by the ``hand`` table's content (most recent last)."""
 
 
 def _plan_hand(table: Mapping[str, Any]) -> Hand:
     """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
 
     Many queries of one process carry the same hand: rebuilding its model
-    (URDF parsing, Pinocchio and coal geometry) for each plan cost as much as
+    (URDF parsing, Pinocchio and coal geometry) for each plan costs about as much as
     checking a third of its waypoints. The key is the whole table (URDF text,
     fingertip frames and radius, exclusions, joint names), so a plan of any
-    other hand is rebuilt from its own file, as before.
+    other hand is rebuilt from its own file.
     """
     key = json.dumps(table, sort_keys=True)
     hand = _HANDS.pop(key, None)
