@@ -41,6 +41,9 @@ def test_bring_your_own_hand_plans_and_verifies(tmp_path: Path) -> None:
     res = dexplan("verify", str(plan_file), cwd=tmp_path)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.startswith("OK:"), res.stdout
+    # the page shows this very plan: the same scenario and seed give the same plan
+    page = (ROOT / "docs" / "tutorials" / "bring_your_own_hand.md").read_text()
+    assert res.stdout.strip() in page, res.stdout
 
 
 def test_the_tutorial_shows_its_files_in_full() -> None:
