@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from enum import StrEnum
 
+from dexplan.planning.progress import Stage
+
 DEFAULT_PLANNERS: tuple[str, ...] = ("PRM", "RRTConnect", "KPIECE1")
 """Planners of ``dexplan bench`` when none are given."""
 
@@ -133,17 +135,19 @@ OMPL_STATUS_OF: dict[RunStatus, int] = {
 }
 """The ``ompl::base::PlannerStatus`` value (:data:`OMPL_STATUSES`) of each plan status."""
 
-# Progress stages (the ``stage`` column of the ``progress`` table), by
-# dexplan.planning.progress.Stage value.
-STAGES: tuple[str, ...] = (
-    "setup",
-    "start grasp",
-    "module 1 (GSn exploration)",
-    "module 2 (component links)",
-    "reduction",
-    "verification",
-    "done",
-)
+STAGE_NAMES: dict[Stage, str] = {
+    Stage.STARTING: "setup",
+    Stage.START_GRASP: "start grasp",
+    Stage.MODULE1: "module 1 (GSn exploration)",
+    Stage.MODULE2: "module 2 (component links)",
+    Stage.REDUCTION: "reduction",
+    Stage.VERIFICATION: "verification",
+    Stage.DONE: "done",
+}
+"""What each progress stage (the ``stage`` column of the ``progress`` table) is."""
+
+STAGES: tuple[str, ...] = tuple(STAGE_NAMES[stage] for stage in Stage)
+"""The stage names by :class:`~dexplan.planning.progress.Stage` value."""
 
 # ------------------------------------------------------------------ columns
 
