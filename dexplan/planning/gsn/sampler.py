@@ -45,21 +45,10 @@ from dexplan.model.collision import pose_to_se3
 from dexplan.model.grasp.halfspace import cannot_be_force_closure
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
+from dexplan.planning.gsn.combinations import Combinations, FingerPool, combine_pools
+from dexplan.planning.gsn.finger_reach import fingertip_fits, link_clearance, reach_shell
 from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
 from dexplan.planning.gsn.validity import GraspValidity
-
-#: Depth (m) a fingertip sphere on a candidate contact may dip into the object
-#: elsewhere: in a concavity tighter than the fingertip it does, and the state
-#: is off GSn by that much per finger. OMPL rejects a start state whose
-#: constraint norm exceeds 1e-5 (``constraint_spec`` in
-#: :mod:`dexplan.planning.roadmap.roadmap`); five fingers at this depth stay below it.
-FIT_TOL = 2e-6
-
-#: Of a pose's combination draws, those best balanced, this many per combination
-#: kept (:attr:`SamplerSettings.combinations`), get the half-space test; the rest
-#: are dropped unranked (on the Allegro sphere 10 % of the draws pass the test
-#: and no valid grasp ranked past 200).
-RANKED_PER_COMBINATION = 4
 
 
 @dataclass(frozen=True)
@@ -74,9 +63,9 @@ class SamplerSettings:
             too (a fingertip on an edge pushes between the faces' normals);
             None: for hands with fingers of more than 3 joints. The Allegro
             holds a cube only that way (its pads touch the faces it reaches
-            with parallel normals, docs/hands.md); the paper hand holds boxes
-            on their faces, and edge grasps there cost regrasps (box turns,
-            seeds 1-8: median 3.5-7.5 regrasps without, 7-8 with).
+            with parallel normals); the paper hand holds boxes on their
+            faces, and edge grasps there roughly double the regrasps of a
+            box turn.
         max_attempts: attempts per :meth:`GraspSampler.sample` call before None.
         tip_clearance: minimum gap between two fingertip spheres (m).
         min_facing: minimum cosine between a candidate's outward normal and
@@ -102,21 +91,18 @@ class SamplerSettings:
             up to this many valid grasps are returned, one per call, from the
             ranked combinations of a pose before a new pose is drawn (1: a
             new pose every call). None: 64 for hands with fingers of more
-            than 3 joints, whose pools are costly (Allegro sphere: 481 valid
-            grasps/s with 96 combinations and 64 grasps a pose, 291 with 40
-            and 24; its plans the same with 2), 2 otherwise: a roadmap
-            gains more from distinct object poses than from a faster
-            sampler, since checking its motions costs far more than
-            sampling (the suite's cube_post, seeds 1-10, 30 s: PRM 6/10
-            solved with 96 and 64, 9/10 with 40 and 24, 10/10 with 40 and
-            2 in a median 1.8 s; PRMstar 6/10, 7/10, 10/10).
+            than 3 joints, whose pools are costly (more combinations and
+            grasps a pose give more valid grasps a second, and their plans
+            are no worse), 2 otherwise: a roadmap gains more from distinct
+            object poses than from a faster sampler, since checking its
+            motions costs far more than sampling (with many grasps a pose
+            the roadmap planners solve fewer queries in a fixed time).
         check_batch: ranked combinations whose force closure is computed in
             one batch; a pose is left after a batch with no valid grasp. The
-            normal-balance ranking puts a pose's valid grasps first (on the
-            Allegro sphere, seed 1, 150 poses of 400 ranked combinations:
-            25 % of the first 25 valid, 4 % of ranks 50-75, none past 200;
-            half the poses have none in their first 24 and almost never one
-            later): half the force-closure work for 2 % fewer valid grasps.
+            normal-balance ranking puts a pose's valid grasps first (a pose
+            whose first batch holds none almost never has one later), so
+            this halves the force-closure work for a few per cent fewer
+            valid grasps.
     """
 
     candidates: int = 48
@@ -136,25 +122,6 @@ class SamplerSettings:
     joint_margin: float = 0.03
     grasps_per_pose: int | None = None
     check_batch: int = 24
-
-
-@dataclass(frozen=True)
-class Combinations:
-    """Grasps combined from one pose's per-finger pools (:meth:`GraspSampler.combinations`).
-
-    Attributes:
-        states: ambient states ``(7 + nq,)``, most promising first.
-        points_obj: (M, k, 3) their contact points, object frame (contact
-            fingers in ``GraspSubspace.contact_ids`` order).
-        normals_in_obj: (M, k, 3) inward unit surface normals there, object frame.
-    """
-
-    states: list[FloatArray]
-    points_obj: FloatArray
-    normals_in_obj: FloatArray
-
-    def __len__(self) -> int:
-        return len(self.states)
 
 
 @dataclass
@@ -201,15 +168,18 @@ def _long_fingers(hand: Hand) -> bool:
     return max(len(idx) for idx in hand.finger_q_index) > 3
 
 
-def _resolved(settings: SamplerSettings, hand: Hand) -> SamplerSettings:
-    """``settings`` with the hand-dependent defaults (None fields) filled in."""
+def _resolved(settings: SamplerSettings, hand: Hand) -> tuple[SamplerSettings, int, int]:
+    """``settings`` with the hand-dependent defaults (None fields) filled in.
+
+    Returns:
+        ``(settings, combinations, grasps_per_pose)``: the two filled-in values
+        also as plain ints.
+    """
     long = _long_fingers(hand)
-    combinations, per_pose = settings.combinations, settings.grasps_per_pose
-    return replace(
-        settings,
-        combinations=(96 if long else 40) if combinations is None else combinations,
-        grasps_per_pose=(64 if long else 2) if per_pose is None else per_pose,
-    )
+    combinations = (96 if long else 40) if settings.combinations is None else settings.combinations
+    per_pose = (64 if long else 2) if settings.grasps_per_pose is None else settings.grasps_per_pose
+    filled = replace(settings, combinations=combinations, grasps_per_pose=per_pose)
+    return filled, combinations, per_pose
 
 
 class GraspSampler:
@@ -236,13 +206,15 @@ class GraspSampler:
         self.deadline = deadline or Deadline()
         self.validity = validity
         self.rng = rng
-        self.settings = _resolved(settings or SamplerSettings(), gsn.hand)
+        self.settings, self._combinations, self._grasps_per_pose = _resolved(
+            settings or SamplerSettings(), gsn.hand
+        )
         if self.settings.check_batch < 1:
             raise InvalidInputError(
                 f"sampler check_batch must be >= 1, got {self.settings.check_batch}"
             )
         self.stats = SamplerStats()
-        self._reach = [self._reach_shell(i) for i in range(gsn.hand.n_fingers)]
+        self._reach = [reach_shell(gsn.hand, i) for i in range(gsn.hand.n_fingers)]
         hand = gsn.hand
         per_finger = self.settings.per_finger
         self.per_finger = bool(per_finger)
@@ -256,19 +228,6 @@ class GraspSampler:
         # the rest of a pose's combinations, checked as they are drawn
         self._pending: Iterator[tuple[FloatArray, bool]] | None = None
         self._pending_left = 0
-
-    def _reach_shell(self, finger: int) -> tuple[FloatArray, float, float]:
-        """Centre (first joint origin), min and max reach of a fingertip, estimated by FK."""
-        hand = self.gsn.hand
-        idx = hand.finger_q_index[finger]
-        rng = np.random.default_rng(finger)
-        q = np.tile(hand.neutral, (400, 1))
-        q[:, idx] = rng.uniform(hand.lower[idx], hand.upper[idx], size=(400, len(idx)))
-        q[0, idx], q[1, idx] = hand.lower[idx], hand.upper[idx]
-        tips = np.array([hand.fingertip_positions(qi)[finger] for qi in q])
-        centre = hand.joint_origin(int(idx[0]), hand.neutral)
-        d = np.linalg.norm(tips - centre, axis=1)
-        return centre, float(d.min()) * 0.9, float(d.max()) * 1.02
 
     # -------------------------------------------------------------- sampling
     def sample_pose(self) -> FloatArray:
@@ -410,7 +369,6 @@ class GraspSampler:
         round's checks wait in ``_pending`` for the next calls).
         """
         t0 = time.perf_counter()
-        s = self.settings
         out: list[FloatArray] = []
         try:
             if pose is None and self._pending is not None:
@@ -453,9 +411,9 @@ class GraspSampler:
                     if valid:
                         self.stats.valid += 1
                         out.append(x)
-                        if pose is None and s.grasps_per_pose > 1:
+                        if pose is None and self._grasps_per_pose > 1:
                             self._pending = checks
-                            self._pending_left = s.grasps_per_pose - 1
+                            self._pending_left = self._grasps_per_pose - 1
                         if len(out) >= want or pose is None:
                             return out
                     if budget <= 0 or self.deadline.expired():
@@ -490,20 +448,8 @@ class GraspSampler:
                 return
 
     def _fits(self, points: FloatArray, normals_out: FloatArray) -> np.ndarray:
-        """(N,) True where a fingertip sphere on the contact touches the object there only.
-
-        ``points, normals_out: (N, 3)`` candidate contacts and outward normals,
-        object frame. In a concavity tighter than the fingertip (the bean's
-        waist) the sphere centred at ``point + r * normal`` dips into the
-        object elsewhere; the state would be off GSn by that depth (the
-        collision check tolerates it, the constraint does not), so such
-        contacts are not offered (up to :data:`FIT_TOL`).
-        """
-        if not len(points):
-            return np.zeros(0, dtype=bool)
-        r = self.gsn.hand.fingertip_radius
-        d = np.atleast_1d(np.asarray(self.gsn.obj.signed_distance(points + r * normals_out)))
-        return d >= r - FIT_TOL
+        """:func:`~dexplan.planning.gsn.finger_reach.fingertip_fits` on this object and hand."""
+        return fingertip_fits(self.gsn.obj, self.gsn.hand.fingertip_radius, points, normals_out)
 
     def _in_shell(self, finger: int, tips: FloatArray, normals_w: FloatArray) -> np.ndarray:
         """(N,) candidate fingertip centres ``tips: (N, 3)`` in the finger's reach shell.
@@ -511,16 +457,9 @@ class GraspSampler:
         The outward normals ``normals_w: (N, 3)`` (world frame) must face the
         finger's base (``min_facing``): the finger comes from outside.
         """
-        centre, dmin, dmax = self._reach[finger]
-        to_base = centre - tips
-        d = np.linalg.norm(to_base, axis=1)
-        ok = (d >= dmin) & (d <= dmax)
-        ok &= np.einsum("ij,ij->i", normals_w, to_base) > self.settings.min_facing * d
-        return ok
+        return self._reach[finger].contains(tips, normals_w, self.settings.min_facing)
 
-    def finger_pools(
-        self, pose_xyzquat: FloatArray
-    ) -> dict[int, tuple[FloatArray, FloatArray, FloatArray]] | None:
+    def finger_pools(self, pose_xyzquat: FloatArray) -> dict[int, FingerPool] | None:
         """Per contact finger, collision-free IK solutions to sampled contacts.
 
         Args:
@@ -539,13 +478,14 @@ class GraspSampler:
         M_obj = pose_to_se3(pose_xyzquat)
         # every finger's candidate contacts first (cheap): a pose where some
         # finger reaches none is dropped before any IK or collision check
-        cands = {}
+        cands: dict[int, tuple[FloatArray, FloatArray]] = {}
         for i in self.gsn.contact_ids:
-            cands[i] = self._pool_candidates(i, R, t)
-            if cands[i] is None:
+            found = self._pool_candidates(i, R, t)
+            if found is None:
                 self.stats.ik_failures += 1
                 return None
-        pools = {}
+            cands[i] = found
+        pools: dict[int, FingerPool] = {}
         # fewest candidates first: the pool most likely to come out empty
         for i in sorted(cands, key=lambda f: len(cands[f][0])):
             pool = self._finger_pool(i, *cands[i], R, t, q, M_obj)
@@ -587,7 +527,7 @@ class GraspSampler:
         t: FloatArray,
         q: FloatArray,
         M_obj: pin.SE3,
-    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    ) -> FingerPool | None:
         """One finger's pool from its candidates (:meth:`_pool_candidates`).
 
         ``tips, n_w: (C, 3)`` the candidates' fingertip centres and outward
@@ -603,7 +543,7 @@ class GraspSampler:
         # off the limits: a finger at a limit cannot follow the object
         m = s.joint_margin
         solved &= np.all((q_sol >= hand.lower[idx] + m) & (q_sol <= hand.upper[idx] - m), axis=2)
-        clearance = self._link_clearance(i, q_sol, solved, R, t)
+        clearance = link_clearance(hand, self.gsn.obj, i, q_sol, solved, R, t)
         # per contact, the solutions whose links stay farthest from the object
         # first (one sort for all rows; unsolved ones last, not tried)
         order = np.argsort(np.where(solved, -clearance, np.inf), axis=1, kind="stable")
@@ -625,39 +565,6 @@ class GraspSampler:
         c = np.array(keep_c)
         return tips[c], n_w[c], np.array(keep_q)
 
-    def _link_clearance(
-        self, finger: int, q_sol: FloatArray, solved: np.ndarray, R: FloatArray, t: FloatArray
-    ) -> FloatArray:
-        """Signed distance from the object to a finger's joint axes and link midpoints.
-
-        Args:
-            finger: the finger.
-            q_sol: (N, C, m) IK solutions.
-            solved: (N, C) which of them exist.
-            R: (3, 3) object rotation (world frame).
-            t: (3,) object position (world frame).
-
-        Returns:
-            (N, C) the smallest signed distance (m) over the finger's joint
-            origins after the first and the midpoints of its links (-inf
-            where not solved; 0 where the finger has no vectorised chain).
-        """
-        out = np.full(solved.shape, -np.inf)
-        chain = self.gsn.hand._chains[finger]
-        if chain is None:
-            out[solved] = 0.0
-            return out
-        q = q_sol[solved]
-        if not len(q):
-            return out
-        tip, origins, _ = chain.forward(q)
-        pts = np.concatenate([origins[:, 1:], tip[:, None]], axis=1)
-        mids = 0.5 * (pts[:, 1:] + pts[:, :-1])
-        probe = np.concatenate([origins[:, 1:], mids], axis=1)
-        sd = self.gsn.obj.signed_distance((probe.reshape(-1, 3) - t) @ R)
-        out[solved] = np.asarray(sd).reshape(len(q), -1).min(axis=1)
-        return out
-
     def _cannot_hold(self, normals_out: FloatArray) -> np.ndarray:
         """(M,) True where a required (sub)grasp of ``normals_out: (M, k, 3)`` cannot hold.
 
@@ -666,81 +573,20 @@ class GraspSampler:
         vs = self.validity.settings
         return cannot_be_force_closure(normals_out, vs.mu, subgrasps=vs.subgrasps)
 
-    def combinations(
-        self, pose_xyzquat: FloatArray, pools: dict[int, tuple[FloatArray, FloatArray, FloatArray]]
-    ) -> Combinations:
+    def combinations(self, pose_xyzquat: FloatArray, pools: dict[int, FingerPool]) -> Combinations:
         """Grasps combined from per-finger pools, most promising first (validity not checked).
 
-        Draws ``combination_draws`` random combinations (one pool entry per
-        contact finger), drops those whose fingertips come closer than
-        ``2 r + tip_clearance``, and sorts the rest by normal balance: the
-        largest, over the grasp's (k-1)-finger subgrasps, length of the mean
-        outward normal (0 when the normals of every subgrasp cancel, which
-        force closure of every subgrasp needs on a sphere). Of the best
-        ``RANKED_PER_COMBINATION * combinations``, those the half-space test
-        does not rule out are kept, best first, duplicates dropped. Free
-        fingers get random joint values.
-
-        Returns:
-            Up to ``combinations`` ambient states ``(7 + nq,)`` and their contacts.
+        :func:`~dexplan.planning.gsn.combinations.combine_pools` with the
+        settings' ``combination_draws``, ``tip_clearance`` and ``combinations``.
         """
-        hand, s, rng = self.gsn.hand, self.settings, self.rng
-        fingers = list(pools)
-        sizes = np.array([len(pools[i][0]) for i in fingers])
-        M = s.combination_draws
-        pick = (rng.random((M, len(fingers))) * sizes).astype(np.int64)
-        # fingertips apart: each pair of pools' distances once, then looked up
-        gap = 2 * hand.fingertip_radius + s.tip_clearance
-        ok = np.ones(len(pick), dtype=bool)
-        for a in range(len(fingers)):
-            for b in range(a + 1, len(fingers)):
-                ta, tb = pools[fingers[a]][0], pools[fingers[b]][0]
-                apart = np.linalg.norm(ta[:, None] - tb[None], axis=2) >= gap
-                ok &= apart[pick[:, a], pick[:, b]]
-        pick = pick[ok]
-        # per finger (M, 3) arrays: sums and norms of small stacked axes are slow
-        each = [pools[i][1][pick[:, j]] for j, i in enumerate(fingers)]
-        k = len(fingers)
-        total = np.sum(each, axis=0)
-        if k >= 3:
-            # subgrasp without finger j: (total - n_j) / (k - 1)
-            worst = np.zeros(len(pick))
-            for n_j in each:
-                d = total - n_j
-                np.maximum(worst, np.einsum("ij,ij->i", d, d), out=worst)
-            score = np.sqrt(worst) / (k - 1)
-        else:
-            score = np.sqrt(np.einsum("ij,ij->i", total, total)) / max(k, 1)
-        # only the best-balanced draws are worth the half-space test: the
-        # valid grasps rank first (see ``check_batch``)
-        best = np.arange(len(score))
-        keep = RANKED_PER_COMBINATION * s.combinations
-        if len(score) > keep:
-            best = np.sort(np.argpartition(score, keep)[:keep])
-        pick, score = pick[best], score[best]
-        normals = np.stack([n_j[best] for n_j in each], axis=1)
-        held = ~self._cannot_hold(normals)
-        pick, normals, score = pick[held], normals[held], score[held]
-        rows: list[int] = []
-        seen: set[bytes] = set()
-        for row in np.argsort(score, kind="stable"):
-            key = pick[row].tobytes()
-            if key in seen:
-                continue
-            seen.add(key)
-            if len(rows) >= s.combinations:
-                break
-            rows.append(int(row))
-        # free fingers at random joint values (one draw, as one per grasp would give)
-        q = rng.uniform(hand.lower, hand.upper, size=(len(rows), len(hand.lower)))
-        for j, i in enumerate(fingers):
-            q[:, hand.finger_q_index[i]] = pools[i][2][pick[rows, j]]
-        states = np.empty((len(rows), POSE_DIM + q.shape[1]))
-        states[:, :POSE_DIM] = pose_xyzquat[:POSE_DIM]
-        states[:, POSE_DIM:] = q
-        out = list(states)
-        R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
-        n_w = normals[rows]
-        tips_w = np.stack([pools[i][0][pick[rows, j]] for j, i in enumerate(fingers)], axis=1)
-        points = (tips_w - hand.fingertip_radius * n_w - pose_xyzquat[:3]) @ R
-        return Combinations(out, points.reshape(-1, k, 3), -(n_w @ R).reshape(-1, k, 3))
+        s = self.settings
+        return combine_pools(
+            pose_xyzquat,
+            pools,
+            self.gsn.hand,
+            self.rng,
+            draws=s.combination_draws,
+            tip_clearance=s.tip_clearance,
+            count=self._combinations,
+            cannot_hold=self._cannot_hold,
+        )

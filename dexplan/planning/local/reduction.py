@@ -34,7 +34,12 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import inverse_transform_points
 from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
-from dexplan.planning.local.transitions import GraspContacts, TransferResult, Transitions
+from dexplan.planning.local.transitions import (
+    GraspContacts,
+    LandingPool,
+    TransferResult,
+    Transitions,
+)
 
 #: Landings of another finger tried by the look-ahead (:attr:`RegraspPass.ENABLE`).
 _ENABLE_LANDINGS = 12
@@ -223,9 +228,9 @@ def reduce_object_path(
         gait.regrasped(*found)
         if gait.regrasps > settings.max_regrasps:
             return gait.result(gait.no_progress())
-        why = gait.stuck(tr.blocking)
-        if why is not None and not gait.backtrack():
-            return gait.result(why)
+        stuck = gait.stuck(tr.blocking)
+        if stuck is not None and not gait.backtrack():
+            return gait.result(stuck)
 
 
 def _no_regrasp(idx: int, tr: TransferResult) -> str:
@@ -387,7 +392,7 @@ def _regrasp_one(
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
     follow: dict[int, int] = {}
-    pool: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    pool: LandingPool | None = None
     for f, mode in _passes(blocking, others, follow, trans, q, grasp, future):
         if not trans.can_release(f, poses[idx], q, grasp):
             continue  # the other fingers cannot hold the object within the effort limits

@@ -143,7 +143,7 @@ def drop_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]:
         elif after.kind == "regrasp" and after.finger == r.finger:
             moved = _transfer_on(trans, r.start, t)
             again = None if moved is None else _regrasp_to(trans, moved.end, after)
-            if again is not None:
+            if moved is not None and again is not None:
                 segs[k : k + 3] = [moved, again]
                 continue
         k += 1

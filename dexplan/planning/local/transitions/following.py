@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.typing import FloatArray
+from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.ik import nearest_branch, planar_branches
 from dexplan.planning.local.transitions.checks import FingerChecks
@@ -62,8 +62,9 @@ class Track:
             m = min(len(rest), len(poses))
             if not (np.array_equal(self.qs[k], q_finger) and np.array_equal(rest[:m], poses[:m])):
                 continue
-            fails_next = m == len(rest) and m < len(poses) and self.stopped_at is not None
-            if fails_next and not np.array_equal(self.stopped_at, poses[m]):
+            stop = self.stopped_at
+            fails_next = m == len(rest) and m < len(poses) and stop is not None
+            if fails_next and stop is not None and not np.array_equal(stop, poses[m]):
                 continue
             return int(k)
         return None
@@ -106,7 +107,7 @@ class FingerFollower:
         candidates_tip_obj: FloatArray,
         future_poses: FloatArray,
         normals_obj: FloatArray | None = None,
-    ) -> FloatArray:
+    ) -> IntArray:
         """How many consecutive future poses the finger can follow from each candidate.
 
         Args:
@@ -287,7 +288,7 @@ class FingerFollower:
                 qh[idx] = q_f
                 ok = self.checks.finger_free(finger, qh, M)
                 qh[idx] = q_prev
-            if not ok:
+            if not ok or q_f is None:
                 q_f = None
                 for alt in hand.finger_ik_alternatives(finger, tip, qh, inward)[
                     : self.settings.posture_options

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from dexplan.core.typing import FloatArray
+from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.grasp import min_subgrasp_quality_batch
 from dexplan.model.grasp.halfspace import cannot_be_force_closure
 from dexplan.model.hand.hand import Hand
@@ -30,6 +30,10 @@ from dexplan.planning.local.transitions.settings import TransitionSettings
 _REACH_CHUNK = 192
 #: Ranked landing candidates whose force closure is evaluated in one batch.
 _FC_CHUNK = 8
+
+#: Contacts a finger reaches and follows from (:meth:`Landings.landing_pool`):
+#: points ``(S, 3)``, outward normals ``(S, 3)`` (object frame), follow scores ``(S,)``.
+LandingPool = tuple[FloatArray, FloatArray, IntArray]
 
 
 class Landings:
@@ -169,7 +173,7 @@ class Landings:
 
     def landing_pool(
         self, finger: int, pose: FloatArray, future_poses: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    ) -> LandingPool | None:
         """Contacts ``finger`` reaches now and can follow from, whatever the others hold.
 
         The grasp-independent part of the landing search, for the look-ahead
@@ -201,7 +205,7 @@ class Landings:
         finger: int,
         q: FloatArray,
         grasp: GraspContacts,
-        pool: tuple[FloatArray, FloatArray, FloatArray],
+        pool: LandingPool,
         future_poses: FloatArray,
         tries: int = 16,
     ) -> bool:

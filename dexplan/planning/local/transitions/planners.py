@@ -14,7 +14,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from dexplan.core.segments import Segment
-from dexplan.core.typing import FloatArray
+from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.grasp import min_subgrasp_quality
 from dexplan.model.grasp.grip import GripForceSolver
@@ -25,13 +25,10 @@ from dexplan.planning.gsn.validity import ValiditySettings
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
 from dexplan.planning.local.transitions.following import FingerFollower
-from dexplan.planning.local.transitions.landings import Landings
+from dexplan.planning.local.transitions.landings import LandingPool, Landings
 from dexplan.planning.local.transitions.regrasp import RegraspPlanner
 from dexplan.planning.local.transitions.settings import TransitionSettings
 from dexplan.planning.local.transitions.transfer import TransferPlanner, TransferResult
-
-#: A landing pool (:meth:`Landings.landing_pool`): points, outward normals, scores.
-LandingPool = tuple[FloatArray, FloatArray, FloatArray]
 
 
 class Transitions:
@@ -223,7 +220,7 @@ class Transitions:
         candidates_tip_obj: FloatArray,
         future_poses: FloatArray,
         normals_obj: FloatArray | None = None,
-    ) -> FloatArray:
+    ) -> IntArray:
         """:meth:`FingerFollower.follow_scores`: the IK-only follow bound per candidate."""
         return self.follower.follow_scores(finger, candidates_tip_obj, future_poses, normals_obj)
 
