@@ -55,6 +55,7 @@ __all__ = [
     "make_goal_region",
     "make_sampler_allocator",
     "make_validity",
+    "query_goal",
     "termination",
 ]
 
@@ -318,3 +319,55 @@ def draw_goal(
         if y is not None and float(distance(frame.to_x(y))) <= threshold:
             return y
     return None
+
+
+def query_goal(
+    si: Any,
+    alloc: Callable[..., Any],
+    frame: Frame,
+    accept: Accept,
+    sink: ErrorSink,
+    goal: GoalSpec | None,
+    goal_state: tuple[FloatArray, float] | None,
+    *,
+    one_state: bool,
+    anchor: Callable[[Any], None] | None,
+) -> tuple[Any, str | None]:
+    """The OMPL goal of a query: a goal state, or a :class:`GoalSpec` region.
+
+    Args:
+        si: the space information.
+        alloc: ``alloc(y, anchor=...)`` a new OMPL state at planning coordinates.
+        frame: ambient <-> planning coordinates.
+        accept: projects and checks the goal sampler's states.
+        sink: where a callback's exception is recorded.
+        goal: the goal region (when ``goal_state`` is None).
+        goal_state: ``(x (n,) ambient, threshold)``: one C++ ``GoalStates`` goal.
+        one_state: give the region as one sampled C++ goal state (the PRM
+            family: its checker thread must never call Python).
+        anchor: anchors a state as an atlas chart, or None.
+
+    Returns:
+        ``(goal, None)``; ``(None, "invalid_goal")`` when a one-state goal has
+        no acceptable sample; ``(None, None)`` when a callback raised (kept in
+        ``sink``).
+    """
+    if goal_state is not None:
+        states = ob.GoalStates(si)
+        states.addState(alloc(frame.to_y(goal_state[0]), anchor=True))
+        states.setThreshold(goal_state[1])
+        return states, None
+    assert goal is not None
+    first = draw_goal(
+        goal.sample, goal.sample_attempts, accept, goal.distance, goal.threshold, frame
+    )
+    if sink.error is not None:
+        return None, None
+    if not one_state:
+        return make_goal_region(si, goal, frame, accept, sink, first, anchor), None
+    if first is None:
+        return None, "invalid_goal"
+    states = ob.GoalStates(si)  # C++ goal: PRM's checker thread stays C++
+    states.addState(alloc(first, anchor=True))
+    states.setThreshold(1e-9)
+    return states, None

@@ -10,7 +10,6 @@ re-checks paths in travel direction and reads the planner's graph
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -27,14 +26,14 @@ from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import (
     Accept,
     GoalSpec,
-    draw_goal,
-    make_goal_region,
     make_sampler_allocator,
     make_validity,
+    query_goal,
     termination,
 )
 from dexplan.planning.ompl.error_sink import ErrorSink
 from dexplan.planning.ompl.motions import FallbackMotions, MotionFallback
+from dexplan.planning.ompl.paths import SpacePaths
 from dexplan.planning.ompl.registry import (
     MULTI_QUERY_PLANNERS,
     PLANNERS,
@@ -45,7 +44,13 @@ from dexplan.planning.ompl.registry import (
     set_planner_param,
     settable_params,
 )
-from dexplan.planning.ompl.results import STATUS_NAMES, PathCheck, RoadmapData, SolveResult
+from dexplan.planning.ompl.results import (
+    STATUS_NAMES,
+    PathCheck,
+    RoadmapData,
+    SolveResult,
+    read_planner_data,
+)
 from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
 from dexplan.planning.ompl.spaces import (
     ConstraintSpec,
@@ -144,21 +149,7 @@ class PlanningProblem:
         fallback_merges_only: bool = True,
         fallback_checks: bool = True,
     ) -> None:
-        if not isinstance(constraint, ConstraintSpec):
-            raise InvalidInputError(f"constraint must be a ConstraintSpec, got {constraint!r}")
-        if not callable(is_valid):
-            raise InvalidInputError(f"is_valid must be callable, got {is_valid!r}")
-        check_planner_name(planner)
-        if motion_fallback is not None:
-            if not callable(motion_fallback):
-                raise InvalidInputError(
-                    f"motion_fallback must be callable, got {motion_fallback!r}"
-                )
-            if not planner_traits(planner).multi_query:
-                raise InvalidInputError(
-                    f"motion_fallback is for the PRM family "
-                    f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {planner}"
-                )
+        _check_arguments(constraint, is_valid, planner, motion_fallback)
         if seed is not None:
             seed = as_int(seed, "seed", 0)
         self._spec = constraint
@@ -183,19 +174,10 @@ class PlanningProblem:
         si.setup()
         self._css = css
         self._si = si
-        self._motions: FallbackMotions | None = None
-        if motion_fallback is not None:
-            self._motions = FallbackMotions(
-                si,
-                css.allocState,
-                motion_fallback,
-                constraint,
-                self._frame,
-                self._sink,
-                merges_only=bool(fallback_merges_only),
-            )
-            if fallback_checks:
-                si.setMotionValidator(self._motions)
+        self._motions = self._fallback_motions(
+            motion_fallback, fallback_merges_only, fallback_checks
+        )
+        self._paths = SpacePaths(si, css, self._frame, constraint, is_valid, self._motions)
         self._projection = (
             make_projection(projection, css, self._frame, self._sink)
             if projection is not None
@@ -211,6 +193,25 @@ class PlanningProblem:
         self._planner = self._new_planner()
         for name, value in (params or {}).items():
             self.set_param(name, value)
+
+    def _fallback_motions(
+        self, fallback: MotionFallback | None, merges_only: bool, checks: bool
+    ) -> FallbackMotions | None:
+        """The motion fallback's record (None without one), the motion validator if ``checks``."""
+        if fallback is None:
+            return None
+        motions = FallbackMotions(
+            self._si,
+            self._css.allocState,
+            fallback,
+            self._spec,
+            self._frame,
+            self._sink,
+            merges_only=bool(merges_only),
+        )
+        if checks:
+            self._si.setMotionValidator(motions)
+        return motions
 
     def _use_valid_sampler(
         self,
@@ -346,13 +347,6 @@ class PlanningProblem:
         self._goal = None
         self._query_dirty = True
 
-    def _alloc(self, y: FloatArray, *, anchor: bool = False) -> Any:
-        state = self._css.allocState()
-        state.copy(np.asarray(y, dtype=np.float64).tolist())
-        if anchor and self._spec.space != "projected":
-            self._css.anchorChart(state)
-        return state
-
     def _anchor(self) -> Callable[[Any], None] | None:
         if self._spec.space == "projected":
             return None
@@ -367,34 +361,20 @@ class PlanningProblem:
         """Build a fresh ProblemDefinition; return a status name if impossible."""
         pdef = ob.ProblemDefinition(self._si)
         for x in self._starts:
-            pdef.addStartState(self._alloc(self._frame.to_y(x), anchor=True))
-        if self._goal_state is not None:
-            goal = ob.GoalStates(self._si)
-            goal.addState(self._alloc(self._frame.to_y(self._goal_state[0]), anchor=True))
-            goal.setThreshold(self._goal_state[1])
-        else:
-            spec = self._goal
-            assert spec is not None
-            first = draw_goal(
-                spec.sample,
-                spec.sample_attempts,
-                self._accept,
-                spec.distance,
-                spec.threshold,
-                self._frame,
-            )
-            if self._sink.error is not None:
-                return None
-            if self.is_multi_query:
-                if first is None:
-                    return "invalid_goal"
-                goal = ob.GoalStates(self._si)  # C++ goal: PRM's checker thread stays C++
-                goal.addState(self._alloc(first, anchor=True))
-                goal.setThreshold(1e-9)
-            else:
-                goal = make_goal_region(
-                    self._si, spec, self._frame, self._accept, self._sink, first, self._anchor()
-                )
+            pdef.addStartState(self._paths.alloc(self._frame.to_y(x), anchor=True))
+        goal, status = query_goal(
+            self._si,
+            self._paths.alloc,
+            self._frame,
+            self._accept,
+            self._sink,
+            self._goal,
+            self._goal_state,
+            one_state=self.is_multi_query,
+            anchor=self._anchor(),
+        )
+        if goal is None:
+            return status
         pdef.setGoal(goal)
         if planner_traits(self._planner_name).first_solution:
             pdef.setOptimizationObjective(first_solution_objective(self._si))
@@ -441,9 +421,7 @@ class PlanningProblem:
                 f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {self._planner_name}"
             )
         limit = as_pos(time_limit, "time_limit")
-        self._solve_count += 1
-        if self._seed is not None:
-            reseed_ompl(derived_seed(self._seed, self._solve_count))
+        self._next_seed()
         reached = None
         if max_milestones is not None:
             target = as_int(max_milestones, "max_milestones", 1)
@@ -497,22 +475,13 @@ class PlanningProblem:
         if self._goal is None and self._goal_state is None:
             raise PlannerError("no goal: call set_goal() or set_goal_state() before solve()")
         t0 = time.perf_counter()
-        self._solve_count += 1
-        if self._seed is not None:
-            reseed_ompl(derived_seed(self._seed, self._solve_count))
+        self._next_seed()
         if self._query_dirty:
             early = self._build_query()
             self._raise_callback_error()
             if early is not None:
                 return self._no_path(early, t0, "no acceptable goal sample")
-        budget = None
-        if max_iterations is not None:
-            if self.is_multi_query:
-                raise PlannerError(
-                    f"max_iterations is for single-query planners, not {self._planner_name} "
-                    "(its solution checker runs in a second thread)"
-                )
-            budget = as_int(max_iterations, "max_iterations", 1)
+        budget = self._iteration_budget(max_iterations)
         if self._planner_used and planner_traits(self._planner_name).restarted:
             # a batch planner cut short cannot resume: a fresh batch, the budget given
             self._planner = self._new_planner()
@@ -524,8 +493,31 @@ class PlanningProblem:
         name = STATUS_NAMES.get(status.getStatus().value, "unknown")
         if name not in ("exact", "approximate") or not self._pdef.hasSolution():
             return self._no_path(name, t0, status.asString())
+        return self._solution(name, status.asString(), t0, interpolate, check_path)
+
+    def _next_seed(self) -> None:
+        """Count a solve or growth call; with a seed, reseed OMPL for it (see Determinism)."""
+        self._solve_count += 1
+        if self._seed is not None:
+            reseed_ompl(derived_seed(self._seed, self._solve_count))
+
+    def _iteration_budget(self, max_iterations: int | None) -> int | None:
+        """``max_iterations`` checked (single-query planners only), or None."""
+        if max_iterations is None:
+            return None
+        if self.is_multi_query:
+            raise PlannerError(
+                f"max_iterations is for single-query planners, not {self._planner_name} "
+                "(its solution checker runs in a second thread)"
+            )
+        return as_int(max_iterations, "max_iterations", 1)
+
+    def _solution(
+        self, name: str, message: str, t0: float, interpolate: bool, check_path: bool
+    ) -> SolveResult:
+        """The :class:`SolveResult` of a solve started at ``t0`` that found a path."""
         path = og.PathGeometric(self._pdef.getSolutionPath())
-        checked = self._post_process(path, interpolate=interpolate, check=check_path)
+        checked = self._paths.post_process(path, interpolate=interpolate, check=check_path)
         self._raise_callback_error()
         goal_distance = 0.0 if name == "exact" else float(self._pdef.getSolutionDifference())
         valid = checked.path_valid
@@ -542,7 +534,7 @@ class PlanningProblem:
             invalid_segments=checked.invalid_segments,
             max_step=checked.max_step,
             goal_distance=goal_distance,
-            message=status.asString(),
+            message=message,
         )
 
     @contextmanager
@@ -576,72 +568,6 @@ class PlanningProblem:
             message=message,
         )
 
-    def _geodesic(self, a: Any, b: Any) -> list[FloatArray]:
-        """Planning-coordinate states of the motion a -> b (a and b included).
-
-        The fallback's recorded states where it joined the edge, else OMPL's
-        discrete geodesic.
-        """
-        if self._motions is not None:
-            read = self._frame.read
-            dense = self._motions.recorded(read(a), read(b))
-            if dense is not None:
-                return list(dense)
-        return self._discrete_geodesic(a, b)
-
-    def _discrete_geodesic(self, a: Any, b: Any) -> list[FloatArray]:
-        """Planning-coordinate states of OMPL's discrete geodesic a -> b (a and b included)."""
-        segment = og.PathGeometric(self._si, a, b)
-        segment.interpolate()
-        read = self._frame.read
-        return [read(segment.getState(i)) for i in range(segment.getStateCount())]
-
-    def _post_process(self, path: Any, *, interpolate: bool, check: bool) -> PathCheck:
-        read = self._frame.read
-        m = path.getStateCount()
-        states = [path.getState(i) for i in range(m)]
-        waypoints = np.array([read(s) for s in states]).reshape(m, self._spec.ambient_dim)
-        repaired: list[int] = []
-        invalid: list[int] = []
-        dense: list[FloatArray] = [waypoints[0]]
-        # OMPL's ConstrainedMotionValidator does not check a motion's end state (lazy
-        # planners such as LBKPIECE1 then return invalid waypoints): check states too.
-        ok = [bool(self._si.isValid(s)) for s in states] if check else [True] * m
-        for i in range(m - 1):
-            a, b = states[i], states[i + 1]
-            ends = ok[i] and ok[i + 1]
-            forward = (not check) or (ends and bool(self._si.checkMotion(a, b)))
-            if forward:
-                piece = self._geodesic(a, b) if interpolate else [waypoints[i], waypoints[i + 1]]
-            elif ends and self._si.checkMotion(b, a):
-                repaired.append(i)
-                piece = (
-                    self._geodesic(b, a)[::-1] if interpolate else [waypoints[i], waypoints[i + 1]]
-                )
-            else:
-                invalid.append(i)
-                piece = [waypoints[i], waypoints[i + 1]]
-            dense.extend(piece[1:])
-        if len(dense) > 1:
-            arr = np.array(dense)
-            keep = np.ones(arr.shape[0], dtype=bool)
-            keep[1:] = np.linalg.norm(np.diff(arr, axis=0), axis=1) > 1e-12
-            arr = arr[keep]
-        else:
-            arr = np.array(dense)
-        steps = np.linalg.norm(np.diff(arr, axis=0), axis=1) if arr.shape[0] > 1 else np.zeros(1)
-        max_step = float(steps.max()) if steps.size else 0.0
-        valid = check and not invalid and self._states_ok(arr)
-        to_x = self._frame.to_x
-        return PathCheck(
-            path=to_x(arr),
-            waypoints=to_x(waypoints),
-            path_valid=bool(valid),
-            repaired_segments=tuple(repaired),
-            invalid_segments=tuple(invalid),
-            max_step=max_step,
-        )
-
     def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
         """Re-check (and densify) any path of ambient states in travel direction.
 
@@ -665,27 +591,10 @@ class PlanningProblem:
             PlannerError: a callback raised.
 
         """
-        path = self._geometric_path(waypoints)
-        result = self._post_process(path, interpolate=interpolate, check=True)
+        path = self._paths.geometric_path(waypoints)
+        result = self._paths.post_process(path, interpolate=interpolate, check=True)
         self._raise_callback_error()
         return result
-
-    def _geometric_path(self, waypoints: object) -> Any:
-        """An ``og.PathGeometric`` of ``(M, n)`` ambient waypoints, M >= 1 (planning coordinates).
-
-        Raises:
-            InvalidInputError: wrong shape or non-finite values.
-        """
-        arr = np.asarray(waypoints, dtype=np.float64)
-        n = self._spec.ambient_dim
-        if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
-            raise InvalidInputError(f"waypoints must have shape (M, {n}), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise InvalidInputError("waypoints must be finite")
-        path = og.PathGeometric(self._si)
-        for x in arr:
-            path.append(self._alloc(self._frame.to_y(x)))
-        return path
 
     def interpolate_path(self, waypoints: object) -> FloatArray:
         """Densify a path of ambient states along the space's motions, unchecked.
@@ -705,44 +614,16 @@ class PlanningProblem:
         Raises:
             InvalidInputError: wrong shape or non-finite values.
         """
-        path = self._geometric_path(waypoints)
+        path = self._paths.geometric_path(waypoints)
         if self._motions is not None:
-            return self._interpolate_with_fallback(path)
+            dense = self._paths.interpolate_with_fallback(path)
+            self._raise_callback_error()
+            return dense
         path.interpolate()
         read = self._frame.read
         ys = np.array([read(path.getState(i)) for i in range(path.getStateCount())])
         self._raise_callback_error()
         return self._frame.to_x(ys.reshape(-1, self._spec.ambient_dim))
-
-    def _interpolate_with_fallback(self, path: Any) -> FloatArray:
-        """:meth:`interpolate_path` where a motion fallback may have joined segments."""
-        motions = self._motions
-        assert motions is not None
-        read = self._frame.read
-        states = [path.getState(i) for i in range(path.getStateCount())]
-        dense = [read(states[0])]
-        for a, b in itertools.pairwise(states):
-            joined = motions.states(read(a), read(b))  # a record first, then OMPL's motion
-            piece = list(joined) if joined is not None else self._discrete_geodesic(a, b)
-            dense.extend(piece[1:])
-        self._raise_callback_error()
-        return self._frame.to_x(np.array(dense).reshape(-1, self._spec.ambient_dim))
-
-    def _states_ok(self, ys: FloatArray) -> bool:
-        """Whether every planning-coordinate state is on the manifold, in bounds, valid."""
-        spec = self._spec
-        lo = self._frame.to_y(spec.lower)
-        up = self._frame.to_y(spec.upper)
-        if np.any(ys < lo) or np.any(ys > up):
-            return False
-        xs = self._frame.to_x(ys)
-        tol = spec.tolerance * (1.0 + 1e-9)
-        for x in xs:
-            if float(np.linalg.norm(np.asarray(spec.function(x), dtype=np.float64))) > tol:
-                return False
-            if not bool(self._is_valid(x)):
-                return False
-        return True
 
     # ----------------------------------------------------------------- data
 
@@ -757,26 +638,8 @@ class PlanningProblem:
         """
         pd = ob.PlannerData(self._si)
         self._planner.getPlannerData(pd)
-        n = self._spec.ambient_dim
-        count = int(pd.numVertices())
-        read = self._frame.read
-        vertices = np.empty((count, n), dtype=np.float64)
-        pairs: list[tuple[int, int]] = []
-        for i in range(count):
-            vertices[i] = read(pd.getVertex(i).getState())
-            pairs.extend((i, int(j)) for j in pd.getEdges(i))
-        edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
-        starts = np.array(
-            [pd.getStartIndex(k) for k in range(pd.numStartVertices())], dtype=np.int64
-        )
-        if len(starts) and self._starts:
-            given = self._frame.to_y(np.array(self._starts))
-            gap = np.abs(vertices[starts][:, None, :] - given[None, :, :]).max(axis=2).min(axis=1)
-            starts = starts[gap <= 1e-9 * (1.0 + np.abs(given).max())]
-        goals = np.array([pd.getGoalIndex(k) for k in range(pd.numGoalVertices())], dtype=np.int64)
-        return RoadmapData(
-            vertices=self._frame.to_x(vertices), edges=edges, start_ids=starts, goal_ids=goals
-        )
+        given = self._frame.to_y(np.array(self._starts)) if self._starts else None
+        return read_planner_data(pd, self._frame, self._spec.ambient_dim, given)
 
     def clear(self) -> None:
         """Forget everything the planner built (roadmap, trees, atlas charts, fallback motions)."""
@@ -807,7 +670,7 @@ class PlanningProblem:
         """
         ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
         yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        ok = bool(self._si.checkMotion(self._alloc(ya), self._alloc(yb)))
+        ok = bool(self._si.checkMotion(self._paths.alloc(ya), self._paths.alloc(yb)))
         self._raise_callback_error()
         return ok
 
@@ -815,14 +678,14 @@ class PlanningProblem:
         """OMPL's state-space distance of two ambient ``(n,)`` states (planning units)."""
         ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
         yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        return float(self._css.distance(self._alloc(ya), self._alloc(yb)))
+        return float(self._css.distance(self._paths.alloc(ya), self._paths.alloc(yb)))
 
     def interpolate(self, a: object, b: object, t: float) -> FloatArray:
         """OMPL's geodesic interpolation from ``a`` (t = 0) to ``b`` (t = 1), ambient."""
         ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
         yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        out = self._alloc(ya)
-        self._css.interpolate(self._alloc(ya), self._alloc(yb), float(t), out)
+        out = self._paths.alloc(ya)
+        self._css.interpolate(self._paths.alloc(ya), self._paths.alloc(yb), float(t), out)
         self._raise_callback_error()
         return self._frame.state_x(out)
 
@@ -834,8 +697,30 @@ class PlanningProblem:
         state I/O the binding offers.)
         """
         y = self._frame.to_y(as_vector(x, "x", self._spec.ambient_dim))
-        return self._frame.state_x(self._alloc(y))
+        return self._frame.state_x(self._paths.alloc(y))
 
     def valid_sampler_count(self) -> int:
         """Return how many Python valid-state samplers OMPL allocated (diagnostics)."""
         return len(self._samplers)
+
+
+def _check_arguments(
+    constraint: object,
+    is_valid: object,
+    planner: str,
+    motion_fallback: object,
+) -> None:
+    """Raise on a malformed :class:`PlanningProblem` argument (see its Raises)."""
+    if not isinstance(constraint, ConstraintSpec):
+        raise InvalidInputError(f"constraint must be a ConstraintSpec, got {constraint!r}")
+    if not callable(is_valid):
+        raise InvalidInputError(f"is_valid must be callable, got {is_valid!r}")
+    check_planner_name(planner)
+    if motion_fallback is not None:
+        if not callable(motion_fallback):
+            raise InvalidInputError(f"motion_fallback must be callable, got {motion_fallback!r}")
+        if not planner_traits(planner).multi_query:
+            raise InvalidInputError(
+                f"motion_fallback is for the PRM family "
+                f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), not {planner}"
+            )

@@ -8,10 +8,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from dexplan.core.typing import FloatArray, IntArray
+from dexplan.planning.ompl.spaces import Frame
 
-__all__ = ["STATUS_NAMES", "PathCheck", "RoadmapData", "SolveResult"]
+__all__ = ["STATUS_NAMES", "PathCheck", "RoadmapData", "SolveResult", "read_planner_data"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,3 +126,31 @@ STATUS_NAMES: dict[int, str] = {
     9: "infeasible",
 }
 """OMPL ``PlannerStatus`` values by name (the ``status`` of :class:`SolveResult`)."""
+
+
+def read_planner_data(
+    pd: Any, frame: Frame, n: int, given_starts: FloatArray | None
+) -> RoadmapData:
+    """A filled ``ob.PlannerData`` as :class:`RoadmapData` in ambient coordinates.
+
+    Start ids are the vertices that are the query's start states
+    (``given_starts``: ``(S, n)`` in planning coordinates, or None): FMT
+    reports every sample it never connected as a start vertex
+    (``FMT::getPlannerData`` marks each parent-less motion so), and a caller
+    taking those for starts would link the start to its own copies.
+    """
+    count = int(pd.numVertices())
+    read = frame.read
+    vertices = np.empty((count, n), dtype=np.float64)
+    pairs: list[tuple[int, int]] = []
+    for i in range(count):
+        vertices[i] = read(pd.getVertex(i).getState())
+        pairs.extend((i, int(j)) for j in pd.getEdges(i))
+    edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    starts = np.array([pd.getStartIndex(k) for k in range(pd.numStartVertices())], dtype=np.int64)
+    if len(starts) and given_starts is not None:
+        given = given_starts
+        gap = np.abs(vertices[starts][:, None, :] - given[None, :, :]).max(axis=2).min(axis=1)
+        starts = starts[gap <= 1e-9 * (1.0 + np.abs(given).max())]
+    goals = np.array([pd.getGoalIndex(k) for k in range(pd.numGoalVertices())], dtype=np.int64)
+    return RoadmapData(vertices=frame.to_x(vertices), edges=edges, start_ids=starts, goal_ids=goals)
