@@ -36,6 +36,7 @@ from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
 from dexplan.planning.local.reduction import (
+    Reduction,
     ReductionResult,
     grasp_follow,
     grasp_from_state,
@@ -54,7 +55,7 @@ from dexplan.planning.stats import PlanStats
 Verifier = Callable[["PlanResult"], Sequence[str]]
 """Checks a finished plan; returns its violations (empty: the plan is valid)."""
 
-REDUCTIONS = ("auto", "gaits", "edges")
+REDUCTIONS = tuple(Reduction)
 """Reduction methods accepted by :func:`plan`."""
 
 EXPLORE_AGAIN = 3
@@ -258,7 +259,7 @@ def plan(
     time_limit: float | None = None,
     roadmap: Roadmap | None = None,
     progress: Progress | None = None,
-    reduction: str = "auto",
+    reduction: Reduction | str = Reduction.AUTO,
     verify: Verifier | None = None,
     hand: Hand | None = None,
 ) -> PlanResult:
@@ -276,7 +277,7 @@ def plan(
             (follow the object trajectory with finger gaits,
             :func:`~dexplan.planning.local.reduction.reduce_object_path`), ``edges``
             (the reduction property edge by edge with bisection,
-            :func:`~dexplan.planning.local.reduction.reduce_gsn_path`) or ``auto``
+            :func:`~dexplan.planning.local.edge_reduction.reduce_gsn_path`) or ``auto``
             (gaits, then edges when gaits fail).
         verify: the independent check of the finished plan (the plan-file
             verifier, which lives in a layer below planning: the caller passes
@@ -490,7 +491,7 @@ class _Query:
             poses = np.vstack([poses[:-1], goal[None]])
         return poses
 
-    def reduce(self, gsn: GsnResult, reduction: str) -> ReductionResult:
+    def reduce(self, gsn: GsnResult, reduction: Reduction | str) -> ReductionResult:
         """Transfers and regrasps along the GSn path, per :func:`_reduction_schedule`."""
         ctx, path = self.ctx, gsn.path
         assert path is not None and self.q0 is not None

@@ -2,6 +2,8 @@
 
 __all__ = [
     "chart",
+    "combinations",
+    "finger_reach",
     "sampler",
     "space",
     "validity",

@@ -4,7 +4,7 @@ The ompl 2.0.1 wheel cannot give a tree planner (RRT, RRTConnect, the KPIECE
 family, FMT, BITstar...) a Python state sampler: ``StateSpace.setStateSamplerAllocator``
 is not bound, and Python overrides of ``allocDefaultStateSampler`` are ignored,
 on the constrained space and on its ambient ``RealVectorStateSpace`` alike
-(measured: the override is never called). Those planners drew uniform ambient
+(the override is never called). Those planners drew uniform ambient
 states of ``(object pose, hand joints)`` and projected them onto GSn, which on
 a box mostly fails. This module gives them coordinates in which every uniform
 sample already is a GSn configuration: the **contact chart**

@@ -72,8 +72,8 @@ class ValiditySettings:
             obstacles. GSn motions are checked at discrete states (``delta``
             apart); the object trajectory the reduction follows is the chord
             between them, which cuts inside the arc by up to ``R theta^2 / 8``
-            (0.1 mm for a 3.5 cm corner and a 0.15 rad step) and grazed a post
-            in measured runs. Transfers and the verifier check the object exactly.
+            (0.1 mm for a 3.5 cm corner and a 0.15 rad step), enough to graze
+            an obstacle. Transfers and the verifier check the object exactly.
     """
 
     mu: float = 0.8

@@ -2,6 +2,7 @@
 
 __all__ = [
     "contact_paths",
+    "edge_reduction",
     "geodesic_motion",
     "reduction",
     "smoothing",

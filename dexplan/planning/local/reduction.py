@@ -38,6 +38,7 @@ from dexplan.planning.local.transitions import (
     GraspContacts,
     LandingPool,
     TransferResult,
+    TransferStop,
     Transitions,
 )
 
@@ -45,6 +46,35 @@ from dexplan.planning.local.transitions import (
 _ENABLE_LANDINGS = 12
 #: Landings of a finger tried by the other passes.
 _LANDINGS = 8
+
+
+class Reduction(enum.StrEnum):
+    """How a GSn path becomes transfers and regrasps (the planner's ``reduction``).
+
+    Attributes:
+        AUTO: finger gaits, then the edge-by-edge reduction when they fail.
+        GAITS: finger gaits along the object trajectory (:func:`reduce_object_path`).
+        EDGES: the reduction property edge by edge with bisection
+            (:func:`~dexplan.planning.local.edge_reduction.reduce_gsn_path`).
+    """
+
+    AUTO = "auto"
+    GAITS = "gaits"
+    EDGES = "edges"
+
+
+class PathSource(enum.StrEnum):
+    """Which object trajectory a reduction attempt follows.
+
+    Attributes:
+        SHORTCUT: the GSn path's object trajectory shortcut into straight pieces.
+        RAW: the GSn path's object trajectory as it is.
+        GSN: the GSn path itself, states and contacts (the edge-by-edge reduction).
+    """
+
+    SHORTCUT = "shortcut"
+    RAW = "raw"
+    GSN = "gsn"
 
 
 class Midpoint(enum.StrEnum):
@@ -208,7 +238,7 @@ def reduce_object_path(
             return gait.result(None)
         if tr.blocking is None:
             reason = f"transfer blocked: {tr.reason}"
-            return gait.result(reason, final=tr.reason == "object_collision")
+            return gait.result(reason, final=tr.reason == TransferStop.OBJECT_COLLISION)
         hint_row = None if hints is None else hints[min(gait.idx, len(hints) - 1)]
         found = _regrasp_retrying(
             trans,

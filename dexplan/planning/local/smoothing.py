@@ -3,7 +3,7 @@
 - :func:`shortcut_object_path` replaces the object trajectory of a GSn path by
   the fewest straight (line + slerp) pieces that keep the object clear of the
   obstacles and inside its workspace: RRT-style GSn paths wander, and every
-  detour costs regrasps (MEASURED.md).
+  detour costs regrasps.
 - :func:`merge_regrasps` replaces two regrasps of the same finger in a row by
   one, when the local planner finds the direct move.
 - :func:`drop_regrasps` drops regrasps the plan does not need: trailing ones

@@ -4,12 +4,13 @@ from dexplan.planning.local.transitions.contacts import GraspContacts
 from dexplan.planning.local.transitions.landings import LandingPool
 from dexplan.planning.local.transitions.planners import Transitions
 from dexplan.planning.local.transitions.settings import TransitionSettings
-from dexplan.planning.local.transitions.transfer import TransferResult, densify_poses
+from dexplan.planning.local.transitions.transfer import TransferResult, TransferStop, densify_poses
 
 __all__ = [
     "GraspContacts",
     "LandingPool",
     "TransferResult",
+    "TransferStop",
     "TransitionSettings",
     "Transitions",
     "densify_poses",

@@ -12,6 +12,7 @@ object position, object rotation and every joint.
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 
@@ -27,6 +28,24 @@ from dexplan.planning.local.transitions.settings import TransitionSettings
 
 #: Times a transfer step whose joints jump is halved before it gives up.
 _MAX_HALVINGS = 4
+
+
+class TransferStop(enum.StrEnum):
+    """Why a transfer stopped before the end of its poses (a member equals its string).
+
+    Attributes:
+        OBJECT_COLLISION: the object itself collides at the next pose.
+        IK: a finger has no IK solution there.
+        JOINT_LIMIT: a finger's solution is within the joint margin of a limit.
+        JOINT_JUMP: a finger's joints jump (another IK branch) however small the step.
+        COLLISION: a link collision.
+    """
+
+    OBJECT_COLLISION = "object_collision"
+    IK = "ik"
+    JOINT_LIMIT = "joint_limit"
+    JOINT_JUMP = "joint_jump"
+    COLLISION = "collision"
 
 
 def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> FloatArray:
@@ -53,6 +72,12 @@ def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> 
     return np.array(out)
 
 
+#: A transfer's steps: ``(pose (7,), q (nq,))`` pairs.
+_Steps = list[tuple[FloatArray, FloatArray]]
+#: Why a transfer step failed: the blocking finger (None: nobody in particular) and the reason.
+_Stop = tuple[int | None, TransferStop]
+
+
 @dataclass(frozen=True)
 class TransferResult:
     """Outcome of :meth:`TransferPlanner.transfer`.
@@ -68,7 +93,7 @@ class TransferResult:
     waypoints: tuple[Waypoint, ...]
     reached: int
     blocking: int | None
-    reason: str | None
+    reason: TransferStop | None
 
 
 class TransferPlanner:
@@ -116,7 +141,7 @@ class TransferPlanner:
         q = q_start
         for j in range(start + 1, len(poses)):
             if self.checks.world.object_collides(poses[j]):
-                return TransferResult(tuple(wps), j - 1, None, "object_collision")
+                return TransferResult(tuple(wps), j - 1, None, TransferStop.OBJECT_COLLISION)
             steps = self._advance(poses[j - 1], poses[j], q, grasp, depth=0)
             if isinstance(steps, tuple):
                 return TransferResult(tuple(wps), j - 1, steps[0], steps[1])
@@ -125,17 +150,23 @@ class TransferPlanner:
             q = steps[-1][1]
         return TransferResult(tuple(wps), len(poses) - 1, None, None)
 
-    def _advance(self, pa, pb, q_a, grasp, depth):
+    def _advance(
+        self, pa: FloatArray, pb: FloatArray, q_a: FloatArray, grasp: GraspContacts, depth: int
+    ) -> _Steps | _Stop:
         """Waypoints from pose ``pa`` (at ``q_a``) to ``pb``, subdividing big joint steps.
 
         Returns a list of (pose, q) ending at ``pb``, or (blocking finger, reason).
         """
-        q_b, blocking, reason = self._solve_all(pb, grasp, q_a)
-        if blocking is not None:
-            return (blocking, reason)
+        solved = self._solve_all(pb, grasp, q_a)
+        if isinstance(solved, tuple):
+            return solved
+        q_b = solved
         if np.max(np.abs(q_b - q_a)) > self.settings.max_step_rad:
             if depth >= _MAX_HALVINGS:
-                return (int(self._finger_of_joint[np.argmax(np.abs(q_b - q_a))]), "joint_jump")
+                return (
+                    int(self._finger_of_joint[np.argmax(np.abs(q_b - q_a))]),
+                    TransferStop.JOINT_JUMP,
+                )
             mid = interpolate_pose(pa, pb, 0.5)
             first = self._advance(pa, mid, q_a, grasp, depth + 1)
             if isinstance(first, tuple):
@@ -150,11 +181,13 @@ class TransferPlanner:
             if q_alt is not None:
                 q_b, free = q_alt, True
         if not free:
-            return (finger, "collision")
+            return (finger, TransferStop.COLLISION)
         return [(pb.copy(), q_b)]
 
-    def _solve_all(self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray):
-        """IK of every finger at ``pose``: ``(q, blocking finger or None, reason)``."""
+    def _solve_all(
+        self, pose: FloatArray, grasp: GraspContacts, q_prev: FloatArray
+    ) -> FloatArray | tuple[int, TransferStop]:
+        """IK of every finger at ``pose``: the joints ``(nq,)``, or (blocking finger, reason)."""
         targets = grasp.tip_centres(pose, self.hand.fingertip_radius)
         R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
         inward = -grasp.normals_out @ R.T  # (n, 3) world frame
@@ -163,13 +196,15 @@ class TransferPlanner:
             idx = self.hand.finger_q_index[i]
             q_f = self.hand.finger_ik_fast(i, targets[i], q, inward[i])
             if q_f is None:
-                return q, i, "ik"
+                return i, TransferStop.IK
             if np.any(q_f < self.checks.lo[idx]) or np.any(q_f > self.checks.hi[idx]):
-                return q, i, "joint_limit"
+                return i, TransferStop.JOINT_LIMIT
             q[idx] = q_f
-        return q, None, None
+        return q
 
-    def _collision_finger(self, q: FloatArray, pose: FloatArray, mask) -> tuple[bool, int | None]:
+    def _collision_finger(
+        self, q: FloatArray, pose: FloatArray, mask: tuple[bool, ...]
+    ) -> tuple[bool, int | None]:
         """(collision-free, finger involved in the first collision or None)."""
         rep = self.checks.world.check(q, pose, mask)
         if rep.free:
