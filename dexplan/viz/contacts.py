@@ -39,6 +39,17 @@ def friction_cone(
 
     The cone opens from ``apex`` along the unit ``axis`` with half-angle
     ``atan(mu)``; generators end at axial distance ``height``.
+
+    Args:
+        apex: ``(3,)`` the contact point.
+        axis: ``(3,)`` the cone's axis (any length), in the frame of ``apex``.
+        mu: friction coefficient.
+        edges: number of generators.
+        height: axial length of the generators (m).
+
+    Returns:
+        ``edges`` strips ``(2, 3)`` (apex to rim), then the rim ``(edges + 1, 3)``,
+        in the frame of ``apex``.
     """
     a = axis / np.linalg.norm(axis)
     helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -59,7 +70,8 @@ def _contact_strips(
 
     The ring is a circle of radius ``torsion`` about the contact in its tangent
     plane: the lever arm of the largest torsional moment per unit normal force
-    (``|tau_n| <= torsion f_n``), drawn at scale.
+    (``|tau_n| <= torsion f_n``), drawn at scale. ``apex: (3,)`` and
+    ``axis: (3,)`` are in the object frame, and so are the strips.
     """
     strips = friction_cone(apex, axis, scene.mu, scene.friction_edges, height)
     if scene.contact_model == "soft":

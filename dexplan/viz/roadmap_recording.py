@@ -155,7 +155,10 @@ def _totals(roadmap: Roadmap, summary: RoadmapSummary) -> dict[str, int]:
 
 
 def _log_node_axes(rec: rerun.RecordingStream, V: FloatArray, axis_length: float) -> None:
-    """Small x, y, z axes (red, green, blue) at each node's object orientation."""
+    """Small x, y, z axes (red, green, blue) at each node's object orientation.
+
+    ``V: (N, 7 + nq)`` are the roadmap's states (object pose in the world frame first).
+    """
     rr = rerun_module()
     P = V[:, :3]
     R = _quat_matrices(V[:, 3:7])
@@ -301,7 +304,7 @@ def record_roadmap(
 
 
 def _check_state_size(models: Scene, V: FloatArray) -> None:
-    """Raise PlanFileError unless the roadmap's states are object pose + the hand's joints."""
+    """Raise PlanFileError unless the states ``V: (N, d)`` are object pose + the hand's joints."""
     if models.hand is not None and len(V):
         want = 7 + models.hand.nq
         if V.ndim != 2 or V.shape[1] != want:
@@ -313,7 +316,10 @@ def _check_state_size(models: Scene, V: FloatArray) -> None:
 def _send_still_configuration(
     rec: rerun.RecordingStream, models: Scene, layout: HandLayout | None, V: FloatArray
 ) -> None:
-    """One static configuration: the scene's start, else the first node, else neutral."""
+    """One static configuration: the scene's start, else the first node, else neutral.
+
+    ``V: (N, 7 + nq)`` are the roadmap's states (object pose in the world frame first).
+    """
     assert models.hand is not None
     pose = models.start_pose if models.start_pose is not None else (
         V[0, :7] if len(V) else np.array([0, 0, 0, 0, 0, 0, 1.0])
