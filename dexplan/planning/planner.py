@@ -18,6 +18,7 @@ A query runs in three stages:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -43,7 +44,7 @@ from dexplan.planning.local.reduction import (
     reduce_object_path,
 )
 from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
-from dexplan.planning.local.transitions import densify_poses
+from dexplan.planning.local.transitions import GraspContacts, densify_poses
 from dexplan.planning.ompl import check_planner
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap.graph import Roadmap
@@ -331,11 +332,12 @@ def plan(
         if other is None:
             break
         gsn, red = other, query.reduce(other, reduction)
-    query.stats["explorations"] = 1 + again
+    query.note(explorations=1 + again)
     if not red.success:
         return query.result(
             PlanStatus.REDUCTION_FAILED, red.reason or "", gsn_path=gsn.path, start_q=query.q0
         )
+    assert gsn.path is not None  # explore() returns only GSn results with a path
     return query.finish(query.smooth(red), gsn.path, verify)
 
 
@@ -366,9 +368,13 @@ class _Query:
         # local planners read it too), keeping a reserve for the verification
         self.deadline = self.t0 + (1.0 - VERIFY_RESERVE) * time_limit
         self.ctx.deadline.at = self.deadline
-        self.stats: dict[str, Any] = {"planner": planner, "seed": seed, "time_limit": time_limit}
+        self.stats = PlanStats(planner=planner, seed=seed, time_limit=time_limit)
         self.pose0 = scenario.start.object_pose_xyzquat
         self.q0: FloatArray | None = None
+
+    def note(self, **figures: Any) -> None:
+        """Record figures in the query's :class:`PlanStats` (keywords: its fields)."""
+        self.stats = dataclasses.replace(self.stats, **figures)
 
     def say(self, stage: Stage, message: str, **counts: int) -> None:
         """Report progress (a :class:`ProgressEvent`), if anyone listens."""
@@ -379,9 +385,11 @@ class _Query:
     def result(self, status: PlanStatus, message: str = "", **kw: Any) -> PlanResult:
         """The query's result now: statistics, diagnostics, and the given fields."""
         ctx = self.ctx
-        self.stats["time_s"] = time.perf_counter() - self.t0
-        self.stats["sampler"] = ctx.sampler.stats.as_dict()
-        self.stats["validity"] = ctx.validity.stats.as_dict()
+        self.note(
+            time_s=time.perf_counter() - self.t0,
+            sampler=ctx.sampler.stats.as_dict(),
+            validity=ctx.validity.stats.as_dict(),
+        )
         fields: dict[str, Any] = {
             "segments": (),
             "gsn_path": np.zeros((0, ctx.gsn.ambient_dim)),
@@ -392,7 +400,7 @@ class _Query:
         return PlanResult(
             status,
             start_pose=self.pose0,
-            stats=PlanStats.from_mapping(self.stats),
+            stats=self.stats,
             message=message,
             rejections=Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats),
             **fields,
@@ -450,9 +458,9 @@ class _Query:
                 on_round=self.on_round,
             )
         else:
+            assert self.roadmap is not None  # the given roadmap, or it grown by a query
             gsn = answer_query(ctx, self.roadmap, query, deadline=self.deadline, space=spec.space)
-        self.stats.update(gsn.stats)
-        self.stats["goal_samples"] = draws[1]
+        self.note(**gsn.stats, goal_samples=draws[1])
         self.roadmap = gsn.roadmap
         if gsn.path is not None:
             return gsn, None
@@ -502,16 +510,14 @@ class _Query:
         )
         t_red = time.perf_counter()
         poses = self.object_trajectory(path)
-        step_m, step_rad = (
-            ctx.transitions.settings.max_step_m,
-            ctx.transitions.settings.max_step_rad,
-        )
+        settings = ctx.transitions.settings
 
         def pose_ok(p: FloatArray) -> bool:
             inside = np.all(p[:3] >= ctx.gsn.lower[:3]) and np.all(p[:3] <= ctx.gsn.upper[:3])
             return bool(inside) and not ctx.world.object_collides(p)
 
-        short = shortcut_object_path(poses, pose_ok, step_m, step_rad)
+        short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
+        trajectories = {"shortcut": short, "raw": poses}
         grasp = grasp_from_state(ctx.transitions, self.pose0, self.q0)
         # a fresh stream: module-2 link attempts (as many as the clock allowed)
         # must not change the reduction's choices
@@ -525,28 +531,11 @@ class _Query:
             if source in hopeless:
                 continue
             attempt += 1
-            if method == "gaits":
-                dense = densify_poses(short if source == "shortcut" else poses, step_m, step_rad)
-                link = next((k for k in gsn.links if k.matches(dense, self.q0)), None)
-                if link is not None:
-                    # module 2 has reduced this very trajectory from this grasp
-                    self.stats["reduction_method"] = method
-                    self.stats["reduction_from_link"] = True
-                    red = link.result
-                    break
-                red = reduce_object_path(ctx.transitions, dense, self.q0, grasp)
-            else:
-                # the GSn states' own contacts (the last state's pose may be the
-                # goal pose: its contacts are taken at the state's own pose)
-                grasps = [
-                    grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in path
-                ]
-                grasps[0] = grasp
-                red = reduce_gsn_path(
-                    ctx.transitions, poses, grasps, self.q0, deadline=self.deadline
-                )
-            self.stats["reduction_method"] = method
-            if red.success:
+            red, from_link = self._reduce_once(gsn, method, source, trajectories, grasp)
+            self.note(reduction_method=method)
+            if from_link:
+                self.note(reduction_from_link=True)
+            if red.success or from_link:
                 break
             if red.final:
                 hopeless.add(source)
@@ -555,22 +544,58 @@ class _Query:
                 f"reduction attempt {attempt} ({method}, {source}) failed: {red.reason}",
                 attempt=attempt,
             )
-        self.stats["reduction_attempts"] = attempt
-        self.stats["reduction_time_s"] = time.perf_counter() - t_red
-        self.stats["object_poses_shortcut"] = len(short)
+        self.note(
+            reduction_attempts=attempt,
+            reduction_time_s=time.perf_counter() - t_red,
+            object_poses_shortcut=len(short),
+        )
         return red
+
+    def _reduce_once(
+        self,
+        gsn: GsnResult,
+        method: str,
+        source: str,
+        trajectories: Mapping[str, FloatArray],
+        grasp: GraspContacts,
+    ) -> tuple[ReductionResult, bool]:
+        """One reduction attempt: ``(result, taken from a module-2 link)``.
+
+        ``trajectories``: the ``shortcut`` and ``raw`` object trajectories, (K, 7);
+        ``grasp``: the start grasp's contacts.
+        """
+        ctx, path, q0 = self.ctx, gsn.path, self.q0
+        assert path is not None and q0 is not None
+        if method == "gaits":
+            settings = ctx.transitions.settings
+            dense = densify_poses(trajectories[source], settings.max_step_m, settings.max_step_rad)
+            link = next((k for k in gsn.links if k.matches(dense, q0)), None)
+            if link is not None:
+                # module 2 has reduced this very trajectory from this grasp
+                return link.result, True
+            return reduce_object_path(ctx.transitions, dense, q0, grasp), False
+        # the GSn states' own contacts (the last state's pose may be the
+        # goal pose: its contacts are taken at the state's own pose)
+        grasps = [grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in path]
+        grasps[0] = grasp
+        poses = trajectories["raw"]
+        return reduce_gsn_path(ctx.transitions, poses, grasps, q0, deadline=self.deadline), False
 
     # -- stage 4: smoothing and the final check ------------------------------
     def smooth(self, red: ReductionResult) -> list[Segment]:
         """Merge and drop needless regrasps; count what the plan is made of."""
         trans = self.ctx.transitions
-        self.stats.update({f"local_{k}": v for k, v in red.stats.items()})
+        self.note(local={**self.stats.local, **red.stats})
         segments = drop_regrasps(trans, merge_regrasps(trans, list(red.segments)))
-        self.stats.update(count_kinds(segments))
-        self.stats["graph_nodes"] = len(segments) + 1
-        self.stats["waypoints"] = sum(len(s.waypoints) for s in segments)
-        self.stats["object_path_m"], self.stats["object_path_rad"] = object_path_length(segments)
-        self.stats["joint_travel_rad"] = joint_travel(segments)
+        path_m, path_rad = object_path_length(segments)
+        self.note(
+            **count_kinds(segments),
+            graph_nodes=len(segments) + 1,
+            waypoints=sum(len(s.waypoints) for s in segments),
+            object_path_m=path_m,
+            object_path_rad=path_rad,
+            joint_travel_rad=joint_travel(segments),
+        )
         return segments
 
     def finish(
@@ -587,7 +612,7 @@ class _Query:
         self.say(Stage.VERIFICATION, "verifying the plan")
         t_ver = time.perf_counter()
         violations = tuple(verify(self.result(PlanStatus.SOLVED, **fields)))
-        self.stats["verify_time_s"] = time.perf_counter() - t_ver
+        self.note(verify_time_s=time.perf_counter() - t_ver)
         if violations:
             return self.result(
                 PlanStatus.INVALID_PLAN,
