@@ -1,5 +1,14 @@
 """Friction cones, contact wrenches and a force-closure quality with provable bounds.
 
+Modules: :mod:`.cones` (contact models, their linearizations and wrenches),
+:mod:`.force_closure` (the quality ``Q`` and its solver), :mod:`.subgrasps`
+(per-subset data, the exact screen and the certified pair bounds),
+:mod:`.least_distance` (the pair programs, exact and OSQP), :mod:`.batch`
+(many grasps at once), :mod:`.halfspace` (a cheap necessary condition);
+apart from force closure, :mod:`.grip_forces` (the contact forces that hold
+the object at one configuration, and the planner's hold check) and
+:mod:`.grip_program` (their constraint rows, LP and QP).
+
 Everything here is expressed in the **object frame**: contact points ``p_c`` (metres)
 and *inward* unit normals ``n_c`` (pointing into the object), one row per contact.
 
@@ -10,8 +19,9 @@ edge directions ``u_ce = cos(a) n_c + sin(a) (cos(t_e) t1_c + sin(t_e) t2_c)`` w
 ``tan(a) = mu`` and ``t_e = 2 pi e / E``. The tangent basis ``(t1_c, t2_c)`` is a
 deterministic function of ``n_c`` alone (Duff et al. 2017, "Building an orthonormal
 basis, revisited"), never of the world frame, so a grasp expressed in the object
-frame gives the same pyramid wherever the object is in the world (MEASURED.md: a
-world-aligned basis flipped the verdict of 1% of rotated grasps).
+frame gives the same pyramid wherever the object is in the world (a basis tied to
+the world frame would make the force-closure verdict of a grasp depend on the
+object's orientation).
 
 The edge wrenches are ``w_ce = [u_ce, (p_c x u_ce) / L]`` with the torque scale ``L``
 (the object's characteristic length; by default the largest ``|p_c|``, or 1 if all
@@ -35,8 +45,8 @@ and, over the 12 signed unit axes ``d_j = +-e_i`` of the scaled wrench space::
 Bounds relative to Ferrari-Canny. Let ``H = conv({0} U {w_ce})``,
 ``eps = max{r : B(0, r) in H}`` the (L1, ``sum lambda <= 1``) Ferrari-Canny epsilon
 of the unit edge wrenches, ``gamma(d) = min{sum lambda : W^T lambda = d, lambda >= 0}``
-the gauge of ``H``, and ``q = min_j 1 / gamma(d_j)`` the 12-direction LP quality of
-DESIGN.md. With ``k`` contacts::
+the gauge of ``H``, and ``q = min_j 1 / gamma(d_j)`` the 12-direction LP quality
+(one linear program per direction). With ``k`` contacts::
 
     eps <= q <= Q <= sqrt(k (1 + mu^2)) q <= sqrt(6 k (1 + mu^2)) eps.
 
@@ -141,7 +151,7 @@ from dexplan.model.grasp.cones import (
     soft_finger_facets,
     tangent_basis,
 )
-from dexplan.model.grasp.quality import (
+from dexplan.model.grasp.force_closure import (
     DEFAULT,
     DIRECTIONS,
     MAX_FRICTION_EDGES_DENSE,
@@ -150,6 +160,7 @@ from dexplan.model.grasp.quality import (
     VERDICTS,
     ForceClosure,
     Solver,
+    Verdict,
     exact_force_closure,
     force_closure_quality,
     is_force_closure,
@@ -171,6 +182,7 @@ __all__ = [
     "ContactModel",
     "ForceClosure",
     "Solver",
+    "Verdict",
     "check_contact_model",
     "contact_wrenches",
     "exact_force_closure",

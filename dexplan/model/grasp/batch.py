@@ -17,15 +17,14 @@ import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_positive
-from dexplan.model.grasp.cones import ContactModel, _check_grasp, min_contacts
-from dexplan.model.grasp.quality import (
-    DEFAULT,
-    ForceClosure,
-    _Contacts,
-    _drop_one,
-    _PairBounds,
-    _scaled_torsion,
-    _Subsets,
+from dexplan.model.grasp.cones import ContactModel, check_grasp, min_contacts
+from dexplan.model.grasp.force_closure import DEFAULT, ForceClosure
+from dexplan.model.grasp.subgrasps import (
+    Contacts,
+    PairBounds,
+    Subsets,
+    drop_one,
+    scaled_torsion,
     screen_groups,
 )
 
@@ -41,7 +40,7 @@ def min_subgrasp_quality_batch(
     torque_scale: float,
     margin: float,
     solve: bool = True,
-    contact_model: ContactModel = "point",
+    contact_model: ContactModel | str = ContactModel.POINT,
     torsion: float = 0.0,
     solver: ForceClosure = DEFAULT,
 ) -> FloatArray:
@@ -78,11 +77,11 @@ def min_subgrasp_quality_batch(
     if B == 0:
         return np.zeros(0)
     thr = as_positive(margin, "margin", allow_zero=True)
-    pts, nrm, mu_f, e, scale = _check_grasp(
+    pts, nrm, mu_f, e, scale = check_grasp(
         pts_b.reshape(-1, 3), nrm_b.reshape(-1, 3), mu, edges, torque_scale
     )
-    tau = _scaled_torsion(contact_model, torsion, scale)
-    con = _Contacts(pts, nrm, mu_f, e, scale, tau)
+    tau = scaled_torsion(contact_model, torsion, scale)
+    con = Contacts(pts, nrm, mu_f, e, scale, tau)
     out, open_ = _bounded(con, B, k, mu_f, thr, solve, contact_model)
     # grasps the bounds leave open are the scalar method's (it counts its own)
     solver.stats["evaluations"] += B - len(open_)
@@ -102,7 +101,7 @@ def min_subgrasp_quality_batch(
 
 
 def _bounded(
-    con: _Contacts, B: int, k: int, mu: float, thr: float, solve: bool, model: ContactModel
+    con: Contacts, B: int, k: int, mu: float, thr: float, solve: bool, model: ContactModel | str
 ) -> tuple[FloatArray, np.ndarray]:
     """What the vectorised stages decide for B grasps of k contacts ``con`` (grasp-major).
 
@@ -115,14 +114,14 @@ def _bounded(
     if k - 1 < min_contacts(mu, model):
         return out, none
     # subset s = k b + j of grasp b leaves out its contact j (the scalar order)
-    subsets = (_drop_one(k)[None] + k * np.arange(B)[:, None, None]).reshape(B * k, k - 1)
-    sub = _Subsets(con, subsets)
+    subsets = (drop_one(k)[None] + k * np.arange(B)[:, None, None]).reshape(B * k, k - 1)
+    sub = Subsets(con, subsets)
     z0, screened = screen_groups(sub, k)
     alive = np.flatnonzero(screened.reshape(B, k).all(axis=1))
     if not len(alive):
         return out, none
     rows = (k * alive[:, None] + np.arange(k)).ravel()
-    pairs = _PairBounds(sub.take(rows), z0[rows])
+    pairs = PairBounds(sub.take(rows), z0[rows])
     # as first_decision: theta = 0 alone, then the relaxation's upper bounds
     lo = _per_grasp_min(pairs.first_lower(), k)
     hi = _per_grasp_min(pairs.q_hi, k)

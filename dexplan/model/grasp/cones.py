@@ -4,8 +4,8 @@ Everything is in the **object frame**: contact points ``p_c`` (metres) and *inwa
 unit normals ``n_c``, one row per contact. The derivations and bounds are in the
 package docstring (:mod:`dexplan.model.grasp`) and docs/force_closure.md.
 
-Contact models (DESIGN.md, Contact models)
-------------------------------------------
+Contact models
+--------------
 ``point`` (the paper): the force ``f_c`` lies in the Coulomb cone
 ``|f_t| <= mu f_n``, linearized by the pyramid of ``E`` unit edges ``u_ce``.
 
@@ -30,7 +30,7 @@ H-representation of the bipyramid: facet ``(e, s)`` passes through polygon edge
 from __future__ import annotations
 
 import math
-from typing import Literal
+from enum import StrEnum
 
 import numpy as np
 from scipy.spatial import ConvexHull
@@ -45,11 +45,15 @@ __all__ = [
     "MIN_FRICTION_EDGES",
     "ContactModel",
     "check_contact_model",
+    "check_grasp",
     "contact_wrenches",
+    "ellipsoid_facets",
     "friction_cone_edges",
     "friction_cone_facets",
     "min_contacts",
+    "pyramid_facets",
     "soft_finger_facets",
+    "soft_pyramid_facets",
     "tangent_basis",
 ]
 
@@ -59,9 +63,20 @@ __all__ = [
 MIN_FRICTION_EDGES = 3
 MAX_FRICTION_EDGES = 64
 
-ContactModel = Literal["point", "soft"]
-#: Values of ``contact_model`` (DESIGN.md, Contact models).
-CONTACT_MODELS: tuple[str, ...] = ("point", "soft")
+
+class ContactModel(StrEnum):
+    """What a contact transmits; a member equals its string (scenario and plan files).
+
+    ``POINT``: a force in the Coulomb cone (the paper). ``SOFT``: also a
+    torsional moment about the normal (soft finger).
+    """
+
+    POINT = "point"
+    SOFT = "soft"
+
+
+#: Values of ``contact_model``.
+CONTACT_MODELS: tuple[ContactModel, ...] = tuple(ContactModel)
 #: Largest soft-finger ``torsion`` (metres): ``|tau_n| <= torsion f_n``. The
 #: torsion coefficient is about the radius of the contact patch; 5 cm is
 #: already a palm-sized patch for a fingertip.
@@ -96,9 +111,26 @@ def _check_normals(normals: object, name: str = "normals") -> FloatArray:
     return arr / np.sqrt(n2)[:, None]
 
 
-def _check_grasp(
+def check_grasp(
     points: object, normals: object, mu: object, edges: object, torque_scale: object
 ) -> tuple[FloatArray, FloatArray, float, int, float]:
+    """A grasp's arrays and settings, checked.
+
+    Args:
+        points: (k, 3) contact points, object frame, metres; k >= 1.
+        normals: (k, 3) inward contact normals, object frame (normalized here).
+        mu: friction coefficient, >= 0.
+        edges: pyramid edges per contact, >= 3.
+        torque_scale: length dividing torques (m), or None for the largest
+            ``|points|`` (1 if every point is at the origin).
+
+    Returns:
+        ``(points, unit normals, mu, edges, torque scale)``.
+
+    Raises:
+        InvalidInputError: bad shapes, non-finite values, zero-length normal,
+            ``mu < 0``, ``edges < 3`` or ``torque_scale <= 0``.
+    """
     pts = as_points(points, "points")
     if pts.shape[0] == 0:
         raise InvalidInputError("points must hold at least one contact, got shape (0, 3)")
@@ -222,10 +254,11 @@ def friction_cone_facets(normals_in: object, mu: float, edges: int = 8) -> Float
     n = _check_normals(normals_in, "normals_in")
     mu_f = _check_mu(mu)
     e = _check_edges(edges)
-    return _facets(n, mu_f, e)
+    return pyramid_facets(n, mu_f, e)
 
 
-def _facets(n: FloatArray, mu: float, edges: int) -> FloatArray:
+def pyramid_facets(n: FloatArray, mu: float, edges: int) -> FloatArray:
+    """:func:`friction_cone_facets` of unit normals ``n: (k, 3)`` without input checks."""
     beta = mu * math.cos(math.pi / edges)
     inv = 1.0 / math.sqrt(1.0 + beta * beta)
     radial = _circle(edges, 0.5) @ _tangents(n)  # (k, edges, 3)
@@ -239,14 +272,14 @@ def contact_wrenches(
     edges: int = 8,
     torque_scale: float | None = None,
     *,
-    contact_model: ContactModel = "point",
+    contact_model: ContactModel | str = ContactModel.POINT,
     torsion: float = 0.0,
 ) -> FloatArray:
     """Wrenches of the generators of the linearized contact sets, torques / ``L``.
 
     Point contacts: row ``c * edges + e`` is ``[u_ce, (p_c x u_ce) / L]``. Soft
     contacts: ``edges + 2`` rows per contact, the point rows then
-    ``[n_c, (p_c x n_c + s torsion n_c) / L]`` for ``s = +1, -1`` (DESIGN.md).
+    ``[n_c, (p_c x n_c + s torsion n_c) / L]`` for ``s = +1, -1`` (module docstring).
 
     Args:
         points: (k, 3) contact points, object frame, metres.
@@ -268,7 +301,7 @@ def contact_wrenches(
         InvalidInputError: bad shapes, non-finite values, zero-length normal,
             ``mu < 0``, ``edges < 3``, ``torque_scale <= 0`` or a bad contact model.
     """
-    pts, nrm, mu_f, e, scale = _check_grasp(points, normals_in, mu, edges, torque_scale)
+    pts, nrm, mu_f, e, scale = check_grasp(points, normals_in, mu, edges, torque_scale)
     torsion_f = check_contact_model(contact_model, torsion)
     u = _edges(nrm, mu_f, e)
     if torsion_f is not None:
@@ -315,7 +348,7 @@ def check_contact_model(contact_model: object, torsion: object) -> float | None:
     return t
 
 
-def min_contacts(mu: float, contact_model: str = "point") -> int:
+def min_contacts(mu: float, contact_model: ContactModel | str = ContactModel.POINT) -> int:
     """Fewest contacts that can be force closure (the screens return 0 below it).
 
     Force closure needs the contact cones to span the 6-D wrench space positively,
@@ -358,10 +391,11 @@ def soft_finger_facets(
     mu_f = _check_mu(mu)
     e = _check_edges(edges)
     t = as_positive(torsion, "torsion") / as_positive(torque_scale, "torque_scale")
-    return _soft_facets(n, mu_f, e, t)
+    return soft_pyramid_facets(n, mu_f, e, t)
 
 
-def _soft_facets(n: FloatArray, mu: float, edges: int, t: float) -> FloatArray:
+def soft_pyramid_facets(n: FloatArray, mu: float, edges: int, t: float) -> FloatArray:
+    """:func:`soft_finger_facets` of unit normals ``n: (k, 3)``, ``t = torsion / L``, unchecked."""
     k = n.shape[0]
     if mu == 0.0:
         inv = 1.0 / math.sqrt(1.0 + t * t)
@@ -383,7 +417,7 @@ def _soft_facets(n: FloatArray, mu: float, edges: int, t: float) -> FloatArray:
     return rows
 
 
-def _ellipsoid_facets(n: FloatArray, mu: float, t: float, outer: bool) -> FloatArray:
+def ellipsoid_facets(n: FloatArray, mu: float, t: float, outer: bool) -> FloatArray:
     """Unit facet rows (k, F, 4) of a dense polytope of the elliptic soft-finger set.
 
     The polytope is the image under ``v -> (mu v_1, mu v_2, t v_3)`` (tangent

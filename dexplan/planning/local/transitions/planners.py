@@ -17,7 +17,7 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.grasp import min_subgrasp_quality
-from dexplan.model.grasp.grip import GripForceSolver
+from dexplan.model.grasp.grip_forces import GripForceSolver
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
 from dexplan.planning.deadline import Deadline

@@ -18,7 +18,7 @@ import numpy as np
 from dexplan.core.pose import quat_to_matrix
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp.grip import GripForceSolver
+from dexplan.model.grasp.grip_forces import GripForceSolver
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.local.transitions.checks import FingerChecks

@@ -30,10 +30,9 @@ keeps a margin from the cone boundary:
 - the joint torques they need (below) within the URDF's effort limits: every
   margin is tried within them first, so a grasp that the joints can hold
   keeps a smaller margin rather than asking for more torque than the joints
-  have (on paper_sphere seed 1 the largest grip force fell from 29 N and
-  2.3 N m to 12 N and 0.86 N m, within the hand's 1 N m); where no margin
-  works within them the forces are computed without them, and the export's
-  limits check names the joint that cannot follow;
+  have (a wide margin can need several times the torque a narrower one
+  does); where no margin works within them the forces are computed without
+  them, and the export's limits check names the joint that cannot follow;
 - objective ``sum |f_c|^2 + (tau_c / L)^2`` (``tau_c`` the soft-finger
   torsional moment, ``L`` the object's characteristic length), solved by OSQP
   over the contact forces (strictly convex; balance as equalities, the cones
@@ -51,7 +50,7 @@ the tip-sphere centre and angular velocity, world frame), ``f_c`` in the world
 frame and ``m_c = (p_contact - p_tip) x f_c + tau_c n_c`` the moment about the
 tip centre. The links' own weight is not included.
 
-Defaults (DESIGN.md): mass 0.1 kg (the plan's ``object.mass`` when present),
+Defaults: mass 0.1 kg (the plan's ``object.mass`` when present),
 gravity ``(0, 0, -9.81)`` m/s^2 in the world frame (the plan's
 ``world.gravity`` when present; palm-up for the builtin hands).
 """
@@ -65,10 +64,18 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import scipy.sparse as sp
 
 from dexplan.core.errors import DexplanError, InvalidInputError
 from dexplan.core.typing import FloatArray
+from dexplan.model.grasp.cones import MAX_FRICTION_EDGES, check_contact_model
+from dexplan.model.grasp.grip_program import (
+    BALANCE_TOL,
+    GripProgram,
+    feasible_point,
+    grip_program,
+    joint_effort_limits,
+    least_norm,
+)
 from dexplan.model.objects.fingertip import fingertip_contact
 
 __all__ = [
@@ -93,9 +100,6 @@ DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 DEFAULT_CONE_MARGIN = 0.2
 #: Least normal force of every loaded contact (N).
 DEFAULT_MIN_NORMAL_FORCE = 0.2
-#: Largest acceptable balance residual of an OSQP solution (N, N m; relative to the
-#: largest force when that exceeds 1 N).
-BALANCE_TOL = 1e-6
 
 
 class GripForceError(DexplanError):
@@ -209,8 +213,6 @@ class GripForceSolver:
         torsion: float = 0.0,
         settings: ForceSettings = ForceSettings(),
     ) -> None:
-        from dexplan.model.grasp import check_contact_model
-
         self.hand, self.obj = hand, obj
         self.mu, self.edges = float(mu), int(edges)
         self.contact_model = contact_model
@@ -317,8 +319,8 @@ class GripForceSolver:
             if torque is None:
                 hit = True
             else:
-                A, lo, hi = self._constraints(P[idx], N[idx], w_ext, 0.0, self.edges, torque)[:3]
-                hit = _feasible_point(A, lo, hi) is not None
+                prog = self._program(P[idx], N[idx], w_ext, 0.0, self.edges, torque)
+                hit = feasible_point(prog.A, prog.lo, prog.hi) is not None
             _remember(self._holds_memo, key, hit)
         return hit
 
@@ -356,8 +358,9 @@ class GripForceSolver:
         (:func:`~dexplan.model.objects.fingertip.fingertip_contact`): a fingertip
         on a box edge pushes along the direction from the edge to its centre,
         not along the normal of the face the edge point's closest point
-        names (with that normal, 132 of 279 regrasps on cube_post found the
-        other three fingers unable to hold the cube at all).
+        names (that normal is not the direction a sphere on an edge can
+        push in, and with it many grasps of a box by its edges would look
+        unable to hold it).
 
         Returns:
             ``(P, N)``: (n, 3) contact points and inward unit normals, object
@@ -394,8 +397,6 @@ class GripForceSolver:
         """
         m0 = self.settings.cone_margin
         margins = [m0, m0 / 2, m0 / 4, 0.0] if m0 > 0 else [0.0]
-        from dexplan.model.grasp import MAX_FRICTION_EDGES
-
         # the plan's linearization, then the densest one (closer to the round
         # cone the verifier judges by) without margin
         tries = [(mg, self.edges) for mg in margins] + [(0.0, MAX_FRICTION_EDGES)]
@@ -435,13 +436,14 @@ class GripForceSolver:
         Returns:
             ``(f, tau)``: (k, 3) forces (N) and (k,) torsional moments (N m).
         """
-        A, lo, hi, E, nrm, cone, extra = self._constraints(P, N, w_ext, margin, edges, torque)
+        prog = self._program(P, N, w_ext, margin, edges, torque)
+        E, nrm, cone, extra = prog.E, prog.nrm, prog.cone, prog.extra
         st = self.settings
         k = P.shape[0]
         soft = self.contact_model == "soft"
         r = 4 if soft else 3
         L = self.L
-        x = _least_norm(A, lo, hi)
+        x = least_norm(prog.A, prog.lo, prog.hi)
         if x is None:
             return None
         resid = max(
@@ -454,7 +456,7 @@ class GripForceSolver:
         X = x.reshape(k, r)
         return X[:, :3].copy(), (L * X[:, 3] if soft else np.zeros(k))
 
-    def _constraints(
+    def _program(
         self,
         P: FloatArray,
         N: FloatArray,
@@ -462,79 +464,20 @@ class GripForceSolver:
         margin: float,
         edges: int,
         torque: tuple[FloatArray, FloatArray] | None,
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, list]:
-        """The grip-force problem ``lo <= A x <= hi`` of :meth:`_qp` and its row blocks.
-
-        Returns:
-            ``(A, lo, hi, E, nrm, cone, extra)``: the stacked rows and bounds,
-            then the balance (and frictionless) equalities ``E``, the normal
-            force rows, the cone facet rows and the frictionless rows alone.
-        """
-        st = self.settings
-        mu_eff = self.mu * (1.0 - margin)
+    ) -> GripProgram:
+        """The grip-force problem of :meth:`_qp`, cones (and torsion) shrunk by ``margin``."""
         soft = self.contact_model == "soft"
-        L = self.L
-        k = P.shape[0]
-        r = 4 if soft else 3
-        m = k * r
-        cone = self._cone_rows(N, mu_eff, margin, edges, m)
-        G, nrm = _balance_rows(P, N, L if soft else None, m)
-        extra = _frictionless_rows(N, r, m) if mu_eff == 0.0 else []
-        E = np.vstack([G, *([np.array(extra)] if extra else [])])
-        T, effort = (np.zeros((0, m)), np.zeros(0)) if torque is None else torque
-        A = np.vstack([E, nrm, cone, T])
-        lo = np.concatenate(
-            [
-                -w_ext,
-                np.zeros(len(extra)),
-                np.full(k, st.min_normal_force),
-                np.full(len(cone), -np.inf),
-                -effort,
-            ]
+        return grip_program(
+            P,
+            N,
+            w_ext,
+            mu_eff=self.mu * (1.0 - margin),
+            torsion_eff=self.torsion * (1.0 - margin) if soft else None,
+            L=self.L,
+            edges=edges,
+            min_normal_force=self.settings.min_normal_force,
+            torque=torque,
         )
-        hi = np.concatenate(
-            [-w_ext, np.zeros(len(extra)), np.full(k, np.inf), np.zeros(len(cone)), effort]
-        )
-        return A, lo, hi, E, nrm, cone, extra
-
-    def _cone_rows(
-        self, N: FloatArray, mu_eff: float, margin: float, edges: int, m: int
-    ) -> FloatArray:
-        """Facet rows ``A x <= 0`` of every contact's shrunk cone over the ``m`` QP variables.
-
-        Args:
-            N: (k, 3) inward unit normals, object frame.
-            mu_eff: the shrunk friction coefficient ``mu (1 - margin)``.
-            margin: the cone margin (the soft torsion shrinks by it too).
-            edges: friction-cone edges of the linearization.
-            m: number of QP variables (``k * r``, ``r`` = 4 soft, 3 point).
-
-        Returns:
-            (rows, m) the stacked facet rows.
-        """
-        from dexplan.model.grasp import friction_cone_facets, soft_finger_facets
-
-        soft = self.contact_model == "soft"
-        k = N.shape[0]
-        r = 4 if soft else 3
-        if soft:
-            facets = soft_finger_facets(
-                N, mu_eff, self.torsion * (1.0 - margin), edges, torque_scale=self.L
-            )
-        else:
-            facets = friction_cone_facets(N, mu_eff, edges)
-        rows = []
-        for c in range(k):
-            fc = facets[c]
-            if soft and mu_eff == 0.0:  # rows on (f_n, sigma): f_t = 0 by equalities below
-                blk = np.zeros((fc.shape[0], m))
-                blk[:, c * r : c * r + 3] = fc[:, :1] * N[c][None, :]
-                blk[:, c * r + 3] = fc[:, 1]
-            else:
-                blk = np.zeros((fc.shape[0], m))
-                blk[:, c * r : c * r + fc.shape[1]] = fc
-            rows.append(blk)
-        return np.vstack(rows)
 
     def _torque_rows(
         self,
@@ -610,152 +553,9 @@ class GripForceSolver:
         return out
 
 
-def joint_effort_limits(model: Any) -> FloatArray:
-    """The URDF's joint effort (torque) limits, ``(nq,)`` N m; NaN where none is set.
-
-    Args:
-        model: the hand's Pinocchio model (``model.effortLimit``, (nv,)).
-    """
-    e = np.array(model.effortLimit, dtype=float).reshape(-1)
-    e[~(np.isfinite(e) & (e > 0))] = np.nan
-    return e
-
-
-def _balance_rows(
-    P: FloatArray, N: FloatArray, L: float | None, m: int
-) -> tuple[FloatArray, FloatArray]:
-    """Balance and normal-force rows of the grip-force QP (object frame).
-
-    Balance: ``sum f_c + F = 0`` and ``sum p_c x f_c + L sigma_c n_c + T = 0``.
-
-    Args:
-        P: (k, 3) contact points, object frame.
-        N: (k, 3) inward unit normals, object frame.
-        L: the torsion scale of soft contacts (variables ``(f_c, sigma_c)``),
-            or None for point contacts (variables ``f_c``).
-        m: number of QP variables.
-
-    Returns:
-        ``(G, nrm)``: (6, m) the wrench of the variables and (k, m) their normal forces.
-    """
-    k = P.shape[0]
-    r = 3 if L is None else 4
-    G = np.zeros((6, m))
-    nrm = np.zeros((k, m))
-    for c in range(k):
-        G[:3, c * r : c * r + 3] = np.eye(3)
-        px, py, pz = P[c]
-        G[3:, c * r : c * r + 3] = np.array([[0, -pz, py], [pz, 0, -px], [-py, px, 0]])
-        if L is not None:
-            G[3:, c * r + 3] = L * N[c]
-        nrm[c, c * r : c * r + 3] = N[c]
-    return G, nrm
-
-
-def _frictionless_rows(N: FloatArray, r: int, m: int) -> list[FloatArray]:
-    """Equality rows ``t . f_c = 0`` on both tangents of every contact (no friction at all).
-
-    Args:
-        N: (k, 3) inward unit normals.
-        r: QP variables per contact.
-        m: number of QP variables.
-    """
-    extra = []
-    for c in range(N.shape[0]):
-        for t in np.linalg.svd(N[c][None, :])[2][1:]:
-            row = np.zeros(m)
-            row[c * r : c * r + 3] = t
-            extra.append(row)
-    return extra
-
-
-def _least_norm(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | None:
-    """The least-norm ``x`` with ``lo <= A x <= hi``; None if there is none.
-
-    Feasibility is decided first by a linear program (HiGHS through SciPy,
-    minimising ``max |x_i|``), which is exact where OSQP is not: on grasps that need forces 100x the
-    object's weight OSQP stopped with "primal infeasible inaccurate" on
-    feasible problems (an Allegro transfer end, 3 contacts of FC quality
-    0.008: the LP found forces of 44 N). OSQP then minimises ``|x|^2``
-    from the LP's point, its infeasibility detection off (the problem is
-    known to be feasible); if it has not converged the LP's point is used.
-
-    Args:
-        A: (rows, m) the constraint matrix.
-        lo: (rows,) lower bounds (``-inf`` for none).
-        hi: (rows,) upper bounds (``inf`` for none).
-    """
-    import osqp
-
-    x_lp = _feasible_point(A, lo, hi)
-    if x_lp is None:
-        return None
-    m = A.shape[1]
-    prob = osqp.OSQP()
-    prob.setup(
-        sp.identity(m, format="csc"),
-        np.zeros(m),
-        sp.csc_matrix(A),
-        lo,
-        hi,
-        verbose=False,
-        eps_abs=1e-8,
-        eps_rel=1e-8,
-        eps_prim_inf=1e-15,
-        eps_dual_inf=1e-15,
-        max_iter=50000,
-        polishing=True,
-    )
-    prob.warm_start(x=x_lp)
-    res = prob.solve(raise_error=False)
-    x = res.x
-    if x is None or not np.all(np.isfinite(x)) or not _satisfies(A, lo, hi, x):
-        return x_lp
-    return x
-
-
 def _remember(memo: dict, key: bytes, value: Any) -> Any:
     """Store ``value`` under ``key`` (the memo is emptied past 4096 entries); return it."""
     if len(memo) > 4096:
         memo.clear()
     memo[key] = value
     return value
-
-
-def _feasible_point(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray | None:
-    """A point with ``lo <= A x <= hi`` of least ``max |x_i|``, or None if there is none.
-
-    A linear program (HiGHS through SciPy): exact where OSQP's infeasibility
-    detection is not (see :func:`_least_norm`).
-    """
-    from scipy.optimize import linprog
-
-    m = A.shape[1]
-    up, down = np.isfinite(hi), np.isfinite(lo)
-    # variables (x, t): minimise t = max |x_i| (a bounded, small point to start from)
-    eye = np.eye(m)
-    ones = np.ones((m, 1))
-    lp = linprog(
-        np.r_[np.zeros(m), 1.0],
-        A_ub=np.vstack(
-            [
-                np.hstack([A[up], np.zeros((int(up.sum()), 1))]),
-                np.hstack([-A[down], np.zeros((int(down.sum()), 1))]),
-                np.hstack([eye, -ones]),
-                np.hstack([-eye, -ones]),
-            ]
-        ),
-        b_ub=np.concatenate([hi[up], -lo[down], np.zeros(2 * m)]),
-        bounds=(None, None),
-        method="highs",
-    )
-    if lp.status != 0 or lp.x is None:
-        return None
-    return np.asarray(lp.x[:m], dtype=float)
-
-
-def _satisfies(A: FloatArray, lo: FloatArray, hi: FloatArray, x: FloatArray) -> bool:
-    """``lo <= A x <= hi`` to the balance tolerance, relative to the forces' size."""
-    ax = A @ x
-    tol = BALANCE_TOL * max(1.0, float(np.max(np.abs(x))))
-    return bool(np.all(ax >= lo - tol) and np.all(ax <= hi + tol))
