@@ -17,7 +17,7 @@ from dexplan.model.objects.factory import SHAPE_KINDS, file_sha256, shape_from_d
 from dexplan.model.objects.geodesic import MeshGeodesics, SurfacePath, surface_geodesics
 from dexplan.model.objects.mesh import BUILTIN_MESH_DIR, Mesh
 from dexplan.model.objects.primitives import Box, Capsule, Cylinder, Sphere
-from dexplan.model.objects.shape import Shape
+from dexplan.model.objects.shape import Shape, ShapeKind
 
 __all__ = [
     "BUILTIN_MESH_DIR",
@@ -28,6 +28,7 @@ __all__ = [
     "Mesh",
     "MeshGeodesics",
     "Shape",
+    "ShapeKind",
     "Sphere",
     "SurfacePath",
     "file_sha256",

@@ -20,16 +20,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from dexplan.core import files
 from dexplan.core.errors import InvalidInputError, MeshError, shorten, unknown_field
 from dexplan.model.objects.mesh import Mesh
 from dexplan.model.objects.primitives import Box, Capsule, Cylinder, Sphere
-from dexplan.model.objects.shape import Shape
+from dexplan.model.objects.shape import Shape, ShapeKind
 
 #: Shape names accepted in the ``shape`` field.
-SHAPE_KINDS: tuple[str, ...] = ("sphere", "box", "capsule", "cylinder", "mesh")
+SHAPE_KINDS: tuple[ShapeKind, ...] = tuple(ShapeKind)
 
 #: Longest mesh ``path`` (characters).
 MAX_PATH_CHARS = 4096
@@ -162,7 +162,7 @@ def shape_from_dict(
     kind = d.get("shape")
     known = isinstance(kind, str) and kind in SHAPE_KINDS
     # a typo of "shape" itself is reported as such, not as a missing shape
-    check_fields(d, field, SHAPE_FIELDS[kind] if known else ALL_SHAPE_FIELDS)
+    check_fields(d, field, SHAPE_FIELDS[cast(str, kind)] if known else ALL_SHAPE_FIELDS)
     if kind is None:
         raise InvalidInputError(
             f"{field}.shape is missing; expected one of {', '.join(SHAPE_KINDS)}"

@@ -1,6 +1,6 @@
 """Where a fingertip sphere pushes on a shape: the one contact-reading rule.
 
-The plan verifier, the viewer and the grip forces (:mod:`dexplan.model.grasp.grip`) read a
+The plan verifier, the viewer and the grip forces (:mod:`dexplan.model.grasp.grip_forces`) read a
 stated contact and the fingertip centre the same way: on a face, the stated
 contact's own normal; at a box edge or corner, the direction from the edge to
 the fingertip centre (a fingertip on an edge pushes along any direction

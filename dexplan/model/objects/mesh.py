@@ -31,141 +31,36 @@ import io
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import coal
 import numpy as np
+import numpy.typing as npt
 import trimesh
 
 from dexplan.core.errors import InvalidInputError, MeshError
 from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_points, as_positive
-from dexplan.model.objects.shape import SCALAR_LOOP_MAX, Shape, check_sample_args, normalize_rows
+from dexplan.model.objects.mesh_surface import closed_surface, face_indices, pseudo_normals
+from dexplan.model.objects.shape import SCALAR_LOOP_MAX, Shape, ShapeKind, check_sample_args
+from dexplan.model.objects.triangles import (
+    EAB,
+    EAC,
+    EBC,
+    FACE,
+    VA,
+    VB,
+    VC,
+    closest_on_triangle,
+    closest_on_triangles,
+)
 
 #: Directory of the meshes shipped with dexplan (package data).
 BUILTIN_MESH_DIR = Path(__file__).resolve().parents[2] / "data" / "meshes"
 
-#: Faces whose area is below this fraction of the squared bounding-box diagonal
-#: are degenerate (zero area).
-_DEGENERATE_AREA_REL = 1e-14
-#: A mesh whose |volume| is below this fraction of the cubed diagonal is flat.
-_FLAT_VOLUME_REL = 1e-12
 #: Query points closer to the surface than this fraction of the bounding radius
 #: are on the surface: their gradient is the feature's unit pseudo-normal.
 _ON_SURFACE_REL = 1e-12
-
-# Voronoi regions of a triangle ABC returned by the closest-point routines.
-_VA, _VB, _VC, _EAB, _EAC, _EBC, _FACE = range(7)
-
-
-def _closest_on_triangle(
-    px: float, py: float, pz: float, tri: list[list[float]]
-) -> tuple[float, float, float, float, float, int]:
-    """Closest point of triangle ``tri = [A, B, C]`` to ``p`` (scalar Ericson).
-
-    Returns:
-        ``(qx, qy, qz, u, v, region)`` with ``q = A + u (B - A) + v (C - A)``.
-
-    """
-    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = tri
-    abx, aby, abz = bx - ax, by - ay, bz - az
-    acx, acy, acz = cx - ax, cy - ay, cz - az
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        return ax, ay, az, 0.0, 0.0, _VA
-    bpx, bpy, bpz = px - bx, py - by, pz - bz
-    d3 = abx * bpx + aby * bpy + abz * bpz
-    d4 = acx * bpx + acy * bpy + acz * bpz
-    if d3 >= 0.0 and d4 <= d3:
-        return bx, by, bz, 1.0, 0.0, _VB
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        w = d1 / (d1 - d3)
-        return ax + w * abx, ay + w * aby, az + w * abz, w, 0.0, _EAB
-    cpx, cpy, cpz = px - cx, py - cy, pz - cz
-    d5 = abx * cpx + aby * cpy + abz * cpz
-    d6 = acx * cpx + acy * cpy + acz * cpz
-    if d6 >= 0.0 and d5 <= d6:
-        return cx, cy, cz, 0.0, 1.0, _VC
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return ax + w * acx, ay + w * acy, az + w * acz, 0.0, w, _EAC
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz), 1.0 - w, w, _EBC
-    den = 1.0 / (va + vb + vc)
-    u = vb * den
-    v = vc * den
-    return (
-        ax + u * abx + v * acx,
-        ay + u * aby + v * acy,
-        az + u * abz + v * acz,
-        u,
-        v,
-        _FACE,
-    )
-
-
-def _closest_on_triangles(
-    p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
-    """Vectorized :func:`_closest_on_triangle`: point ``p[i]`` against triangle ``i``.
-
-    Args:
-        p: (N, 3) points.
-        a: (N, 3) first corners.
-        b: (N, 3) second corners.
-        c: (N, 3) third corners.
-
-    Returns:
-        ``(q (N, 3), u (N,), v (N,), region (N,))``.
-
-    """
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    bp = p - b
-    cp = p - c
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        den = va + vb + vc
-        u = vb / den
-        v = vc / den
-        region = np.full(len(p), _FACE)
-        # Assign from the lowest-priority region to the highest (Ericson's test
-        # order reversed) so that the first region that holds wins.
-        m = (va <= 0.0) & (d4 - d3 >= 0.0) & (d5 - d6 >= 0.0)
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        u[m], v[m], region[m] = 1.0 - w[m], w[m], _EBC
-        m = (vb <= 0.0) & (d2 >= 0.0) & (d6 <= 0.0)
-        w = d2 / (d2 - d6)
-        u[m], v[m], region[m] = 0.0, w[m], _EAC
-        m = (d6 >= 0.0) & (d5 <= d6)
-        u[m], v[m], region[m] = 0.0, 1.0, _VC
-        m = (vc <= 0.0) & (d1 >= 0.0) & (d3 <= 0.0)
-        w = d1 / (d1 - d3)
-        u[m], v[m], region[m] = w[m], 0.0, _EAB
-        m = (d3 >= 0.0) & (d4 <= d3)
-        u[m], v[m], region[m] = 1.0, 0.0, _VB
-        m = (d1 <= 0.0) & (d2 <= 0.0)
-        u[m], v[m], region[m] = 0.0, 0.0, _VA
-    q = a + u[:, None] * ab + v[:, None] * ac
-    # exact corners (the formula above can be off by one ulp there)
-    q[region == _VB] = b[region == _VB]
-    q[region == _VC] = c[region == _VC]
-    return q, u, v, region
 
 
 class Mesh(Shape):
@@ -190,14 +85,14 @@ class Mesh(Shape):
 
     """
 
-    kind = "mesh"
+    kind = ShapeKind.MESH
 
     def __init__(self, vertices: object, faces: object) -> None:
         v = np.ascontiguousarray(as_points(vertices, "vertices"))
-        f = _face_indices(faces, len(v))
+        f = face_indices(faces, len(v))
         used = v[np.unique(f)]
         diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
-        f, tris, cross, area2, vol = _closed_surface(v, f, diag)
+        f, tris, cross, area2, vol = closed_surface(v, f, diag)
 
         self._v = v
         self._f = f
@@ -207,7 +102,7 @@ class Mesh(Shape):
         self._area = float(self._areas.sum())
         self._volume = vol
         self._cdf = np.cumsum(self._areas)
-        self._vpn, self._fepn = _pseudo_normals(v, f, self._tris, self._fn)
+        self._vpn, self._fepn = pseudo_normals(v, f, self._tris, self._fn)
         self._radius = float(np.sqrt(np.einsum("ij,ij->i", used, used)).max())
         self._eps = _ON_SURFACE_REL * max(self._radius, diag)
         for arr in (self._v, self._f, self._tris, self._fn, self._areas):
@@ -386,20 +281,20 @@ class Mesh(Shape):
     def _feature_normals(self, tri: IntArray, region: IntArray) -> FloatArray:
         """(N, 3) unit pseudo-normals of the features (vertex, edge, face) found."""
         pn = self._fn[tri].copy()
-        for r in (_VA, _VB, _VC):
+        for r in (VA, VB, VC):
             m = region == r
             pn[m] = self._vpn[self._f[tri[m], r]]
-        for r, k in ((_EAB, 0), (_EBC, 1), (_EAC, 2)):
+        for r, k in ((EAB, 0), (EBC, 1), (EAC, 2)):
             m = region == r
             pn[m] = self._fepn[tri[m], k]
         return pn
 
     def _feature_normal(self, tri: int, region: int) -> list[float]:
-        if region == _FACE:
+        if region == FACE:
             return self._fn[tri].tolist()
-        if region <= _VC:
+        if region <= VC:
             return self._vpn[self._f[tri, region]].tolist()
-        k = 0 if region == _EAB else (1 if region == _EBC else 2)
+        k = 0 if region == EAB else (1 if region == EBC else 2)
         return self._fepn[tri, k].tolist()
 
     def _query_batch(
@@ -408,12 +303,12 @@ class Mesh(Shape):
         """Signed distance, gradient, closest point, triangle and (u, v) of (N, 3) points."""
         tri = self._nearest_triangles(p)
         t = self._tris[tri]
-        q, u, v, region = _closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
+        q, u, v, region = closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
         diff = p - q
         dist = np.sqrt(np.einsum("ij,ij->i", diff, diff))
         pn = self._feature_normals(tri, region)
         sign = np.where(np.einsum("ij,ij->i", diff, pn) >= 0.0, 1.0, -1.0)
-        on_face = region == _FACE
+        on_face = region == FACE
         off = (dist > self._eps) & ~on_face
         g = pn  # faces and on-surface edge/vertex points: the pseudo-normal
         g[off] = sign[off, None] * diff[off] / dist[off, None]
@@ -435,11 +330,11 @@ class Mesh(Shape):
     ) -> tuple[float, float, float, float, float, float, float, int, float, float]:
         """Scalar fast path: ``(d, gx, gy, gz, qx, qy, qz, tri, u, v)`` of one point."""
         t = self._nearest_triangle(np.array((x, y, z)))
-        qx, qy, qz, u, v, region = _closest_on_triangle(x, y, z, self._tris[t].tolist())
+        qx, qy, qz, u, v, region = closest_on_triangle(x, y, z, self._tris[t].tolist())
         nx, ny, nz = self._feature_normal(t, region)
         dx, dy, dz = x - qx, y - qy, z - qz
         s = dx * nx + dy * ny + dz * nz
-        if region == _FACE:
+        if region == FACE:
             return s, nx, ny, nz, qx, qy, qz, t, u, v
         dist = math.sqrt(dx * dx + dy * dy + dz * dz)
         sign = 1.0 if s >= 0.0 else -1.0
@@ -475,7 +370,7 @@ class Mesh(Shape):
             InvalidInputError: wrong shape or a non-finite coordinate.
 
         """
-        single = np.ndim(points) == 1
+        single = np.ndim(cast("npt.ArrayLike", points)) == 1
         p = as_points(points, "points")
         if len(p) <= SCALAR_LOOP_MAX:
             rows = [self._query_xyz(x, y, z)[7:] for x, y, z in p.tolist()]
@@ -487,7 +382,7 @@ class Mesh(Shape):
             return tri, u, v
         tri = self._nearest_triangles(p)
         t = self._tris[tri]
-        _, u, v, _ = _closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
+        _, u, v, _ = closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
         return tri, u, v
 
     def contact_points(self, tri: object, u: object, v: object) -> FloatArray:
@@ -586,119 +481,3 @@ class Mesh(Shape):
         t = self._tris[tri]
         p = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
         return p, self._fn[tri]
-
-
-def _face_indices(faces: object, n_vertices: int) -> IntArray:
-    """(F, 3) int64 face indices, checked for shape, type, count and range.
-
-    Raises:
-        InvalidInputError: not an (F, 3) integer array, or indices out of range.
-        MeshError: fewer than 4 faces.
-    """
-    try:
-        f_raw = np.asarray(faces)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"faces must be an (F, 3) integer array: {exc}") from exc
-    if f_raw.ndim != 2 or f_raw.shape[1] != 3:
-        raise InvalidInputError(f"faces must have shape (F, 3), got shape {f_raw.shape}")
-    if f_raw.size and not np.issubdtype(f_raw.dtype, np.integer):
-        raise InvalidInputError(f"faces must be integers, got dtype {f_raw.dtype}")
-    f = np.ascontiguousarray(f_raw, dtype=np.int64)
-    if len(f) < 4:
-        raise MeshError(f"a closed mesh needs at least 4 faces, got {len(f)}")
-    if f.min() < 0 or f.max() >= n_vertices:
-        raise InvalidInputError(
-            f"faces index vertices 0..{n_vertices - 1}, got indices in [{f.min()}, {f.max()}]"
-        )
-    return f
-
-
-def _closed_surface(
-    v: FloatArray, f: IntArray, diag: float
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, float]:
-    """Check that the faces bound a solid and wind them outwards.
-
-    Args:
-        v: (V, 3) vertices, object frame (m).
-        f: (F, 3) face indices.
-        diag: bounding-box diagonal of the used vertices (m), the size the
-            degeneracy tolerances are relative to.
-
-    Returns:
-        ``(f, tris, cross, area2, volume)``: the faces wound counter-clockwise
-        seen from outside, (F, 3, 3) triangles, (F, 3) edge cross products
-        (outward, twice the area), (F,) their norms, the enclosed volume (> 0).
-
-    Raises:
-        MeshError: a zero-area face, an open or non-manifold edge, inconsistent
-            winding, or zero volume.
-    """
-    tris = v[f]
-    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    area2 = np.sqrt(np.einsum("ij,ij->i", cross, cross))
-    bad = np.flatnonzero(area2 / 2.0 <= _DEGENERATE_AREA_REL * diag * diag)
-    if len(bad):
-        raise MeshError(
-            f"mesh has {len(bad)} degenerate (zero-area) faces, e.g. face {bad[0]} "
-            f"with vertices {f[bad[0]].tolist()}"
-        )
-    _check_closed(f, len(v))
-    vol = float(np.einsum("ij,ij->i", tris[:, 0], cross).sum()) / 6.0
-    if abs(vol) <= _FLAT_VOLUME_REL * diag**3:
-        raise MeshError(f"mesh encloses zero volume ({vol!r} m^3)")
-    if vol < 0.0:  # inward-facing: flip every face
-        f = np.ascontiguousarray(f[:, [0, 2, 1]])
-        tris = v[f]
-        cross = -cross
-        vol = -vol
-    return f, tris, cross, area2, vol
-
-
-def _check_closed(f: IntArray, nv: int) -> None:
-    """Raise MeshError unless every edge is shared by exactly two oppositely wound faces."""
-    a = f.reshape(-1)
-    b = f[:, [1, 2, 0]].reshape(-1)
-    directed = a * nv + b
-    uniq, counts = np.unique(directed, return_counts=True)
-    if np.any(counts > 1):
-        code = int(uniq[np.argmax(counts > 1)])
-        raise MeshError(
-            f"mesh is non-manifold or inconsistently oriented: directed edge "
-            f"{code // nv}->{code % nv} is used by {int(counts.max())} faces"
-        )
-    reverse = b * nv + a
-    missing = ~np.isin(reverse, uniq, assume_unique=False)
-    if np.any(missing):
-        i = int(np.flatnonzero(missing)[0])
-        raise MeshError(
-            f"mesh is not watertight: {int(missing.sum())} edges belong to one face only, "
-            f"e.g. edge {int(a[i])}-{int(b[i])} of face {i // 3}"
-        )
-
-
-def _pseudo_normals(
-    v: FloatArray, f: IntArray, tris: FloatArray, fn: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Compute unit vertex pseudo-normals (V, 3, angle-weighted) and edge ones (F, 3, 3).
-
-    Edge ``k`` of face ``i`` joins corners ``k`` and ``(k + 1) % 3``; its
-    pseudo-normal is the normalized sum of the two adjacent face normals.
-    """
-    vpn = np.zeros_like(v)
-    for k in range(3):
-        e1 = tris[:, (k + 1) % 3] - tris[:, k]
-        e2 = tris[:, (k + 2) % 3] - tris[:, k]
-        cos = np.einsum("ij,ij->i", e1, e2)
-        sin = np.linalg.norm(np.cross(e1, e2), axis=1)
-        np.add.at(vpn, f[:, k], np.arctan2(sin, cos)[:, None] * fn)
-    vpn = normalize_rows(vpn, (0.0, 0.0, 1.0))
-
-    nv = len(v)
-    a = f.reshape(-1)
-    b = f[:, [1, 2, 0]].reshape(-1)
-    key = np.minimum(a, b) * nv + np.maximum(a, b)
-    _, inv = np.unique(key, return_inverse=True)
-    esum = np.zeros((int(inv.max()) + 1, 3))
-    np.add.at(esum, inv, np.repeat(fn, 3, axis=0))
-    epn = normalize_rows(esum, (0.0, 0.0, 1.0))[inv].reshape(len(f), 3, 3)
-    return vpn, np.ascontiguousarray(epn)

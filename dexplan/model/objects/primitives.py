@@ -18,7 +18,7 @@ import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_positive, as_vector
-from dexplan.model.objects.shape import Shape, check_sample_args, normalize_rows
+from dexplan.model.objects.shape import Shape, ShapeKind, check_sample_args, normalize_rows
 
 #: Gradient chosen on the medial axis of capsules and cylinders (the z axis).
 _AXIS_FALLBACK = (1.0, 0.0, 0.0)
@@ -45,7 +45,7 @@ class Sphere(Shape):
 
     """
 
-    kind = "sphere"
+    kind = ShapeKind.SPHERE
 
     def __init__(self, radius: float) -> None:
         self._radius = as_positive(radius, "radius")
@@ -122,7 +122,7 @@ class Box(Shape):
 
     """
 
-    kind = "box"
+    kind = ShapeKind.BOX
 
     def __init__(self, size: object) -> None:
         s = as_vector(size, "size", 3)
@@ -286,8 +286,8 @@ class _AxialShape(Shape):
     def __eq__(self, other: object) -> bool:
         return (
             type(other) is type(self)
-            and other._radius == self._radius  # type: ignore[attr-defined]
-            and other._length == self._length  # type: ignore[attr-defined]
+            and other._radius == self._radius
+            and other._length == self._length
         )
 
     __hash__ = None  # type: ignore[assignment]
@@ -310,7 +310,7 @@ class Capsule(_AxialShape):
 
     """
 
-    kind = "capsule"
+    kind = ShapeKind.CAPSULE
 
     def _sdf_grad_xyz(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
         a = self._a
@@ -393,7 +393,7 @@ class Cylinder(_AxialShape):
 
     """
 
-    kind = "cylinder"
+    kind = ShapeKind.CYLINDER
 
     def _sdf_grad_xyz(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
         rho = math.sqrt(x * x + y * y)

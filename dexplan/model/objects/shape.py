@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_points
@@ -61,7 +63,7 @@ def query_points(p_obj: object) -> tuple[FloatArray, bool]:
         InvalidInputError: wrong shape or a non-finite coordinate.
 
     """
-    single = np.ndim(p_obj) == 1
+    single = np.ndim(cast("npt.ArrayLike", p_obj)) == 1
     return as_points(p_obj, "p_obj"), single
 
 
@@ -95,6 +97,16 @@ def normalize_rows(v: FloatArray, fallback: tuple[float, float, float]) -> Float
     return out
 
 
+class ShapeKind(StrEnum):
+    """Shape names of the ``shape`` field (members equal their strings, as files hold them)."""
+
+    SPHERE = "sphere"
+    BOX = "box"
+    CAPSULE = "capsule"
+    CYLINDER = "cylinder"
+    MESH = "mesh"
+
+
 class Shape(ABC):
     """A rigid closed object described in its own frame (the object frame).
 
@@ -102,8 +114,9 @@ class Shape(ABC):
     ``_sample``, and usually the scalar fast path ``_sdf_grad_xyz``.
     """
 
-    #: Name of the shape in scenario and plan files (``{"shape": kind, ...}``).
-    kind: str = ""
+    #: Name of the shape in scenario and plan files (``{"shape": kind, ...}``);
+    #: every concrete shape sets its own.
+    kind: ShapeKind
 
     # ----------------------------------------------------------- subclass hooks
     @abstractmethod
