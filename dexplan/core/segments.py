@@ -9,6 +9,7 @@ file (``dexplan.planfile.document``) serialises them.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -59,7 +60,7 @@ class Segment:
         return self.waypoints[-1]
 
 
-def count_kinds(segments: list[Segment] | tuple[Segment, ...]) -> dict[str, int]:
+def count_kinds(segments: Sequence[Segment]) -> dict[str, int]:
     """Number of transfer and regrasp segments."""
     return {
         "transfers": sum(s.kind == "transfer" for s in segments),
@@ -67,7 +68,7 @@ def count_kinds(segments: list[Segment] | tuple[Segment, ...]) -> dict[str, int]
     }
 
 
-def joint_travel(segments: list[Segment] | tuple[Segment, ...]) -> float:
+def joint_travel(segments: Sequence[Segment]) -> float:
     """Total hand joint travel over the plan: ``sum |q_{k+1} - q_k|_1`` (rad; m for prismatic)."""
     total = 0.0
     for s in segments:
@@ -76,7 +77,7 @@ def joint_travel(segments: list[Segment] | tuple[Segment, ...]) -> float:
     return total
 
 
-def object_path_length(segments: list[Segment] | tuple[Segment, ...]) -> tuple[float, float]:
+def object_path_length(segments: Sequence[Segment]) -> tuple[float, float]:
     """Total object translation (m) and rotation (rad) over the transfers."""
     trans, rot = 0.0, 0.0
     for s in segments:

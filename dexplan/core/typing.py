@@ -64,7 +64,7 @@ def as_positive(value: object, name: str, *, allow_zero: bool = False) -> float:
         InvalidInputError: not a number, not finite, or out of range.
     """
     try:
-        x = float(value)  # type: ignore[arg-type]
+        x = float(value)  # type: ignore[arg-type]  # any object: float() raises on the wrong ones
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{name} must be a number, got {shorten(value)}") from exc
     if not math.isfinite(x) or x < 0.0 or (x == 0.0 and not allow_zero):

@@ -108,7 +108,7 @@ def _plan_summary_markdown(
 ) -> str:
     """The plan's summary: segments, waypoints, friction and its stats, in Markdown."""
     stats = doc.get("stats") or {}
-    kinds = count_kinds(tuple(segments))
+    kinds = count_kinds(segments)
     n_tr, n_rg = kinds["transfers"], kinds["regrasps"]
     lines = [
         f"## Plan {doc.get('scenario', '')}".rstrip(),
