@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from dexplan.model.scenario.scenario import default_scenario, load_scenario
+from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 
 

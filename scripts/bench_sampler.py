@@ -29,7 +29,7 @@ import statistics
 import time
 from pathlib import Path
 
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.context import build_context
 
 DEFAULT = ("dexplan/data/scenarios/paper_sphere.toml", "dexplan/data/scenarios/allegro_sphere.toml")

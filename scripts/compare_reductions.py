@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 from dexplan.planning.planner import REDUCTIONS, plan
 
 

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 from dexplan.model.objects.geodesic import surface_geodesics
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.planner import plan
 from dexplan.planning.roadmap.queries import query_problem

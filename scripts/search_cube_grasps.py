@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM
 

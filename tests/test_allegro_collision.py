@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from dexplan.model.scenario.scenario import parse_scenario
+from dexplan.model.scenario import parse_scenario
 from dexplan.planning.context import build_context
 
 # the index distal link (box) 2 mm inside a 5 cm cube: coal without contacts

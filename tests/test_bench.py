@@ -31,7 +31,7 @@ from dexplan.bench import (
 )
 from dexplan.bench.records import empty_record, set_status
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
-from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 OMPL_STATS = None

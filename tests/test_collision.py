@@ -105,7 +105,7 @@ def test_pair_subset_answers_as_its_pairs_one_by_one() -> None:
     import pinocchio as pin
 
     from dexplan.model.collision import pose_to_se3
-    from dexplan.model.scenario.scenario import load_scenario
+    from dexplan.model.scenario import load_scenario
     from dexplan.planning.context import build_context
 
     ctx = build_context(load_scenario("dexplan/data/scenarios/allegro_sphere.toml"), seed=1)

@@ -37,7 +37,7 @@ from dexplan.model.grasp import (
     min_subgrasp_quality,
     soft_finger_facets,
 )
-from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, load_scenario
 from dexplan.planfile import build_plan_document, read_plan, verify_plan, write_plan
 from dexplan.planfile.schema import validate_plan
 from dexplan.planning.context import build_context, build_hand

@@ -11,7 +11,7 @@ import pytest
 from dexplan.core.errors import InvalidInputError
 from dexplan.model.objects import Mesh, Sphere
 from dexplan.model.objects.geodesic import surface_geodesics
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
@@ -166,7 +166,7 @@ def test_failed_first_interpolation_is_undone(egg, egg_edge) -> None:
 
 
 def test_geodesic_retry_skipped_on_primitives() -> None:
-    from dexplan.model.scenario.scenario import default_scenario
+    from dexplan.model.scenario import default_scenario
 
     scenario = default_scenario()
     ctx = build_context(scenario, seed=1)

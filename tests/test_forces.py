@@ -157,7 +157,7 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
     """
     from dexplan.cli import main as cli
     from dexplan.model.objects.fingertip import fingertip_contact
-    from dexplan.model.scenario.scenario import builtin_scenario_path
+    from dexplan.model.scenario import builtin_scenario_path
     from dexplan.planfile import models_from_document
 
     path = tmp_path / "plan.json"

@@ -12,8 +12,8 @@ import pytest
 
 import dexplan
 from dexplan.api import RoadmapPlanner
+from dexplan.model.scenario import GoalSpec, load_scenario
 from dexplan.model.scenario.goals import load_goals, parse_goals, random_goals
-from dexplan.model.scenario.scenario import GoalSpec, load_scenario
 from dexplan.planning.roadmap.file import read_roadmap_arrays
 from dexplan.planning.roadmap.learning import BuildSettings
 from tests.cli_contract import assert_bad_input, run_cli

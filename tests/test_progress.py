@@ -6,7 +6,7 @@ import json
 
 from dexplan import bench
 from dexplan.api import plan
-from dexplan.model.scenario.scenario import default_scenario
+from dexplan.model.scenario import default_scenario
 from dexplan.planning.progress import PlanStatus, ProgressEvent, Stage
 
 

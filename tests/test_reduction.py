@@ -8,7 +8,7 @@ import pytest
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import inverse_transform_points, quat_angle
-from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dexplan.core.errors import ScenarioError
-from dexplan.model.scenario.scenario import builtin_scenario_path, default_scenario, load_scenario
+from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 
 GOOD = """
 name = "t"
@@ -92,7 +92,7 @@ def test_missing_and_malformed_files(tmp_path: Path) -> None:
 
 
 def test_one_identity_ignores_cosmetic_fields_and_models_only_the_query(tmp_path):
-    from dexplan.model.scenario.scenario import builtin_scenario_path, load_scenario, scenario_hash
+    from dexplan.model.scenario import builtin_scenario_path, load_scenario, scenario_hash
 
     text = builtin_scenario_path().read_text()
     base = load_scenario(builtin_scenario_path())

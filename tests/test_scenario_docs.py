@@ -10,7 +10,7 @@ import pytest
 from dexplan.model.grasp import CONTACT_MODELS
 from dexplan.model.hand.builtin import BUILTIN_HANDS
 from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS
-from dexplan.model.scenario.scenario import OBSTACLE_OWN_FIELDS, SCENARIO_FIELDS, SPACES
+from dexplan.model.scenario import OBSTACLE_OWN_FIELDS, SCENARIO_FIELDS, SPACES
 from dexplan.planning.ompl import available_planners
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "scenario.md"

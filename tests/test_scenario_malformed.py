@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from dexplan.core.errors import ScenarioError
 from dexplan.model.grasp import MAX_FRICTION_EDGES, MIN_FRICTION_EDGES
 from dexplan.model.objects import SHAPE_KINDS
-from dexplan.model.scenario.scenario import (
+from dexplan.model.scenario import (
     MAX_HALF_EXTENT,
     MAX_JOINTS,
     MAX_POSITION,

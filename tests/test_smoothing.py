@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from dexplan.model.scenario.scenario import default_scenario
+from dexplan.model.scenario import default_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.local.reduction import grasp_from_state
 from dexplan.planning.local.smoothing import merge_regrasps

@@ -18,7 +18,7 @@ from dexplan.bench.tasks import (
 from dexplan.core.errors import ScenarioError
 from dexplan.core.pose import quat_angle
 from dexplan.model.objects import Mesh, shape_from_dict
-from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario import load_scenario
 from dexplan.planning.ompl import available_planners
 
 SUITE = Path(__file__).resolve().parents[1] / "dexplan" / "data" / "scenarios" / "suite"

@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 
 from dexplan.core.segments import Segment
-from dexplan.model.scenario.scenario import default_scenario
+from dexplan.model.scenario import default_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.local.reduction import grasp_from_state
 from dexplan.planning.local.smoothing import drop_regrasps
@@ -190,7 +190,7 @@ def test_free_finger_checks_agree_with_the_full_check() -> None:
     configuration where another finger moves too, or another mask, falls back
     to the full check.
     """
-    from dexplan.model.scenario.scenario import load_scenario
+    from dexplan.model.scenario import load_scenario
 
     for path, fingers in (
         ("scenarios/paper_sphere.toml", (0, 2)),

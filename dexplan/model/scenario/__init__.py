@@ -1,6 +1,57 @@
-"""Scenario files: the hand, object, obstacles, start, goal and planner; goal lists."""
+"""Scenario files: the hand, object, obstacles, start, goal and planner; goal lists.
+
+Modules: :mod:`.spec` (the dataclasses, the fields each table accepts, the
+limits), :mod:`.fields` (the field checks), :mod:`.scenario` (the scenario
+file parser), :mod:`.identity` (what a scenario plans, and its hash),
+:mod:`.goals` (goal lists for multi-query runs).
+"""
+
+from dexplan.model.scenario.identity import COSMETIC_FIELDS, scenario_description, scenario_hash
+from dexplan.model.scenario.scenario import (
+    builtin_scenario_path,
+    default_scenario,
+    load_scenario,
+    parse_scenario,
+)
+from dexplan.model.scenario.spec import (
+    DEFAULT_SCENARIO,
+    MAX_HALF_EXTENT,
+    MAX_JOINTS,
+    MAX_POSITION,
+    MAX_SCENARIO_BYTES,
+    MAX_TIME_LIMIT,
+    OBSTACLE_OWN_FIELDS,
+    SCENARIO_FIELDS,
+    SEED_LIMIT,
+    SPACES,
+    GoalSpec,
+    HandSpec,
+    PlannerSpec,
+    Scenario,
+    StartSpec,
+)
 
 __all__ = [
-    "goals",
-    "scenario",
+    "COSMETIC_FIELDS",
+    "DEFAULT_SCENARIO",
+    "MAX_HALF_EXTENT",
+    "MAX_JOINTS",
+    "MAX_POSITION",
+    "MAX_SCENARIO_BYTES",
+    "MAX_TIME_LIMIT",
+    "OBSTACLE_OWN_FIELDS",
+    "SCENARIO_FIELDS",
+    "SEED_LIMIT",
+    "SPACES",
+    "GoalSpec",
+    "HandSpec",
+    "PlannerSpec",
+    "Scenario",
+    "StartSpec",
+    "builtin_scenario_path",
+    "default_scenario",
+    "load_scenario",
+    "parse_scenario",
+    "scenario_description",
+    "scenario_hash",
 ]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Callable
+from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -22,15 +23,8 @@ import numpy as np
 from dexplan.core.errors import InvalidInputError, ScenarioError, one_line, shorten
 from dexplan.core.pose import random_quaternion
 from dexplan.core.typing import FloatArray
-from dexplan.model.scenario.scenario import (
-    MAX_ANGLE_TOL,
-    MAX_POSITION_TOL,
-    GoalSpec,
-    Scenario,
-    _number,
-    _only,
-    _pose,
-)
+from dexplan.model.scenario.fields import check_only, number, pose
+from dexplan.model.scenario.spec import MAX_ANGLE_TOL, MAX_POSITION_TOL, GoalSpec, Scenario
 
 MAX_GOALS = 100_000
 """Most goals one run answers."""
@@ -40,9 +34,20 @@ MAX_GOALS_BYTES = 16_000_000
 
 GOAL_FIELDS = frozenset({"object_pose_xyzquat", "position_tol", "angle_tol"})
 
-GOAL_KINDS = ("orientation", "pose")
-"""Random goals: uniform orientations at the start position, or also a uniform
-position in the ``[workspace]`` box around it."""
+
+class GoalKind(StrEnum):
+    """What random goals vary (members equal their strings).
+
+    ``ORIENTATION``: uniform orientations at the start position; ``POSE``: also
+    a uniform position in the ``[workspace]`` box around it.
+    """
+
+    ORIENTATION = "orientation"
+    POSE = "pose"
+
+
+GOAL_KINDS: tuple[GoalKind, ...] = tuple(GoalKind)
+"""Values of :func:`random_goals`' ``kind``."""
 
 
 def parse_goals(doc: object, default: GoalSpec) -> list[GoalSpec]:
@@ -61,16 +66,16 @@ def parse_goals(doc: object, default: GoalSpec) -> list[GoalSpec]:
         raise ScenarioError(f"goals must be a non-empty array of tables, got {shorten(goals)}")
     if len(goals) > MAX_GOALS:
         raise ScenarioError(f"goals has {len(goals)} entries, at most {MAX_GOALS}")
-    out = []
+    out: list[GoalSpec] = []
     for i, g in enumerate(goals):
         where = f"goals[{i}]"
         if not isinstance(g, dict):
             raise ScenarioError(f"{where} must be a table, got {shorten(g)}")
-        _only(g, where, GOAL_FIELDS)
+        check_only(g, where, GOAL_FIELDS)
         out.append(
             GoalSpec(
-                _pose(g, "object_pose_xyzquat", where),
-                _number(
+                pose(g, "object_pose_xyzquat", where),
+                number(
                     g,
                     "position_tol",
                     where,
@@ -79,7 +84,7 @@ def parse_goals(doc: object, default: GoalSpec) -> list[GoalSpec]:
                     lo_open=True,
                     hi=MAX_POSITION_TOL,
                 ),
-                _number(
+                number(
                     g, "angle_tol", where, default.angle_tol, lo=0.0, lo_open=True, hi=MAX_ANGLE_TOL
                 ),
             )
@@ -124,7 +129,7 @@ def random_goals(
     scenario: Scenario,
     count: int,
     seed: int,
-    kind: str = "orientation",
+    kind: GoalKind | str = GoalKind.ORIENTATION,
     accept: Callable[[FloatArray], bool] | None = None,
 ) -> list[GoalSpec]:
     """``count`` random goals (uniform orientations; with ``pose``, positions too).
@@ -152,10 +157,10 @@ def random_goals(
     rng = np.random.default_rng([seed, 7])
     centre = scenario.start.object_pose_xyzquat[:3]
     half = np.asarray(scenario.workspace_half_extent, dtype=float)
-    out = []
+    out: list[GoalSpec] = []
     while len(out) < count:
         for _ in range(1000):
-            pos = centre + rng.uniform(-half, half) if kind == "pose" else centre.copy()
+            pos = centre + rng.uniform(-half, half) if kind == GoalKind.POSE else centre.copy()
             quat = random_quaternion(rng)
             if accept is None or accept(np.concatenate([pos, quat])):
                 break
