@@ -132,9 +132,10 @@ def grip_forces(
     finger go only where the others hold the object within the hand's
     effort limits (:meth:`Transitions.can_release`).
     """
+    g = scenario.gravity
     settings = ForceSettings(
         mass=DEFAULT_MASS if scenario.object_mass is None else scenario.object_mass,
-        gravity=DEFAULT_GRAVITY if scenario.gravity is None else tuple(scenario.gravity),
+        gravity=DEFAULT_GRAVITY if g is None else (float(g[0]), float(g[1]), float(g[2])),
     )
     return GripForceSolver(
         hand, obj, vset.mu, vset.friction_edges, vset.contact_model, vset.torsion, settings

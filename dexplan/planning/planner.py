@@ -62,9 +62,9 @@ REDUCTIONS = tuple(Reduction)
 EXPLORE_AGAIN = 3
 """Module-1 explorations run again (fresh OMPL seeds) when every reduction of
 a GSn path fails before the deadline: the reductions give up early only when
-the object's own trajectory collides (cube_post seed 20: the slerp between
-two GSn states clips the post, a failure after 1.1 s of 60 s), and another
-GSn path usually goes around."""
+the object's own trajectory collides (the slerp between two GSn states
+clips an obstacle, a failure long before the deadline), and another GSn
+path usually goes around."""
 
 VERIFY_RESERVE = 0.05
 """Fraction of the time limit kept for the final verification: the search
@@ -130,8 +130,7 @@ def _reduction_schedule(reduction: str, hopeless: set[str]) -> Iterator[tuple[st
     stops at the deadline) and some trajectory is not ``hopeless`` (the
     object itself collides along it): an attempt ends early when it stalls
     (``ReductionSettings.max_stall``, ``max_blind``), and on boxes a fresh
-    one often goes through (box_tilt90 seed 4: the second attempt, after a
-    first that stalled at one step).
+    one often goes through where the first stalled.
     """
     if reduction == "edges":
         yield "edges", "gsn"
@@ -165,12 +164,11 @@ def _onto_gsn(ctx: PlanningContext, x: FloatArray, tol: float = 1e-9) -> FloatAr
 #: Valid start grasps the planner samples to choose the one it starts from
 #: (1: the first, as the paper). The first is kept unless another one follows
 #: the object's straight move to the goal all the way (a plan without
-#: regrasps, where the first needs them): choosing the best-following of 8
-#: whatever their follow took box_tilt90 from a median 8.5 regrasps to 0
-#: (seeds 1-20), but on paper_sphere (which no grasp turns 180 degrees) its
-#: long partial transfers let the fingertips roll further from the planned
-#: contacts: the MuJoCo replay of seeds 11-20 kept 4/10 plans (no gravity)
-#: against 10/10 from the first grasp (docs/trajectory_format.md).
+#: regrasps, where the first needs them). Choosing the best-following grasp
+#: whatever its follow removes most regrasps on boxes, but on a sphere that
+#: no grasp turns all the way its long partial transfers let the fingertips
+#: roll further from the planned contacts, and the physics replay then
+#: loses plans that replay from the first grasp.
 START_CANDIDATES = 8
 
 
@@ -188,13 +186,13 @@ def start_state(
     (:func:`~dexplan.planning.local.reduction.grasp_follow`, IK-only: every finger
     reaches its contact at every pose within the joint margin): then the
     first of those. Every finger a transfer cannot follow costs a regrasp;
-    on box_tilt90 some start grasps turn the box with none and others need
-    9-17. The extra grasps come from their own stream, so a query whose
+    on a box some start grasps turn it with none and others need a dozen.
+    The extra grasps come from their own stream, so a query whose
     first grasp is kept samples and plans exactly as with ``candidates=1``.
     Hands with redundant fingers (the Allegro's 4 joints) take the first
     grasp: the IK-only follow says little about how a redundant finger's
-    posture and links will fare (allegro_sphere's seeds 7 and 8 failed from
-    the best-scored of 8 grasps where they plan from the first).
+    posture and links will fare (queries failed from the best-scored grasp
+    that plan from the first).
 
     Args:
         ctx: the planning context.

@@ -23,8 +23,8 @@ Binding facts (ompl 2.0.1 PyPI wheel, nanobind):
 - No binding releases the GIL. ``PRM.solve`` runs a solution-checking thread; when
   that thread calls Python (a Python goal, a Python termination condition, or goal
   milestones added while it holds PRM's graph mutex) while the main thread waits
-  for that mutex or joins it, the process deadlocks (measured: ``GoalStates`` with
-  5 states hung 3/3 runs). The adapter therefore gives the PRM family exactly one
+  for that mutex or joins it, the process deadlocks (a ``GoalStates`` goal of
+  several states does). The adapter therefore gives the PRM family exactly one
   C++ ``ob.GoalStates`` goal (sampled in Python beforehand) and a C++
   ``timedPlannerTerminationCondition``; the checker thread then never enters
   Python. Roadmap growth without a query

@@ -24,7 +24,7 @@ the fallback joined are densified along its recorded states
 built in another process, or loaded) is joined again, the fallback being a
 function of its two states.
 
-Binding facts (ompl 2.0.1 wheel, nanobind; measured, docs/meshes.md): the
+Binding facts (ompl 2.0.1 wheel, nanobind): the
 wheel calls a Python ``ob.MotionValidator`` given to ``si.setMotionValidator``
 (PRM's ``growRoadmap`` 145 times in 3 s on the egg, single-threaded); its
 trampoline answers the 3-argument ``checkMotion(s1, s2, last_valid)`` with

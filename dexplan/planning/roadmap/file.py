@@ -17,8 +17,10 @@ import zipfile
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.lib import format as npy
 
 from dexplan.core.errors import RoadmapFileError, shorten, unknown_field
 from dexplan.core.typing import FloatArray
@@ -63,8 +65,6 @@ def _read_headers(path: Path, where: str) -> tuple[_Headers, dict[str, tuple[int
     Returns:
         ``{name: (shape, dtype)}`` and ``{name: (header bytes, member bytes)}``.
     """
-    from numpy.lib import format as npy
-
     out: _Headers = {}
     sizes: dict[str, tuple[int, int]] = {}
     try:
@@ -161,7 +161,7 @@ def _check_headers(headers: _Headers, where: str, ambient_dim: int | None) -> No
         )
 
 
-def _check_meta(text: str, where: str) -> dict[str, str]:
+def _check_meta(text: str, where: str) -> dict[str, Any]:
     try:
         meta = json.loads(text)
     except (ValueError, RecursionError) as exc:
@@ -225,7 +225,7 @@ def _check_indices(arr: np.ndarray, name: str, n: int, where: str) -> np.ndarray
 
 def read_roadmap_arrays(
     path: str | Path, *, ambient_dim: int | None = None
-) -> tuple[FloatArray, np.ndarray, np.ndarray, dict[str, str]]:
+) -> tuple[FloatArray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Read a roadmap file's arrays and metadata, checking everything first.
 
     Checks, in order: the file is a complete ``.npz`` archive holding exactly

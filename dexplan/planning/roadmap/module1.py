@@ -166,7 +166,7 @@ def _module1_round(
 
 
 def _roadmap_path(
-    problem: PlanningProblem, roadmap: Roadmap, start: int, query: GsnQuery
+    problem: PlanningProblem | ChartProblem, roadmap: Roadmap, start: int, query: GsnQuery
 ) -> FloatArray | None:
     """Shortest roadmap path from ``start`` into the goal region, densified on GSn.
 

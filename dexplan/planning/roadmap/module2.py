@@ -295,9 +295,9 @@ def link_query(
     cannot move straight to any: an obstacle in the way) and ``waypoints``
     is positive, up to that many RLG states join the roadmap once, as
     vertices of their own, so that links can go round the obstacle through
-    their object poses (BFMT's roadmap holds only its trees, often just the
-    start: on cube_post the straight turn is blocked by the post and module
-    2 had nothing else to link to).
+    their object poses (a planner whose graph holds only its trees, often
+    just the start, leaves module 2 nothing else to link to when an
+    obstacle blocks the object's straight move).
     """
     links = [] if links is None else links
     t0 = time.perf_counter()
@@ -369,9 +369,9 @@ def _query_attempt(
     the attempt's number), so a link's regrasps do not depend on how many
     attempts came before within a pass the clock ended. Every attempt from
     the start after the query's first one first regrasps onto another
-    sampled start grasp (allegro_cube: the gaits from some start grasps
-    stall within a few degrees whatever the landings, from others they turn
-    the cube in seconds). Links into the goal region end on
+    sampled start grasp (with a many-fingered hand the gaits from some start
+    grasps stall within a few degrees whatever the landings, from others
+    they turn the object in seconds). Links into the goal region end on
     ``query.goal_pose`` when given.
     """
 
@@ -431,8 +431,8 @@ def _module2_pass(
     Attempts start within :data:`MODULE2_SHARE` of the time left, so that
     module 1 grows its roadmap again when the links fail; an attempt that
     has started runs to its end (or the query's deadline). A many-DOF hand's
-    link takes seconds: cut at the share's end, allegro_cube's first links
-    stopped at 34 of 40 steps after 17 s, and the next pass started again.
+    link takes seconds: cut at the share's end, a link nearly through would
+    be lost and the next pass would start it over.
     """
     t_now = time.perf_counter()
     link_by = t_now + MODULE2_SHARE * max(0.0, deadline - t_now)

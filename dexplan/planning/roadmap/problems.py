@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from dexplan.planning.ompl import (
     ProjectionSpec,
     planner_traits,
 )
+from dexplan.planning.ompl.spaces import SpaceKind
 from dexplan.planning.roadmap.search import GsnQuery
 
 __all__ = [
@@ -75,7 +76,7 @@ def constraint_spec(ctx: PlanningContext, space: str) -> ConstraintSpec:
         lower=gsn.lower,
         upper=gsn.upper,
         tolerance=1e-5,
-        space=space,
+        space=cast(SpaceKind, space),  # ConstraintSpec checks the name
         scale=scale,
         delta=0.15,
     )
