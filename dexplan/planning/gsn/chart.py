@@ -262,6 +262,7 @@ class ContactChart:
             lower=lo,
             upper=up,
             tolerance=1e-9,
+            # callers pass the space name as a plain str; ConstraintSpec checks it
             space=space,  # type: ignore[arg-type]
             scale=scale,
             delta=delta,

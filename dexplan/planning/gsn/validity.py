@@ -296,8 +296,8 @@ class GraspValidity:
             verdict = self._check(x, gsn, fc_quality)
         if verdict.valid:
             self.stats.valid += 1
-        else:
-            self.stats.rejected[verdict.reason] += 1  # type: ignore[index]
+        elif verdict.reason is not None:  # every rejection names its reason
+            self.stats.rejected[verdict.reason] += 1
         return verdict
 
     def _reject_force_closure(self, x: FloatArray, quality: float) -> Verdict:
@@ -318,7 +318,8 @@ class GraspValidity:
         rep = self.world.check(q, x[:POSE_DIM], gsn.contact_fingers)
         if not rep.free:
             pair = rep.pair or ("fingertip", "object (penetration)")
-            self.stats.collision_pairs[tuple(sorted(pair))] += 1  # type: ignore[index]
+            first, second = sorted(pair)
+            self.stats.collision_pairs[(first, second)] += 1
             self.stats.keep(x, "collision", f"{pair[0]} / {pair[1]}")
             return Verdict(False, "collision")
         if quality is None:

@@ -74,8 +74,8 @@ class GeodesicMotionSettings:
     max_splits: int = 5
 
 
-class MotionFailure(enum.Enum):
-    """Why a section VI motion is not valid."""
+class MotionFailure(enum.StrEnum):
+    """Why a section VI motion is not valid (a member equals its string)."""
 
     NO_GEODESIC = "no_geodesic"  # not a mesh, or no geodesic between two contacts
     IK = "ik"  # no IK solution for a fingertip centre (out of reach, or not converged)
