@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from enum import StrEnum
+from typing import TypedDict
 
 import numpy as np
 
@@ -47,6 +48,20 @@ class Solver(StrEnum):
 
     OSQP = "osqp"
     NNLS = "nnls"
+
+
+class ForceClosureStats(TypedDict):
+    """Counters of a :class:`ForceClosure` solver (for benchmarks).
+
+    Attributes:
+        evaluations: quality evaluations.
+        pairs_solved: (subgrasp, direction) pairs sent to the pair solver.
+        osqp_fallbacks: OSQP runs that fell back to Lawson-Hanson.
+    """
+
+    evaluations: int
+    pairs_solved: int
+    osqp_fallbacks: int
 
 
 class Verdict(StrEnum):
@@ -135,9 +150,8 @@ class ForceClosure:
         self.max_iter = max_iter
         self._qps: dict[tuple[int, int], PairQP] = {}
         self._calls = 0
-        #: Counters (for benchmarks): quality evaluations, pairs sent to the pair
-        #: solver, OSQP runs that fell back to NNLS.
-        self.stats = {"evaluations": 0, "pairs_solved": 0, "osqp_fallbacks": 0}
+        #: Counters (for benchmarks).
+        self.stats: ForceClosureStats = {"evaluations": 0, "pairs_solved": 0, "osqp_fallbacks": 0}
 
     # -- public API (the module-level functions are DEFAULT's bound methods) --
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 from importlib import metadata, resources
 from pathlib import Path
 
@@ -31,7 +32,19 @@ ALLEGRO_COLLISION_EXCLUDE: tuple[tuple[str, str], ...] = (("palm_link", "link_13
 #: palm normal (palm_link +x) is world +z, the fingers (palm_link +z) point
 #: along world +x, palm_link +y is world -y. palm_link's origin is the world origin.
 ALLEGRO_MOUNT_RPY: tuple[float, float, float] = (math.pi, -math.pi / 2, 0.0)
-BUILTIN_HANDS: tuple[str, ...] = ("paper", "three_finger", "allegro", "allegro_left")
+
+
+class BuiltinHandName(StrEnum):
+    """Names of the builtin hands (``hand.builtin``; members equal their strings)."""
+
+    PAPER = "paper"
+    THREE_FINGER = "three_finger"
+    ALLEGRO = "allegro"
+    ALLEGRO_LEFT = "allegro_left"
+
+
+#: The builtin hands' names.
+BUILTIN_HANDS: tuple[BuiltinHandName, ...] = tuple(BuiltinHandName)
 
 
 @dataclass(frozen=True)
@@ -71,7 +84,7 @@ def builtin_hand(name: str) -> BuiltinHand:
     if name in ("allegro", "allegro_left"):
         return _allegro_hand(left=name == "allegro_left")
     raise InvalidInputError(
-        f"hand.builtin must be one of {list(BUILTIN_HANDS)}, got {shorten(name)}"
+        f"hand.builtin must be one of {[str(h) for h in BUILTIN_HANDS]}, got {shorten(name)}"
     )
 
 

@@ -406,6 +406,18 @@ class Hand:
         """
         return self._analytic_ik[finger] is not None or self._split_ik[finger] is not None
 
+    def planar_ik(self, finger: int) -> PlanarFingerIK | None:
+        """``finger``'s closed-form 3-joint solver, or None (see :mod:`dexplan.model.hand.ik`)."""
+        return self._analytic_ik[finger]
+
+    def split_ik(self, finger: int) -> SplitFingerIK | None:
+        """``finger``'s closed-form solver with a free joint, or None."""
+        return self._split_ik[finger]
+
+    def finger_chain(self, finger: int) -> FingerChain | None:
+        """``finger``'s vectorised forward kinematics, or None when not all revolute."""
+        return self._chains[finger]
+
     def finger_ik_candidates(
         self, finger: int, p_targets_world: FloatArray
     ) -> tuple[FloatArray, np.ndarray]:
