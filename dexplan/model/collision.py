@@ -96,10 +96,9 @@ class CollisionWorld:
         self._finger_of_name = {self.geometry_name(g): i for g, i in self._finger_of_geom.items()}
         self.geom_data = pin.GeometryData(gm)
         self._tip_mask: tuple[bool, ...] | None = None  # unknown: set on first check
-        # contacts on (EPA): without them coal 3.0.3 missed 2 mm box-box
-        # penetrations once the same pair had been queried at other placements
-        # (82 of 3000 repeats of one Allegro-cube pair; 5 of 12,003 colliding
-        # pairs of random Allegro configurations)
+        # contacts on (EPA): without them coal 3.0.3 can miss box-box
+        # penetrations of millimetres once the same pair has been queried at
+        # other placements, so a colliding configuration would pass
         for req in self.geom_data.collisionRequests:
             req.enable_contact = True
         # places the obstacles once (they never move)
