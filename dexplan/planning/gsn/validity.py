@@ -15,6 +15,7 @@ Rejections are counted by reason, for the planner's statistics.
 
 from __future__ import annotations
 
+import enum
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,6 +25,7 @@ import numpy as np
 from dexplan.core.typing import FloatArray, as_positive
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.grasp import (
+    ContactModel,
     check_contact_model,
     force_closure_quality,
     min_contacts,
@@ -32,7 +34,24 @@ from dexplan.model.grasp import (
 )
 from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
 
-REASONS: tuple[str, ...] = ("bounds", "joint_limits", "collision", "force_closure")
+
+class Rejection(enum.StrEnum):
+    """Why the checker rejects a state (a member equals its string, as in statistics).
+
+    Attributes:
+        BOUNDS: the object outside the workspace box.
+        JOINT_LIMITS: a joint outside its limits.
+        COLLISION: a collision, or the object too near an obstacle.
+        FORCE_CLOSURE: some required (sub)grasp is not force closure.
+    """
+
+    BOUNDS = "bounds"
+    JOINT_LIMITS = "joint_limits"
+    COLLISION = "collision"
+    FORCE_CLOSURE = "force_closure"
+
+
+REASONS: tuple[Rejection, ...] = tuple(Rejection)
 
 KEPT_PER_REASON = 32
 """Rejected states kept per reason (the first ones), for ``--debug-rrd``."""
@@ -49,7 +68,7 @@ class RejectedSample:
     """
 
     x: FloatArray
-    reason: str
+    reason: Rejection
     detail: str = ""
 
 
@@ -81,7 +100,7 @@ class ValiditySettings:
     fc_margin: float = 0.005
     subgrasps: bool = True
     object_clearance: float = 0.0005
-    contact_model: str = "point"
+    contact_model: ContactModel | str = ContactModel.POINT
     torsion: float = 0.0
 
     def quality_args(self) -> dict[str, Any]:
@@ -162,7 +181,7 @@ class ValidityStats:
     #: the first :data:`KEPT_PER_REASON` rejected states of each reason
     samples: list[RejectedSample] = field(default_factory=list)
 
-    def keep(self, x: FloatArray, reason: str, detail: str = "") -> None:
+    def keep(self, x: FloatArray, reason: Rejection, detail: str = "") -> None:
         """Record a rejected state while fewer than the cap of its reason are kept."""
         if self.rejected.get(reason, 0) < KEPT_PER_REASON:  # counted after this call
             self.samples.append(RejectedSample(np.array(x, dtype=float), reason, detail))
@@ -186,7 +205,7 @@ class Verdict:
     """Outcome of one validity check: ``reason`` is None when valid."""
 
     valid: bool
-    reason: str | None
+    reason: Rejection | None
     fc_quality: float = float("nan")
 
 
@@ -225,7 +244,7 @@ class GraspValidity:
             s.mu,
             edges=s.friction_edges,
             torque_scale=self.torque_scale,
-            contact_model=s.contact_model,  # type: ignore[arg-type]
+            contact_model=s.contact_model,
             torsion=s.torsion,
         )
 
@@ -301,27 +320,27 @@ class GraspValidity:
         return verdict
 
     def _reject_force_closure(self, x: FloatArray, quality: float) -> Verdict:
-        self.stats.keep(x, "force_closure", f"quality {quality:.3g}")
-        return Verdict(False, "force_closure", quality)
+        self.stats.keep(x, Rejection.FORCE_CLOSURE, f"quality {quality:.3g}")
+        return Verdict(False, Rejection.FORCE_CLOSURE, quality)
 
     def _check(self, x: FloatArray, gsn: GraspSubspace, quality: float | None = None) -> Verdict:
         pos = x[:3]
         if np.any(pos < gsn.lower[:3]) or np.any(pos > gsn.upper[:3]):
-            return Verdict(False, "bounds")
+            return Verdict(False, Rejection.BOUNDS)
         q = x[POSE_DIM:]
         if not gsn.hand.within_limits(q):
-            self.stats.keep(x, "joint_limits")
-            return Verdict(False, "joint_limits")
+            self.stats.keep(x, Rejection.JOINT_LIMITS)
+            return Verdict(False, Rejection.JOINT_LIMITS)
         clearance = self.settings.object_clearance
         if clearance > 0.0 and self.world.object_clearance(x[:POSE_DIM]) < clearance:
-            return Verdict(False, "collision")
+            return Verdict(False, Rejection.COLLISION)
         rep = self.world.check(q, x[:POSE_DIM], gsn.contact_fingers)
         if not rep.free:
             pair = rep.pair or ("fingertip", "object (penetration)")
             first, second = sorted(pair)
             self.stats.collision_pairs[(first, second)] += 1
-            self.stats.keep(x, "collision", f"{pair[0]} / {pair[1]}")
-            return Verdict(False, "collision")
+            self.stats.keep(x, Rejection.COLLISION, f"{pair[0]} / {pair[1]}")
+            return Verdict(False, Rejection.COLLISION)
         if quality is None:
             quality = self.grasp_quality(*gsn.contacts(x))
         if quality <= self.settings.fc_margin:

@@ -143,13 +143,14 @@ class ReductionSettings:
             ``backtrack_steps`` of the start give up at once: the start grasp
             itself is the trouble, which the caller changes (module 2).
         backtrack_steps: see ``backtracks``.
-        max_depth: resolution limit of :func:`reduce_gsn_path`: a GSn edge is
-            bisected at most this many times (into at most ``2**max_depth`` pieces).
+        max_depth: resolution limit of the edge-by-edge reduction
+            (:func:`~.edge_reduction.reduce_gsn_path`): a GSn edge is bisected
+            at most this many times (into at most ``2**max_depth`` pieces).
         same_contact_m: contacts closer than this (m, object frame) count as
             the same; no regrasp moves a finger by less.
-        resync_m: in :func:`reduce_gsn_path`, a finger whose contact is farther
-            than this (m) from the GSn path's is regrasped back onto it.
-        midpoints: how :func:`reduce_gsn_path` places the contacts of a
+        resync_m: in the edge-by-edge reduction, a finger whose contact is
+            farther than this (m) from the GSn path's is regrasped back onto it.
+        midpoints: how the edge-by-edge reduction places the contacts of a
             bisected edge's midpoint, tried in this order per GSn edge (an
             edge that fails with one is reduced again, from the same state,
             with the next): ``chord`` (the world fingertip centres averaged
