@@ -3,15 +3,19 @@
 This package is the only part of dexplan that imports :mod:`ompl`. Everything
 else hands it plain callables on NumPy vectors; the modules follow OMPL's seams:
 
-- :mod:`~dexplan.planning.ompl.registry`: planners by name (:data:`PLANNERS`, the
-  multi-query and projection families), their parameters, :func:`check_planner`;
+- :mod:`~dexplan.planning.ompl.registry`: planners by name (:data:`PLANNERS`,
+  their :class:`PlannerTraits`), their parameters, :func:`check_planner`;
 - :mod:`~dexplan.planning.ompl.spaces`: :class:`ConstraintSpec` (``f(x) = 0``
   with an analytic Jacobian and ambient bounds) as an ``ob.Constraint`` in a
   projected, atlas or tangent-bundle state space, :class:`ProjectionSpec` for the
   KPIECE family, bounds and the scaled planning coordinates ``y = x * scale``;
 - :mod:`~dexplan.planning.ompl.callbacks`: the validity checker, the valid-state
-  sampler, :class:`GoalSpec` goal regions, termination conditions and the error
-  sink that keeps Python exceptions out of OMPL's C++ frames;
+  sampler, :class:`GoalSpec` goal regions and termination conditions;
+- :mod:`~dexplan.planning.ompl.error_sink`: the error sink that keeps Python
+  exceptions out of OMPL's C++ frames;
+- :mod:`~dexplan.planning.ompl.motions`: a second motion where OMPL's fails;
+- :mod:`~dexplan.planning.ompl.problem_space`: a problem's constrained space built
+  with its callbacks, its states, motions and re-checked paths;
 - :mod:`~dexplan.planning.ompl.problem`: :class:`PlanningProblem` (solve, grow a
   roadmap, re-check paths in travel direction, read the planner's graph);
 - :mod:`~dexplan.planning.ompl.results`: :class:`SolveResult`, :class:`PathCheck`,

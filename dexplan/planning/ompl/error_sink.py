@@ -14,6 +14,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from dexplan.core.errors import PlannerError
+
 __all__ = ["ErrorSink"]
 
 
@@ -53,3 +55,16 @@ class ErrorSink:
             yield ptc
         finally:
             self.ptc = None
+
+    def reraise(self, during: str) -> None:
+        """Raise the kept exception (then forget it) as a :class:`PlannerError`, if any.
+
+        Args:
+            during: what was running, for the message (``planning with PRM``).
+        """
+        error = self.error
+        if error is not None:
+            self.error = None
+            raise PlannerError(
+                f"a callback raised during {during}: {type(error).__name__}: {error}"
+            ) from error

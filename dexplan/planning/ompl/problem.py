@@ -1,10 +1,10 @@
 """The constrained planning problem: one OMPL geometric planner on a manifold.
 
-:class:`PlanningProblem` ties together a constrained state space
-(:mod:`~dexplan.planning.ompl.spaces`), the Python callbacks
-(:mod:`~dexplan.planning.ompl.callbacks`) and a planner of the registry
-(:mod:`~dexplan.planning.ompl.registry`); it solves queries, grows PRM roadmaps,
-re-checks paths in travel direction and reads the planner's graph
+:class:`PlanningProblem` ties together a constrained state space with its
+callbacks (:class:`~dexplan.planning.ompl.problem_space.ProblemSpace`), a
+planner of the registry (:mod:`~dexplan.planning.ompl.registry`) and a query
+(start states, a goal); it solves queries, grows PRM roadmaps, re-checks paths
+in travel direction and reads the planner's graph
 (:mod:`~dexplan.planning.ompl.results`).
 """
 
@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -21,19 +20,16 @@ from ompl import base as ob
 from ompl import geometric as og
 
 from dexplan.core.errors import InvalidInputError, PlannerError
-from dexplan.core.typing import FloatArray, as_vector
+from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import (
-    Accept,
     GoalSpec,
-    make_sampler_allocator,
-    make_validity,
     query_goal,
     termination,
 )
 from dexplan.planning.ompl.error_sink import ErrorSink
-from dexplan.planning.ompl.motions import FallbackMotions, MotionFallback
-from dexplan.planning.ompl.paths import SpacePaths
+from dexplan.planning.ompl.motions import MotionFallback
+from dexplan.planning.ompl.problem_space import ProblemSpace
 from dexplan.planning.ompl.registry import (
     MULTI_QUERY_PLANNERS,
     PLANNERS,
@@ -54,11 +50,7 @@ from dexplan.planning.ompl.results import (
 from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
 from dexplan.planning.ompl.spaces import (
     ConstraintSpec,
-    Frame,
     ProjectionSpec,
-    constrained_space,
-    make_constraint,
-    make_projection,
 )
 
 __all__ = ["PlanningProblem"]
@@ -159,89 +151,33 @@ class PlanningProblem:
         self._is_valid = is_valid
         self._projection_spec = projection
         self._sink = ErrorSink()
-        self._frame = Frame(constraint.ambient_dim, constraint.scale)
-        self._samplers: list[Any] = []
         if seed is not None:
             reseed_ompl(derived_seed(seed, 0))
-
-        self._constraint = make_constraint(constraint, self._frame, self._sink)
-        self._ambient, css, si = constrained_space(constraint, self._frame, self._constraint)
-        si.setStateValidityChecker(make_validity(is_valid, self._frame, self._sink))
-        self._accept = Accept(constraint, self._frame, self._constraint, is_valid, True)
-        if valid_sampler is not None:
-            self._use_valid_sampler(si, valid_sampler, valid_sampler_near, check_sampled_states)
-        css.setup()
-        si.setup()
-        self._css = css
-        self._si = si
-        self._motions = self._fallback_motions(
-            motion_fallback, fallback_merges_only, fallback_checks
+        space = ProblemSpace(
+            constraint,
+            is_valid,
+            self._sink,
+            valid_sampler=valid_sampler,
+            valid_sampler_near=valid_sampler_near,
+            check_sampled_states=check_sampled_states,
+            projection=projection,
+            motion_fallback=motion_fallback,
+            fallback_merges_only=fallback_merges_only,
+            fallback_checks=fallback_checks,
         )
-        self._paths = SpacePaths(si, css, self._frame, constraint, is_valid, self._motions)
-        self._projection = (
-            make_projection(projection, css, self._frame, self._sink)
-            if projection is not None
-            else None
-        )
+        self._space = space
+        self._frame, self._css, self._si = space.frame, space.css, space.si
+        self._motions = space.motions
         self._params: dict[str, object] = {}
         self._starts: list[FloatArray] = []
         self._goal: GoalSpec | None = None
         self._goal_state: tuple[FloatArray, float] | None = None
         self._query_dirty = True
         self._planner_used = False
-        self._pdef = ob.ProblemDefinition(si)
+        self._pdef = ob.ProblemDefinition(self._si)
         self._planner = self._new_planner()
         for name, value in (params or {}).items():
             self.set_param(name, value)
-
-    def _fallback_motions(
-        self, fallback: MotionFallback | None, merges_only: bool, checks: bool
-    ) -> FallbackMotions | None:
-        """The motion fallback's record (None without one), the motion validator if ``checks``."""
-        if fallback is None:
-            return None
-        motions = FallbackMotions(
-            self._si,
-            self._css.allocState,
-            fallback,
-            self._spec,
-            self._frame,
-            self._sink,
-            merges_only=bool(merges_only),
-        )
-        if checks:
-            self._si.setMotionValidator(motions)
-        return motions
-
-    def _use_valid_sampler(
-        self,
-        si: Any,
-        valid_sampler: Callable[[], Any],
-        valid_sampler_near: Callable[[FloatArray, float], Any] | None,
-        check_sampled_states: bool,
-    ) -> None:
-        """Make the Python samplers the space information's ``ValidStateSampler``.
-
-        Raises:
-            InvalidInputError: ``valid_sampler`` is not callable.
-
-        """
-        if not callable(valid_sampler):
-            raise InvalidInputError(f"valid_sampler must be callable, got {valid_sampler!r}")
-        spec = self._spec
-        accept = Accept(
-            spec, self._frame, self._constraint, self._is_valid, bool(check_sampled_states)
-        )
-        si.setValidStateSamplerAllocator(
-            make_sampler_allocator(
-                valid_sampler,
-                valid_sampler_near,
-                accept,
-                self._frame,
-                self._sink,
-                self._samplers,
-            )
-        )
 
     # ----------------------------------------------------------------- properties
 
@@ -274,8 +210,9 @@ class PlanningProblem:
 
     def _new_planner(self) -> Any:
         planner = PLANNERS[self._planner_name](self._si)
-        if self._projection is not None and planner_traits(self._planner_name).needs_projection:
-            planner.setProjectionEvaluator(self._projection)
+        projection = self._space.projection
+        if projection is not None and planner_traits(self._planner_name).needs_projection:
+            planner.setProjectionEvaluator(projection)
         if self._spec.space != "projected" and callable(getattr(planner, "setRange", None)):
             planner.setRange(float(self._css.getRho_s()))  # as OMPL's demos; params override
         for name, value in self._params.items():
@@ -305,24 +242,14 @@ class PlanningProblem:
 
     # ----------------------------------------------------------------- query
 
-    def _checked_state(self, x: object, name: str) -> FloatArray:
-        xv = as_vector(x, name, self._spec.ambient_dim)
-        residual = float(np.linalg.norm(np.asarray(self._spec.function(xv), dtype=np.float64)))
-        if residual > self._spec.tolerance:
-            raise InvalidInputError(
-                f"{name} is off the manifold: |f(x)| = {residual:.3g} > tolerance "
-                f"{self._spec.tolerance:.3g}"
-            )
-        return xv
-
     def set_start(self, x: object) -> None:
         """Replace the start states by ``x`` ``(n,)`` (on the manifold)."""
-        self._starts = [self._checked_state(x, "start")]
+        self._starts = [self._space.checked_state(x, "start")]
         self._query_dirty = True
 
     def add_start(self, x: object) -> None:
         """Add a start state ``x`` ``(n,)`` (on the manifold)."""
-        self._starts.append(self._checked_state(x, "start"))
+        self._starts.append(self._space.checked_state(x, "start"))
         self._query_dirty = True
 
     def set_goal(self, goal: GoalSpec) -> None:
@@ -339,7 +266,7 @@ class PlanningProblem:
         Implemented with OMPL's C++ ``GoalStates``: the fastest goal, safe for every
         planner.
         """
-        xv = self._checked_state(x, "goal")
+        xv = self._space.checked_state(x, "goal")
         thr = float(threshold)
         if not math.isfinite(thr) or thr < 0.0:
             raise InvalidInputError(f"threshold must be finite and >= 0, got {threshold!r}")
@@ -347,31 +274,21 @@ class PlanningProblem:
         self._goal = None
         self._query_dirty = True
 
-    def _anchor(self) -> Callable[[Any], None] | None:
-        if self._spec.space == "projected":
-            return None
-        css = self._css
-
-        def anchor(state: Any) -> None:
-            css.anchorChart(state)
-
-        return anchor
-
     def _build_query(self) -> str | None:
         """Build a fresh ProblemDefinition; return a status name if impossible."""
         pdef = ob.ProblemDefinition(self._si)
         for x in self._starts:
-            pdef.addStartState(self._paths.alloc(self._frame.to_y(x), anchor=True))
+            pdef.addStartState(self._space.alloc(self._frame.to_y(x), anchor=True))
         goal, status = query_goal(
             self._si,
-            self._paths.alloc,
+            self._space.alloc,
             self._frame,
-            self._accept,
+            self._space.accept,
             self._sink,
             self._goal,
             self._goal_state,
             one_state=self.is_multi_query,
-            anchor=self._anchor(),
+            anchor=self._space.anchor(),
         )
         if goal is None:
             return status
@@ -392,13 +309,7 @@ class PlanningProblem:
     # ----------------------------------------------------------------- solving
 
     def _raise_callback_error(self) -> None:
-        error = self._sink.error
-        if error is not None:
-            self._sink.error = None
-            raise PlannerError(
-                f"a callback raised during planning with {self._planner_name}: "
-                f"{type(error).__name__}: {error}"
-            ) from error
+        self._sink.reraise(f"planning with {self._planner_name}")
 
     def grow_roadmap(self, time_limit: float, max_milestones: int | None = None) -> int:
         """Grow a PRM-family roadmap without a query (single-threaded).
@@ -433,7 +344,7 @@ class PlanningProblem:
 
         with (
             self._sink.watching(termination(limit, stop=reached)) as ptc,
-            self._motion_deadline(limit),
+            self._space.motion_deadline(limit),
         ):
             self._planner.growRoadmapPtc(ptc)
         self._raise_callback_error()
@@ -487,7 +398,10 @@ class PlanningProblem:
             self._planner = self._new_planner()
             self._planner.setup()
         self._planner_used = True
-        with self._sink.watching(termination(limit, budget)) as ptc, self._motion_deadline(limit):
+        with (
+            self._sink.watching(termination(limit, budget)) as ptc,
+            self._space.motion_deadline(limit),
+        ):
             status = self._planner.solve(ptc)
         self._raise_callback_error()
         name = STATUS_NAMES.get(status.getStatus().value, "unknown")
@@ -517,37 +431,13 @@ class PlanningProblem:
     ) -> SolveResult:
         """The :class:`SolveResult` of a solve started at ``t0`` that found a path."""
         path = og.PathGeometric(self._pdef.getSolutionPath())
-        checked = self._paths.post_process(path, interpolate=interpolate, check=check_path)
+        checked = self._space.post_process(path, interpolate=interpolate, check=check_path)
         self._raise_callback_error()
         goal_distance = 0.0 if name == "exact" else float(self._pdef.getSolutionDifference())
-        valid = checked.path_valid
-        final = "path_invalid" if (name == "exact" and check_path and not valid) else name
-        return SolveResult(
-            status=final,
-            solved=final == "exact" and valid,
-            path=checked.path,
-            waypoints=checked.waypoints,
-            time_s=time.perf_counter() - t0,
-            planner=self._planner_name,
-            path_valid=valid,
-            repaired_segments=checked.repaired_segments,
-            invalid_segments=checked.invalid_segments,
-            max_step=checked.max_step,
-            goal_distance=goal_distance,
-            message=message,
+        elapsed = time.perf_counter() - t0
+        return SolveResult.with_path(
+            name, checked, check_path, self._planner_name, elapsed, goal_distance, message
         )
-
-    @contextmanager
-    def _motion_deadline(self, limit: float) -> Iterator[None]:
-        """The motion fallback stops trying ``limit`` seconds from now, until the block ends."""
-        if self._motions is None:
-            yield
-            return
-        self._motions.start(limit)
-        try:
-            yield
-        finally:
-            self._motions.stop()
 
     @property
     def fallback_motions(self) -> tuple[int, int, int]:
@@ -557,16 +447,8 @@ class PlanningProblem:
 
     def _no_path(self, status: str, t0: float, message: str) -> SolveResult:
         """Return the :class:`SolveResult` of a solve started at ``t0`` without a path."""
-        return SolveResult(
-            status=status,
-            solved=False,
-            path=None,
-            waypoints=None,
-            time_s=time.perf_counter() - t0,
-            planner=self._planner_name,
-            path_valid=False,
-            message=message,
-        )
+        elapsed = time.perf_counter() - t0
+        return SolveResult.without_path(status, self._planner_name, elapsed, message)
 
     def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
         """Re-check (and densify) any path of ambient states in travel direction.
@@ -591,8 +473,8 @@ class PlanningProblem:
             PlannerError: a callback raised.
 
         """
-        path = self._paths.geometric_path(waypoints)
-        result = self._paths.post_process(path, interpolate=interpolate, check=True)
+        path = self._space.geometric_path(waypoints)
+        result = self._space.post_process(path, interpolate=interpolate, check=True)
         self._raise_callback_error()
         return result
 
@@ -614,9 +496,9 @@ class PlanningProblem:
         Raises:
             InvalidInputError: wrong shape or non-finite values.
         """
-        path = self._paths.geometric_path(waypoints)
+        path = self._space.geometric_path(waypoints)
         if self._motions is not None:
-            dense = self._paths.interpolate_with_fallback(path)
+            dense = self._space.interpolate_with_fallback(path)
             self._raise_callback_error()
             return dense
         path.interpolate()
@@ -656,11 +538,9 @@ class PlanningProblem:
             The projected ``(n,)`` ambient point, or None if projection failed.
 
         """
-        xv = as_vector(x, "x", self._spec.ambient_dim)
-        y = np.array(self._frame.to_y(xv), dtype=np.float64)
-        ok = self._constraint.project(y)
+        projected = self._space.project(x)
         self._raise_callback_error()
-        return self._frame.to_x(y) if ok else None
+        return projected
 
     def check_motion(self, a: object, b: object) -> bool:
         """Whether the motion from ``a`` to ``b`` (ambient ``(n,)``) is valid.
@@ -668,26 +548,19 @@ class PlanningProblem:
         OMPL's discrete geodesic, or with a motion fallback (and
         ``fallback_checks``) the fallback's motion where that one is invalid.
         """
-        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
-        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        ok = bool(self._si.checkMotion(self._paths.alloc(ya), self._paths.alloc(yb)))
+        ok = self._space.check_motion(a, b)
         self._raise_callback_error()
         return ok
 
     def distance(self, a: object, b: object) -> float:
         """OMPL's state-space distance of two ambient ``(n,)`` states (planning units)."""
-        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
-        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        return float(self._css.distance(self._paths.alloc(ya), self._paths.alloc(yb)))
+        return self._space.distance(a, b)
 
     def interpolate(self, a: object, b: object, t: float) -> FloatArray:
         """OMPL's geodesic interpolation from ``a`` (t = 0) to ``b`` (t = 1), ambient."""
-        ya = self._frame.to_y(as_vector(a, "a", self._spec.ambient_dim))
-        yb = self._frame.to_y(as_vector(b, "b", self._spec.ambient_dim))
-        out = self._paths.alloc(ya)
-        self._css.interpolate(self._paths.alloc(ya), self._paths.alloc(yb), float(t), out)
+        out = self._space.interpolate(a, b, t)
         self._raise_callback_error()
-        return self._frame.state_x(out)
+        return out
 
     def round_trip(self, x: object) -> FloatArray:
         """A state written into an OMPL state of this space and read back, ambient.
@@ -696,12 +569,11 @@ class PlanningProblem:
         ``std::vector`` that Python lists do not convert to, so this is the
         state I/O the binding offers.)
         """
-        y = self._frame.to_y(as_vector(x, "x", self._spec.ambient_dim))
-        return self._frame.state_x(self._paths.alloc(y))
+        return self._space.round_trip(x)
 
     def valid_sampler_count(self) -> int:
         """Return how many Python valid-state samplers OMPL allocated (diagnostics)."""
-        return len(self._samplers)
+        return len(self._space.samplers)
 
 
 def _check_arguments(

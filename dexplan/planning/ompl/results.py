@@ -112,6 +112,52 @@ class SolveResult:
     goal_distance: float = math.nan
     message: str = ""
 
+    @classmethod
+    def without_path(cls, status: str, planner: str, time_s: float, message: str) -> SolveResult:
+        """The result of a solve that found no path."""
+        return cls(
+            status=status,
+            solved=False,
+            path=None,
+            waypoints=None,
+            time_s=time_s,
+            planner=planner,
+            path_valid=False,
+            message=message,
+        )
+
+    @classmethod
+    def with_path(
+        cls,
+        status: str,
+        checked: PathCheck,
+        checked_path: bool,
+        planner: str,
+        time_s: float,
+        goal_distance: float,
+        message: str,
+    ) -> SolveResult:
+        """The result of a solve whose path was re-checked (``checked_path``) into ``checked``.
+
+        An ``exact`` path that fails the re-check becomes ``path_invalid``.
+        """
+        valid = checked.path_valid
+        final = "path_invalid" if (status == "exact" and checked_path and not valid) else status
+        return cls(
+            status=final,
+            solved=final == "exact" and valid,
+            path=checked.path,
+            waypoints=checked.waypoints,
+            time_s=time_s,
+            planner=planner,
+            path_valid=valid,
+            repaired_segments=checked.repaired_segments,
+            invalid_segments=checked.invalid_segments,
+            max_step=checked.max_step,
+            goal_distance=goal_distance,
+            message=message,
+        )
+
 
 STATUS_NAMES: dict[int, str] = {
     0: "unknown",
