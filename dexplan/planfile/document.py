@@ -156,9 +156,20 @@ class PlannedPath(Protocol):
     these attributes will do (:class:`~dexplan.planning.planner.PlanResult` is one).
     """
 
-    segments: Sequence[Segment]
-    start_pose: FloatArray
-    start_q: FloatArray | None
+    @property
+    def segments(self) -> Sequence[Segment]:
+        """The transfer and regrasp segments, in order."""
+        ...
+
+    @property
+    def start_pose(self) -> FloatArray:
+        """``start_pose: (7,)`` the object's start pose, world frame, XYZW."""
+        ...
+
+    @property
+    def start_q(self) -> FloatArray | None:
+        """``start_q: (n_joints,)`` the hand's start configuration, or None."""
+        ...
 
     @property
     def stats(self) -> _StatsLike:
