@@ -12,10 +12,11 @@ from dexplan.planning.gsn.chart import ChartProblem, ContactChart, DirectionCaps
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import RoadmapData
 from dexplan.planning.ompl.registry import CAPPED_PLANNERS
-from dexplan.planning.planner import goal_reached, start_state
+from dexplan.planning.planner import goal_reached
 from dexplan.planning.roadmap.module1 import explore_gsn
 from dexplan.planning.roadmap.problems import chart_problem
 from dexplan.planning.roadmap.search import GsnQuery
+from dexplan.planning.start import start_state
 
 
 @pytest.fixture(scope="module")

@@ -22,8 +22,9 @@ from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.local.reduction import grasp_from_state, reduce_object_path
-from dexplan.planning.planner import plan, start_state
+from dexplan.planning.planner import plan
 from dexplan.planning.progress import PlanStatus
+from dexplan.planning.start import start_state
 
 ROOT = Path(__file__).resolve().parents[1]
 UNSOLVABLE = ROOT / "tests" / "data" / "unsolvable_lid.toml"

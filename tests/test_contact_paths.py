@@ -20,7 +20,7 @@ from dexplan.planning.local.edge_reduction import EdgeReducer as _EdgeReducer
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
 from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
 from dexplan.planning.local.transitions import GraspContacts
-from dexplan.planning.planner import start_state
+from dexplan.planning.start import start_state
 
 EGG = "dexplan/data/scenarios/suite/egg_tilt90.toml"
 

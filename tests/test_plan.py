@@ -187,7 +187,7 @@ def test_sampled_start_grasp_is_the_first_unless_another_needs_no_regrasp(
     straight move to the goal and one of the extra candidates can: then the first of
     those. The extra candidates leave the sampler's own stream as it was."""
     from dexplan.planning.context import build_context
-    from dexplan.planning.planner import start_state
+    from dexplan.planning.start import start_state
 
     scenario = load_scenario(builtin_scenario_path(name))
     pose = scenario.start.object_pose_xyzquat
@@ -222,7 +222,7 @@ def test_start_q_a_little_off_the_surface_is_moved_onto_it(tmp_path) -> None:
     import dataclasses
 
     from dexplan.planning.context import build_context
-    from dexplan.planning.planner import start_state
+    from dexplan.planning.start import start_state
 
     scenario = default_scenario()
     ctx = build_context(scenario, seed=1)
@@ -254,7 +254,7 @@ def test_joint_travel_sums_every_joint_change() -> None:
 def test_hands_with_redundant_fingers_start_from_the_first_sampled_grasp() -> None:
     """The Allegro (4-joint fingers) skips the start-grasp ranking: the first grasp."""
     from dexplan.planning.context import build_context
-    from dexplan.planning.planner import start_state
+    from dexplan.planning.start import start_state
 
     scenario = load_scenario(builtin_scenario_path("allegro_sphere"))
     chosen = start_state(build_context(scenario, seed=2), candidates=8)

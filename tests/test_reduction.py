@@ -15,7 +15,8 @@ from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
 from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
 from dexplan.planning.local.transitions import densify_poses
-from dexplan.planning.planner import plan, start_state
+from dexplan.planning.planner import plan
+from dexplan.planning.start import start_state
 
 
 @pytest.fixture(scope="module")

@@ -15,11 +15,12 @@ from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.gsn.validity import GraspValidity
 from dexplan.planning.local.transitions import densify_poses
-from dexplan.planning.planner import goal_reached, start_state
+from dexplan.planning.planner import goal_reached
 from dexplan.planning.roadmap.graph import Roadmap, connected_components
 from dexplan.planning.roadmap.module1 import explore_gsn
 from dexplan.planning.roadmap.module2 import link_query, try_link
 from dexplan.planning.roadmap.search import GsnQuery
+from dexplan.planning.start import start_state
 
 
 @pytest.fixture(scope="module")

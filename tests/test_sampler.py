@@ -203,8 +203,8 @@ def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
     an error. Such candidate contacts are not offered.
     """
     from dexplan.planning.gsn.finger_reach import FIT_TOL
-    from dexplan.planning.planner import start_state
     from dexplan.planning.roadmap.problems import constraint_spec
+    from dexplan.planning.start import start_state
 
     ctx = build_context(load_scenario("dexplan/data/scenarios/suite/bean_yaw180.toml"), seed=7)
     r = ctx.hand.fingertip_radius
