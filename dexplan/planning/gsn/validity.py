@@ -18,7 +18,7 @@ from __future__ import annotations
 import enum
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -52,6 +52,16 @@ class Rejection(enum.StrEnum):
 
 
 REASONS: tuple[Rejection, ...] = tuple(Rejection)
+
+
+class QualityArgs(TypedDict):
+    """Keyword arguments of the ``dexplan.model.grasp`` quality functions (see ``quality_args``)."""
+
+    edges: int
+    margin: float
+    contact_model: ContactModel | str
+    torsion: float
+
 
 KEPT_PER_REASON = 32
 """Rejected states kept per reason (the first ones), for ``--debug-rrd``."""
@@ -103,7 +113,7 @@ class ValiditySettings:
     contact_model: ContactModel | str = ContactModel.POINT
     torsion: float = 0.0
 
-    def quality_args(self) -> dict[str, Any]:
+    def quality_args(self) -> QualityArgs:
         """Keyword arguments of the ``dexplan.model.grasp`` quality functions under these settings.
 
         Friction edges, the margin and the contact model; the friction ``mu``
