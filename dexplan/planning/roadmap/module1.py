@@ -22,7 +22,7 @@ from dexplan.planning.ompl import PlanningProblem, planner_traits
 from dexplan.planning.roadmap.graph import Geodesic, Roadmap, scenario_key
 from dexplan.planning.roadmap.module2 import MODULE2_WAYPOINTS, module2_round
 from dexplan.planning.roadmap.problems import search_problem
-from dexplan.planning.roadmap.search import GsnQuery, GsnResult, LinkReduction
+from dexplan.planning.roadmap.search import GsnQuery, GsnResult, GsnStats, LinkReduction
 
 __all__ = ["ROUND_ITERATIONS", "ROUND_MILESTONES", "explore_gsn"]
 
@@ -70,7 +70,7 @@ def explore_gsn(
     report = on_round or (lambda _module, _counts: None)
     problem = search_problem(ctx, query, planner, params, space, seed)
     key = scenario_key(ctx)
-    stats: dict[str, Any] = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
+    stats: GsnStats = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
     iterations, milestones, rounds = ROUND_ITERATIONS, ROUND_MILESTONES, 0
     links: list[LinkReduction] = []  # every pass's, for the planner to reuse
     waypoints = MODULE2_WAYPOINTS if planner_traits(planner).waypoints else 0
@@ -80,8 +80,8 @@ def explore_gsn(
             ctx, problem, query, planner, key, deadline, iterations, milestones
         )
         _round_stats(stats, problem, roadmap, "exact" if path is not None else status, rounds, t0)
-        names = ("rounds", "gsn_rounds"), ("nodes", "roadmap_nodes"), ("edges", "roadmap_edges")
-        report("module1", {k: int(stats[v]) for k, v in (*names, ("components", "components"))})
+        counts = {"rounds": rounds, "nodes": roadmap.n_vertices, "edges": len(roadmap.edges)}
+        report("module1", {**counts, "components": stats["components"]})
         if path is not None:
             return GsnResult(path, roadmap, stats, links=tuple(links))
         iterations *= 2
@@ -104,7 +104,7 @@ def explore_gsn(
 
 
 def _round_stats(
-    stats: dict[str, Any],
+    stats: GsnStats,
     problem: PlanningProblem | ChartProblem,
     roadmap: Roadmap,
     status: str,
@@ -124,7 +124,8 @@ def _round_stats(
     )
     if isinstance(problem, PlanningProblem):
         tried, joined, _ = problem.fallback_motions
-        stats.update(geodesic_motion_attempts=tried, geodesic_motion_edges=joined)
+        stats["geodesic_motion_attempts"] = tried
+        stats["geodesic_motion_edges"] = joined
 
 
 def _module1_round(

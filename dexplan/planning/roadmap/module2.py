@@ -18,7 +18,6 @@ import dataclasses
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -37,7 +36,7 @@ from dexplan.planning.local.smoothing import straight_move_ok
 from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.roadmap.graph import Geodesic, Roadmap, pose_distance, pose_distances
 from dexplan.planning.roadmap.problems import rlg_states
-from dexplan.planning.roadmap.search import GsnQuery, GsnResult, LinkReduction
+from dexplan.planning.roadmap.search import GsnQuery, GsnResult, GsnStats, LinkReduction
 
 __all__ = [
     "MODULE2_SHARE",
@@ -272,7 +271,7 @@ def link_query(
     query: GsnQuery,
     start: int,
     deadline: float,
-    stats: dict[str, Any],
+    stats: GsnStats,
     max_attempts: int | None = None,
     geodesic: Geodesic | None = None,
     links: list[LinkReduction] | None = None,
@@ -360,7 +359,7 @@ def _query_attempt(
     query: GsnQuery,
     start: int,
     goal_set: set[int],
-    stats: dict[str, Any],
+    stats: GsnStats,
     links: list[LinkReduction],
 ) -> Callable[[Sequence[Pair]], list[bool]]:
     """The link attempts of a query's module 2 (counted in ``stats``; links kept in ``links``).
@@ -400,7 +399,7 @@ def module2_round(
     query: GsnQuery,
     starts: Sequence[int],
     deadline: float,
-    stats: dict[str, Any],
+    stats: GsnStats,
     geodesic: Geodesic,
     links: list[LinkReduction],
     waypoints: int,
@@ -421,7 +420,7 @@ def _module2_pass(
     query: GsnQuery,
     start: int,
     deadline: float,
-    stats: dict[str, Any],
+    stats: GsnStats,
     geodesic: Geodesic,
     links: list[LinkReduction],
     waypoints: int = 0,

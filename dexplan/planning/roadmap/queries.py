@@ -15,7 +15,6 @@ The roadmap is not changed by a query it answers.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -28,7 +27,7 @@ from dexplan.planning.ompl import PlanningProblem
 from dexplan.planning.roadmap.graph import Roadmap, pose_distances
 from dexplan.planning.roadmap.module2 import link_query, object_move_free
 from dexplan.planning.roadmap.problems import constraint_spec, geodesic_fallback
-from dexplan.planning.roadmap.search import GsnQuery, GsnResult
+from dexplan.planning.roadmap.search import GsnQuery, GsnResult, GsnStats
 
 NEAREST = 10
 """Roadmap vertices tried, nearest first, when joining a start or goal state."""
@@ -102,7 +101,7 @@ def answer_query(
         )
     t0 = time.perf_counter()
     problem = query_problem(ctx, space)
-    stats: dict[str, Any] = {
+    stats: GsnStats = {
         "gsn_status": "roadmap",
         "roadmap_nodes": roadmap.n_vertices,
         "roadmap_edges": len(roadmap.edges),
@@ -123,7 +122,7 @@ def answer_query(
         return GsnResult(None, roadmap, stats, "no valid grasp found at the goal pose")
     start = query.start
     if problem.check_motion(start, goal):  # no roadmap needed
-        stats.update(gsn_time_s=time.perf_counter() - t0)
+        stats["gsn_time_s"] = time.perf_counter() - t0
         ends = [roadmap.n_vertices, roadmap.n_vertices + 1]
         return GsnResult(_path_states(ctx, problem, roadmap, start, goal, ends), roadmap, stats)
     s_edges = _join(problem, roadmap, start, forward=True, deadline=deadline)
@@ -131,7 +130,7 @@ def answer_query(
     ids = _search(roadmap, start, goal, s_edges, g_edges)
     if ids is not None:
         states = _path_states(ctx, problem, roadmap, start, goal, ids)
-        stats.update(gsn_time_s=time.perf_counter() - t0)
+        stats["gsn_time_s"] = time.perf_counter() - t0
         return GsnResult(states, roadmap, stats)
     # grow the roadmap: start and goal join it, module 2 links components
     stats["gsn_status"] = "roadmap_grown"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from dexplan.core.typing import FloatArray
 from dexplan.planning.local.reduction import ReductionResult
 from dexplan.planning.roadmap.graph import Roadmap
 
-__all__ = ["GsnQuery", "GsnResult", "LinkReduction"]
+__all__ = ["GsnQuery", "GsnResult", "GsnStats", "LinkReduction"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,29 @@ class LinkReduction:
         return bool(same_place and np.all(dots > 1 - tol))
 
 
+class GsnStats(TypedDict, total=False):
+    """Figures of modules 1 and 2 for one query (the plan's ``stats`` of the same names).
+
+    A typed mapping rather than a dataclass: callers pass their own running
+    tally to :func:`~dexplan.planning.roadmap.module2.link_query`, which adds to it.
+    See :class:`~dexplan.planning.stats.PlanStats` for what each figure means.
+    """
+
+    module2_attempts: int
+    module2_links: int
+    module2_time_s: float
+    module2_waypoints: int
+    gsn_status: str
+    gsn_rounds: int
+    gsn_time_s: float
+    roadmap_nodes: int
+    roadmap_edges: int
+    components: int
+    components_after_links: int
+    geodesic_motion_attempts: int
+    geodesic_motion_edges: int
+
+
 @dataclass(frozen=True)
 class GsnResult:
     """Outcome of module 1 (+ module 2) for one query.
@@ -83,6 +106,6 @@ class GsnResult:
 
     path: FloatArray | None
     roadmap: Roadmap
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: GsnStats = field(default_factory=lambda: GsnStats())
     message: str = ""
     links: tuple[LinkReduction, ...] = ()
