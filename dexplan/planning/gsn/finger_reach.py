@@ -109,7 +109,7 @@ def link_clearance(
         where not solved; 0 where the finger has no vectorised chain).
     """
     out = np.full(solved.shape, -np.inf)
-    chain = hand._chains[finger]
+    chain = hand.finger_chain(finger)
     if chain is None:
         out[solved] = 0.0
         return out

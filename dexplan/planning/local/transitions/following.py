@@ -162,7 +162,7 @@ class FingerFollower:
         Rs = [self.checks.frames(pose)[0] for pose in poses]
         targets = np.stack([tips_obj @ R.T + pose[:3] for R, pose in zip(Rs, poses, strict=True)])
         q, ok = self.ik_in_margin(finger, targets.reshape(-1, 3))
-        split = self.hand._split_ik[finger]
+        split = self.hand.split_ik(finger)
         limit = self.settings.landing_alignment
         if normals_obj is not None and split is not None and limit is not None and ok.any():
             inward = np.stack([-normals_obj @ R.T for R in Rs]).reshape(-1, 3)
@@ -266,7 +266,7 @@ class FingerFollower:
         qh = q.copy()
         qh[idx] = q_prev
         out: list[FloatArray] = []
-        analytic = hand._analytic_ik[finger]
+        analytic = hand.planar_ik(finger)
         branches = None
         for j, pose in enumerate(poses):
             tip, inward, M = self._target(tip_obj, normal_obj, pose)
@@ -324,7 +324,7 @@ class FingerFollower:
         rows = np.flatnonzero(ok)
         if not len(rows):
             return None
-        split = hand._split_ik[finger]
+        split = hand.split_ik(finger)
         if split is not None:
             rows = rows[np.argsort(-split.alignment(cands[rows], inward), kind="stable")]
         else:
@@ -338,7 +338,7 @@ class FingerFollower:
 
     def redundant(self, finger: int) -> bool:
         """Whether ``finger`` has more postures per contact than IK branches (4+ joints)."""
-        return self.hand._split_ik[finger] is not None
+        return self.hand.split_ik(finger) is not None
 
     def ik_in_margin(self, finger: int, tips: FloatArray) -> tuple[FloatArray, np.ndarray]:
         """IK of ``finger`` to fingertip centres ``tips: (N, 3)`` (world frame), off the limits.
@@ -368,7 +368,7 @@ class FingerFollower:
         several solutions per target (no redundancy) score 1.
         """
         hand = self.hand
-        split = hand._split_ik[finger]
+        split = hand.split_ik(finger)
         if split is None:
             return np.ones(len(tips))
         cands, ok = hand.finger_ik_candidates(finger, tips)
