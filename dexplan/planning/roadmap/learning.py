@@ -32,7 +32,12 @@ from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario
 from dexplan.planning.context import PlanningContext, learning_context
 from dexplan.planning.gsn.space import POSE_DIM
-from dexplan.planning.ompl import MULTI_QUERY_PLANNERS, PlanningProblem, check_planner
+from dexplan.planning.ompl import (
+    MULTI_QUERY_PLANNERS,
+    PlanningProblem,
+    check_planner,
+    planner_traits,
+)
 from dexplan.planning.progress import Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap import tasks as bt
 from dexplan.planning.roadmap.graph import Roadmap, scenario_key
@@ -102,7 +107,7 @@ class BuildSettings:
             raise InvalidInputError(f"--nodes must be in [2, {MAX_NODES}], got {self.nodes}")
         if self.jobs is not None and not 1 <= self.jobs <= MAX_JOBS:
             raise InvalidInputError(f"--jobs must be in [1, {MAX_JOBS}], got {self.jobs}")
-        if self.planner not in MULTI_QUERY_PLANNERS:
+        if not planner_traits(self.planner).multi_query:
             raise InvalidInputError(
                 f"--planner: a roadmap is built by a multi-query planner "
                 f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), got {self.planner!r}"
