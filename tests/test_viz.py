@@ -106,7 +106,7 @@ def make_roadmap(doc: dict):
     try:
         from dexplan.planning.roadmap.graph import Roadmap
     except ImportError as exc:  # the planning stack is not importable yet
-        pytest.skip(f"dexplan.planning.roadmap.roadmap unavailable: {exc}")
+        pytest.skip(f"dexplan.planning.roadmap.graph unavailable: {exc}")
     wps = [w for s in doc["segments"] for w in s["waypoints"]]
     V = np.array([w["object_pose_xyzquat"] + w["q"] for w in wps[:7]])
     edges = np.array([[0, 1], [1, 2], [2, 3], [4, 5]], dtype=np.int64)
