@@ -56,3 +56,11 @@ def test_report_compares_two_revisions() -> None:
     out = _code_size().report("HEAD", ".", 3)
     assert "| modules |" in out and "### Longest functions" in out
     assert out.count("\n| 1 | `") == 2  # one module table, one function table
+
+
+def test_no_function_of_the_working_tree_is_over_the_limit() -> None:
+    cs = _code_size()
+    sizes = cs.measure(".")
+    assert sizes.functions, "no function read"
+    too_long = [(f, n) for f, n in sizes.functions if n > cs.LONG_FUNCTION]
+    assert not too_long, too_long
