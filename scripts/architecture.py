@@ -112,7 +112,8 @@ def imports() -> list[str]:
     out.append(
         f"{len(edges)} import edges; {len(import_graph.violations(edges))} upward; "
         f"{len(found)} cycles; {len(inner)} imports inside functions (optional extras "
-        f"left out); {len(private)} private names imported across modules."
+        f"and the measured on-use imports left out); {len(private)} private names imported "
+        "across modules."
     )
     for comp in found:
         out.append(f"- cycle: {' <-> '.join(f'`{m}`' for m in comp)}")

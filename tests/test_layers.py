@@ -54,3 +54,11 @@ def test_the_checker_sees_a_cycle():
         [("dexplan.a", "dexplan.b"), ("dexplan.b", "dexplan.c"), ("dexplan.c", "dexplan.a")]
     )
     assert not g.cycles([("dexplan.a", "dexplan.b"), ("dexplan.a", "dexplan.c")])
+
+
+def test_no_cycle_no_private_import_no_import_inside_a_function():
+    g = _graph()
+    imports = g.all_imports()
+    assert g.cycles(g.edges(imports)) == []
+    assert [(i.src, i.dst, i.names) for i in g.private_imports(imports)] == []
+    assert [(i.src, i.line, i.dst) for i in g.function_imports(imports)] == []
