@@ -11,14 +11,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from enum import StrEnum
 
 import numpy as np
 
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 
-SegmentKind = Literal["transfer", "regrasp"]
+
+class SegmentKind(StrEnum):
+    """What a segment does: a transfer moves the object, a regrasp moves one finger."""
+
+    TRANSFER = "transfer"
+    REGRASP = "regrasp"
 
 
 @dataclass(frozen=True)

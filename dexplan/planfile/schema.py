@@ -26,7 +26,7 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, NoReturn, get_args
+from typing import Any, NoReturn
 
 from dexplan.core.errors import DexplanError, PlanFileError, shorten, unknown_field
 from dexplan.core.segments import SegmentKind
@@ -78,7 +78,7 @@ QUAT_NORM_TOL = 1e-3
 
 #: Values of a segment's ``kind`` (those of ``contact_model`` are the grasp
 #: model's :data:`~dexplan.model.grasp.CONTACT_MODELS`).
-SEGMENT_KINDS: tuple[str, ...] = get_args(SegmentKind)
+SEGMENT_KINDS: tuple[str, ...] = tuple(k.value for k in SegmentKind)
 
 # ------------------------------------------------------------------ tables
 # (required fields, optional fields) of every strict table. Shape tables

@@ -21,7 +21,7 @@ import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import interpolate_pose, inverse_transform_points
-from dexplan.core.segments import Segment
+from dexplan.core.segments import Segment, SegmentKind
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.contact_paths import ContactPaths
 from dexplan.planning.local.reduction import (
@@ -192,9 +192,11 @@ class EdgeReducer:
         last = self.segments[-1] if self.segments else None
         if last is not None and last.kind == "transfer":
             # consecutive edges on one grasp make a single transfer
-            self.segments[-1] = Segment("transfer", None, last.waypoints + tr.waypoints[1:])
+            self.segments[-1] = Segment(
+                SegmentKind.TRANSFER, None, last.waypoints + tr.waypoints[1:]
+            )
         elif len(tr.waypoints) > 1:
-            self.segments.append(Segment("transfer", None, tr.waypoints))
+            self.segments.append(Segment(SegmentKind.TRANSFER, None, tr.waypoints))
         self.q, self.grasp = tr.waypoints[-1].q, grasp
         return True
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import inverse_transform_points
-from dexplan.core.segments import Segment
+from dexplan.core.segments import Segment, SegmentKind
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.transitions import (
     GraspContacts,
@@ -320,7 +320,7 @@ class _GaitState:
         tr = self.trans.transfer(poses, self.idx, self.q, self.grasp)
         moved = len(tr.waypoints) > 1
         if moved:
-            self.segments.append(Segment("transfer", None, tr.waypoints))
+            self.segments.append(Segment(SegmentKind.TRANSFER, None, tr.waypoints))
             self.stall = self.blind = 0
         self.idx, self.q = tr.reached, tr.waypoints[-1].q
         if moved:

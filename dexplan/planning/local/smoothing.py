@@ -22,7 +22,7 @@ from collections.abc import Callable
 import numpy as np
 
 from dexplan.core.pose import inverse_transform_points
-from dexplan.core.segments import Segment, Waypoint
+from dexplan.core.segments import Segment, SegmentKind, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.transitions import GraspContacts, Transitions, densify_poses
 
@@ -115,7 +115,7 @@ def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | Non
     if seg is None or not np.allclose(seg.end.q, w1.q, atol=1e-6):
         return None
     # reuse the exact boundary waypoints so the neighbours still join up
-    return Segment("regrasp", f, (w0, *seg.waypoints[1:-1], w1))
+    return Segment(SegmentKind.REGRASP, f, (w0, *seg.waypoints[1:-1], w1))
 
 
 def drop_regrasps(trans: Transitions, segments: list[Segment]) -> list[Segment]:
@@ -188,7 +188,7 @@ def _transfer_on(trans: Transitions, start: Waypoint, t: Segment) -> Segment | N
     tr = trans.transfer(poses, 0, start.q, grasp)
     if tr.reason is not None:
         return None
-    return Segment("transfer", None, (start, *tr.waypoints[1:]))
+    return Segment(SegmentKind.TRANSFER, None, (start, *tr.waypoints[1:]))
 
 
 def _regrasp_to(trans: Transitions, start: Waypoint, target: Segment) -> Segment | None:
@@ -203,7 +203,7 @@ def _regrasp_to(trans: Transitions, start: Waypoint, target: Segment) -> Segment
     seg = trans.regrasp(pose, start.q, grasp, f, end.points[f], end.normals_out[f])
     if seg is None or not np.allclose(seg.end.q, target.end.q, atol=1e-6):
         return None
-    return Segment("regrasp", f, (start, *seg.waypoints[1:-1], target.end))
+    return Segment(SegmentKind.REGRASP, f, (start, *seg.waypoints[1:-1], target.end))
 
 
 def _join_transfers(segments: list[Segment]) -> list[Segment]:
@@ -212,7 +212,7 @@ def _join_transfers(segments: list[Segment]) -> list[Segment]:
     for s in segments:
         prev = out[-1] if out else None
         if prev is not None and prev.kind == s.kind == "transfer" and _same_contacts(prev, s):
-            out[-1] = Segment("transfer", None, prev.waypoints + s.waypoints[1:])
+            out[-1] = Segment(SegmentKind.TRANSFER, None, prev.waypoints + s.waypoints[1:])
         else:
             out.append(s)
     return out

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from dexplan.core.pose import quat_to_matrix
-from dexplan.core.segments import Segment, Waypoint
+from dexplan.core.segments import Segment, SegmentKind, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.grip_forces import GripForceSolver
 from dexplan.model.hand.hand import Hand
@@ -144,7 +144,7 @@ class RegraspPlanner:
         wps += [Waypoint(pose.copy(), qk, free_c) for qk in qs[1:-1]]
         wps.append(Waypoint(pose.copy(), qs[-1], new_c))
         self.stats["regrasps"] += 1
-        return Segment("regrasp", finger, tuple(wps))
+        return Segment(SegmentKind.REGRASP, finger, tuple(wps))
 
     def _landing_configuration(
         self,
