@@ -22,6 +22,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -119,7 +120,23 @@ def goal_reached(scenario: Scenario, pose: FloatArray) -> tuple[bool, float]:
     return d <= 1.0, d
 
 
-def _reduction_schedule(reduction: str, hopeless: set[str]) -> Iterator[tuple[str, str]]:
+class Trajectory(StrEnum):
+    """What a reduction attempt follows.
+
+    Attributes:
+        SHORTCUT: the shortcut object trajectory (fewest segments).
+        RAW: the GSn path's own object trajectory.
+        GSN: the GSn path's states (the edge-by-edge reduction).
+    """
+
+    SHORTCUT = "shortcut"
+    RAW = "raw"
+    GSN = "gsn"
+
+
+def _reduction_schedule(
+    reduction: str, hopeless: set[Trajectory]
+) -> Iterator[tuple[Reduction, Trajectory]]:
     """Reduction attempts ``(method, trajectory)`` in order, until one succeeds.
 
     Gaits on the shortcut trajectory first (fewest segments), then on the raw
@@ -132,14 +149,14 @@ def _reduction_schedule(reduction: str, hopeless: set[str]) -> Iterator[tuple[st
     (``ReductionSettings.max_stall``, ``max_blind``), and on boxes a fresh
     one often goes through where the first stalled.
     """
-    if reduction == "edges":
-        yield "edges", "gsn"
+    if reduction == Reduction.EDGES:
+        yield Reduction.EDGES, Trajectory.GSN
         return
-    gaits = (("gaits", "shortcut"), ("gaits", "raw"))
+    gaits = ((Reduction.GAITS, Trajectory.SHORTCUT), (Reduction.GAITS, Trajectory.RAW))
     yield from gaits * 2
-    if reduction == "auto":
-        yield "edges", "gsn"
-    while not {"shortcut", "raw"} <= hopeless:
+    if reduction == Reduction.AUTO:
+        yield Reduction.EDGES, Trajectory.GSN
+    while not {Trajectory.SHORTCUT, Trajectory.RAW} <= hopeless:
         yield from gaits
 
 
@@ -408,14 +425,14 @@ class _Query:
             return bool(inside) and not ctx.world.object_collides(p)
 
         short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
-        trajectories = {"shortcut": short, "raw": poses}
+        trajectories = {Trajectory.SHORTCUT: short, Trajectory.RAW: poses}
         grasp = grasp_from_state(ctx.transitions, self.pose0, self.q0)
         # a fresh stream: module-2 link attempts (as many as the clock allowed)
         # must not change the reduction's choices
         ctx.reseed_local_planners(self.seed, 2)
         red = ReductionResult(False, (), 0, "time limit reached before the reduction")
         attempt = 0
-        hopeless: set[str] = set()  # trajectories along which the object itself collides
+        hopeless: set[Trajectory] = set()  # those along which the object itself collides
         for method, source in _reduction_schedule(reduction, hopeless):
             if time.perf_counter() >= self.deadline:
                 break
@@ -423,7 +440,7 @@ class _Query:
                 continue
             attempt += 1
             red, from_link = self._reduce_once(gsn, method, source, trajectories, grasp)
-            self.note(reduction_method=method)
+            self.note(reduction_method=method.value)
             if from_link:
                 self.note(reduction_from_link=True)
             if red.success or from_link:
@@ -445,9 +462,9 @@ class _Query:
     def _reduce_once(
         self,
         gsn: GsnResult,
-        method: str,
-        source: str,
-        trajectories: Mapping[str, FloatArray],
+        method: Reduction,
+        source: Trajectory,
+        trajectories: Mapping[Trajectory, FloatArray],
         grasp: GraspContacts,
     ) -> tuple[ReductionResult, bool]:
         """One reduction attempt: ``(result, taken from a module-2 link)``.
@@ -457,7 +474,7 @@ class _Query:
         """
         ctx, path, q0 = self.ctx, gsn.path, self.q0
         assert path is not None and q0 is not None
-        if method == "gaits":
+        if method == Reduction.GAITS:
             settings = ctx.transitions.settings
             dense = densify_poses(trajectories[source], settings.max_step_m, settings.max_step_rad)
             link = next((k for k in gsn.links if k.matches(dense, q0)), None)
@@ -469,7 +486,7 @@ class _Query:
         # goal pose: its contacts are taken at the state's own pose)
         grasps = [grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in path]
         grasps[0] = grasp
-        poses = trajectories["raw"]
+        poses = trajectories[Trajectory.RAW]
         return reduce_gsn_path(ctx.transitions, poses, grasps, q0, deadline=self.deadline), False
 
     # -- stage 4: smoothing and the final check ------------------------------
