@@ -377,9 +377,9 @@ class _Query:
             return None, self.result(PlanStatus.NO_GOAL_GRASP, msg)
         return None, self.result(PlanStatus.NO_GSN_PATH, gsn.message)
 
-    def on_round(self, module: str, counts: Mapping[str, int]) -> None:
+    def on_round(self, stage: Stage, counts: Mapping[str, int]) -> None:
         """Progress of modules 1 and 2 while they run (see :func:`explore_gsn`)."""
-        if module == "module1":
+        if stage == Stage.MODULE1:
             msg = (
                 f"module 1: round {counts['rounds']}: {counts['nodes']} nodes, "
                 f"{counts['edges']} edges, {counts['components']} components"

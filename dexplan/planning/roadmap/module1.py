@@ -19,6 +19,7 @@ from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.chart import ChartProblem
 from dexplan.planning.ompl import PlanningProblem, planner_traits
+from dexplan.planning.progress import Stage
 from dexplan.planning.roadmap.graph import Geodesic, Roadmap, scenario_key
 from dexplan.planning.roadmap.module2 import MODULE2_WAYPOINTS, module2_round
 from dexplan.planning.roadmap.problems import search_problem
@@ -44,7 +45,7 @@ def explore_gsn(
     seed: int = 1,
     deadline: float,
     module2: bool = True,
-    on_round: Callable[[str, Mapping[str, int]], None] | None = None,
+    on_round: Callable[[Stage, Mapping[str, int]], None] | None = None,
 ) -> GsnResult:
     """Module 1 (+ module 2 when needed): a GSn path from the start to the goal region.
 
@@ -62,12 +63,13 @@ def explore_gsn(
     (doubling), after which start and goal are connected into it and the
     roadmap is searched.
 
-    ``on_round(module, counts)`` is called after each module-1 round
-    (``"module1"``: rounds, nodes, edges, components) and each module-2 pass
-    (``"module2"``: attempts, links), so a caller can show the search as it runs.
+    ``on_round(stage, counts)`` is called after each module-1 round
+    (:attr:`Stage.MODULE1`: rounds, nodes, edges, components) and each
+    module-2 pass (:attr:`Stage.MODULE2`: attempts, links), so a caller can
+    show the search as it runs.
     """
     t0 = time.perf_counter()
-    report = on_round or (lambda _module, _counts: None)
+    report = on_round or (lambda _stage, _counts: None)
     problem = search_problem(ctx, query, planner, params, space, seed)
     key = scenario_key(ctx)
     stats: GsnStats = {"module2_attempts": 0, "module2_links": 0, "module2_time_s": 0.0}
@@ -81,7 +83,7 @@ def explore_gsn(
         )
         _round_stats(stats, problem, roadmap, "exact" if path is not None else status, rounds, t0)
         counts = {"rounds": rounds, "nodes": roadmap.n_vertices, "edges": len(roadmap.edges)}
-        report("module1", {**counts, "components": stats["components"]})
+        report(Stage.MODULE1, {**counts, "components": stats["components"]})
         if path is not None:
             return GsnResult(path, roadmap, stats, links=tuple(links))
         iterations *= 2
@@ -96,7 +98,7 @@ def explore_gsn(
         )
         stats["gsn_time_s"] = time.perf_counter() - t0
         report(
-            "module2",
+            Stage.MODULE2,
             {"attempts": int(stats["module2_attempts"]), "links": int(stats["module2_links"])},
         )
         if linked.path is not None or time.perf_counter() >= deadline - 0.05:
