@@ -25,8 +25,8 @@ from hypothesis import strategies as st
 
 from dexplan.core.pose import quat_from_axis_angle, transform_points
 from dexplan.model.hand.hand import Hand
-from dexplan.planfile import schema as plan_schema
 from dexplan.planfile import hand_table, read_plan, verify_plan
+from dexplan.planfile import schema as plan_schema
 
 RADIUS = 0.04
 CENTER = np.array([0.0, 0.0, 0.1])
