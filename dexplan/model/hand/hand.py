@@ -231,6 +231,7 @@ class Hand:
         text = urdf_text(data, f"URDF file {str(path)!r}")
         kwargs.setdefault("name", path.stem)
         kwargs.setdefault("package_dirs", [str(path.parent)])
+        # the keyword arguments are Hand's own, checked there
         return cls(text, fingertip_frames, fingertip_radius, **kwargs)  # type: ignore[arg-type]
 
     @classmethod

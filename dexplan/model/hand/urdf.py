@@ -93,6 +93,7 @@ def urdf_text(data: object, what: str) -> str:
 def check_fingertip_radius(value: object, name: str) -> float:
     """``value`` as a plausible fingertip radius (m), else ModelError."""
     try:
+        # any object: float() raises on the wrong ones, reported below
         r = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         r = math.nan
@@ -133,6 +134,7 @@ def _parse_capsule(col: ET.Element, shape: ET.Element, link: str, name: str) -> 
     for key in ("radius", "length"):
         raw = shape.get(key)
         try:
+            # any object: float() raises on the wrong ones, reported below
             v = float(raw)  # type: ignore[arg-type]
         except (TypeError, ValueError):
             v = math.nan
@@ -426,6 +428,7 @@ def check_collision_exclude(
 ) -> tuple[tuple[str, str], ...]:
     """``collision_exclude`` as link-name pairs, every name a link of the model."""
     try:
+        # any object: list() raises on a non-iterable, reported below
         items = list(pairs)  # type: ignore[call-overload]
     except TypeError:
         items = None

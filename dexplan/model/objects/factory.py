@@ -102,6 +102,7 @@ def _size(d: Mapping[str, Any], field: str) -> list[float]:
         raise InvalidInputError(
             f"{name} must be 3 finite numbers > 0 (full edge lengths), got {shorten(value)}"
         )
+    # the checks above let only finite real numbers through
     return [float(x) for x in xs]  # type: ignore[arg-type]
 
 

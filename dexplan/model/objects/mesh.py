@@ -221,6 +221,8 @@ class Mesh(Shape):
             and np.array_equal(other._f, self._f)
         )
 
+    # compared by value: unhashable, as Python makes a class that defines __eq__; the
+    # base class declares __hash__ as a method, so mypy wants an ignore here
     __hash__ = None  # type: ignore[assignment]
 
     def to_coal(self) -> coal.BVHModelOBBRSS:
@@ -375,6 +377,7 @@ class Mesh(Shape):
         if len(p) <= SCALAR_LOOP_MAX:
             rows = [self._query_xyz(x, y, z)[7:] for x, y, z in p.tolist()]
             if single:
+                # one point: the scalar (int, float, float) the docstring promises
                 return rows[0]  # type: ignore[return-value]
             tri = np.array([r[0] for r in rows], dtype=np.int64)
             u = np.array([r[1] for r in rows], dtype=np.float64)

@@ -62,6 +62,8 @@ class Sphere(Shape):
     def __eq__(self, other: object) -> bool:
         return type(other) is Sphere and other._radius == self._radius
 
+    # compared by value: unhashable, as Python makes a class that defines __eq__; the
+    # base class declares __hash__ as a method, so mypy wants an ignore here
     __hash__ = None  # type: ignore[assignment]
 
     def _sdf_grad_xyz(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
@@ -145,6 +147,8 @@ class Box(Shape):
     def __eq__(self, other: object) -> bool:
         return type(other) is Box and bool(np.array_equal(other._size, self._size))
 
+    # compared by value: unhashable, as Python makes a class that defines __eq__; the
+    # base class declares __hash__ as a method, so mypy wants an ignore here
     __hash__ = None  # type: ignore[assignment]
 
     def _sdf_grad_xyz(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
@@ -290,6 +294,8 @@ class _AxialShape(Shape):
             and other._length == self._length
         )
 
+    # compared by value: unhashable, as Python makes a class that defines __eq__; the
+    # base class declares __hash__ as a method, so mypy wants an ignore here
     __hash__ = None  # type: ignore[assignment]
 
     def to_dict(self, base_dir: Path | None = None) -> dict[str, Any]:

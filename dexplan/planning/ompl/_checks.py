@@ -40,6 +40,7 @@ def as_pos(value: object, name: str) -> float:
 
     """
     try:
+        # any object: float() raises on the wrong ones, reported below
         real = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{name} must be a number, got {value!r}") from exc

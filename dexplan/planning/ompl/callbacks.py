@@ -285,6 +285,7 @@ def make_goal_region(
                     y = draw_goal(sample, attempts, accept, distance, spec.threshold, frame)
                 except Exception as exc:  # must not unwind through C++: recorded, re-raised
                     sink.record(exc)
+            # OMPL samples only while maxSampleCount() > 0, which needs first (count above)
             state.copy((first if y is None else y).tolist())  # type: ignore[union-attr]
             if anchor is not None:
                 anchor(state)

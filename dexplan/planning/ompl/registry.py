@@ -337,6 +337,7 @@ def _coerce_param(
     if isinstance(value, bool | np.bool_):
         raise PlannerError(f"{where} must be a number, got {value!r}")
     try:
+        # any object: float() raises on the wrong ones, reported below
         real = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise PlannerError(f"{where} must be a number, got {value!r}") from exc

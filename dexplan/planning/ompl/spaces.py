@@ -288,6 +288,7 @@ def make_constraint(spec: ConstraintSpec, frame: Frame, sink: ErrorSink) -> Any:
         def jacobian(self, y: FloatArray, out: FloatArray) -> None:
             try:
                 if inv is None:
+                    # this class is chosen only when jac is set; mypy does not narrow a closure
                     out[:, :] = jac(y)  # type: ignore[misc]
                 else:
                     out[:, :] = np.asarray(jac(y * inv)) * inv  # type: ignore[misc]
