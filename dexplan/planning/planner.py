@@ -22,7 +22,6 @@ import dataclasses
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -38,6 +37,7 @@ from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
 from dexplan.planning.local.reduction import (
+    PathSource,
     Reduction,
     ReductionResult,
     grasp_from_state,
@@ -120,23 +120,9 @@ def goal_reached(scenario: Scenario, pose: FloatArray) -> tuple[bool, float]:
     return d <= 1.0, d
 
 
-class Trajectory(StrEnum):
-    """What a reduction attempt follows.
-
-    Attributes:
-        SHORTCUT: the shortcut object trajectory (fewest segments).
-        RAW: the GSn path's own object trajectory.
-        GSN: the GSn path's states (the edge-by-edge reduction).
-    """
-
-    SHORTCUT = "shortcut"
-    RAW = "raw"
-    GSN = "gsn"
-
-
 def _reduction_schedule(
-    reduction: str, hopeless: set[Trajectory]
-) -> Iterator[tuple[Reduction, Trajectory]]:
+    reduction: str, hopeless: set[PathSource]
+) -> Iterator[tuple[Reduction, PathSource]]:
     """Reduction attempts ``(method, trajectory)`` in order, until one succeeds.
 
     Gaits on the shortcut trajectory first (fewest segments), then on the raw
@@ -150,13 +136,13 @@ def _reduction_schedule(
     one often goes through where the first stalled.
     """
     if reduction == Reduction.EDGES:
-        yield Reduction.EDGES, Trajectory.GSN
+        yield Reduction.EDGES, PathSource.GSN
         return
-    gaits = ((Reduction.GAITS, Trajectory.SHORTCUT), (Reduction.GAITS, Trajectory.RAW))
+    gaits = ((Reduction.GAITS, PathSource.SHORTCUT), (Reduction.GAITS, PathSource.RAW))
     yield from gaits * 2
     if reduction == Reduction.AUTO:
-        yield Reduction.EDGES, Trajectory.GSN
-    while not {Trajectory.SHORTCUT, Trajectory.RAW} <= hopeless:
+        yield Reduction.EDGES, PathSource.GSN
+    while not {PathSource.SHORTCUT, PathSource.RAW} <= hopeless:
         yield from gaits
 
 
@@ -425,14 +411,14 @@ class _Query:
             return bool(inside) and not ctx.world.object_collides(p)
 
         short = shortcut_object_path(poses, pose_ok, settings.max_step_m, settings.max_step_rad)
-        trajectories = {Trajectory.SHORTCUT: short, Trajectory.RAW: poses}
+        trajectories = {PathSource.SHORTCUT: short, PathSource.RAW: poses}
         grasp = grasp_from_state(ctx.transitions, self.pose0, self.q0)
         # a fresh stream: module-2 link attempts (as many as the clock allowed)
         # must not change the reduction's choices
         ctx.reseed_local_planners(self.seed, 2)
         red = ReductionResult(False, (), 0, "time limit reached before the reduction")
         attempt = 0
-        hopeless: set[Trajectory] = set()  # those along which the object itself collides
+        hopeless: set[PathSource] = set()  # those along which the object itself collides
         for method, source in _reduction_schedule(reduction, hopeless):
             if time.perf_counter() >= self.deadline:
                 break
@@ -463,8 +449,8 @@ class _Query:
         self,
         gsn: GsnResult,
         method: Reduction,
-        source: Trajectory,
-        trajectories: Mapping[Trajectory, FloatArray],
+        source: PathSource,
+        trajectories: Mapping[PathSource, FloatArray],
         grasp: GraspContacts,
     ) -> tuple[ReductionResult, bool]:
         """One reduction attempt: ``(result, taken from a module-2 link)``.
@@ -486,7 +472,7 @@ class _Query:
         # goal pose: its contacts are taken at the state's own pose)
         grasps = [grasp_from_state(ctx.transitions, x[:POSE_DIM], x[POSE_DIM:]) for x in path]
         grasps[0] = grasp
-        poses = trajectories[Trajectory.RAW]
+        poses = trajectories[PathSource.RAW]
         return reduce_gsn_path(ctx.transitions, poses, grasps, q0, deadline=self.deadline), False
 
     # -- stage 4: smoothing and the final check ------------------------------
