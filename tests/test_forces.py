@@ -6,7 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dexplan.execution.forces import ForceSettings, GripForceError, plan_waypoint_forces
+from dexplan.execution.forces import plan_waypoint_forces
+from dexplan.model.grasp.grip_forces import ForceSettings, GripForceError
 from dexplan.planfile import hand_from_plan, read_plan
 
 

@@ -67,8 +67,9 @@ def test_transfers_ask_the_rigid_tips_to_slide(planned) -> None:
 
 
 def test_a_free_tip_is_kept_off_the_object_until_it_lands(planned) -> None:
-    from dexplan.execution.forces import ForceSettings, solver_from_plan
+    from dexplan.execution.forces import solver_from_plan
     from dexplan.execution.replay.control import CLEARANCE, LAND_TIME
+    from dexplan.model.grasp.grip_forces import ForceSettings
 
     doc, hand = planned
     traj = build_trajectory(_first_transfer(doc), hand=hand)

@@ -3,7 +3,7 @@
 :func:`plan_waypoint_forces` solves :class:`~dexplan.model.grasp.grip_forces.GripForceSolver` at
 every waypoint of a validated plan, with the plan's object mass and gravity
 (:func:`force_settings_from_plan`); the export, the timing and the replay
-read their forces here. The model's names are re-exported.
+read their forces here.
 """
 
 from __future__ import annotations
@@ -16,34 +16,18 @@ import numpy as np
 
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.grip_forces import (
-    BALANCE_TOL,
-    DEFAULT_CONE_MARGIN,
     DEFAULT_GRAVITY,
     DEFAULT_MASS,
-    DEFAULT_MIN_NORMAL_FORCE,
     ForceSettings,
-    GripForceError,
     GripForces,
     GripForceSolver,
-    joint_effort_limits,
     loaded_fingers,
 )
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan, shape_of
 
 __all__ = [
-    "BALANCE_TOL",
-    "DEFAULT_CONE_MARGIN",
-    "DEFAULT_GRAVITY",
-    "DEFAULT_MASS",
-    "DEFAULT_MIN_NORMAL_FORCE",
-    "ForceSettings",
-    "GripForceError",
-    "GripForceSolver",
-    "GripForces",
     "force_settings_from_plan",
-    "joint_effort_limits",
-    "loaded_fingers",
     "plan_waypoint_forces",
     "solver_from_plan",
 ]

@@ -28,15 +28,7 @@ import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
-from dexplan.execution.forces import (
-    ForceSettings,
-    GripForceError,
-    GripForces,
-    GripForceSolver,
-    force_settings_from_plan,
-    joint_effort_limits,
-    solver_from_plan,
-)
+from dexplan.execution.forces import force_settings_from_plan, solver_from_plan
 from dexplan.execution.segment_timing import (
     PlanTiming,
     SegmentTiming,
@@ -44,6 +36,13 @@ from dexplan.execution.segment_timing import (
     TrajectorySample,
 )
 from dexplan.execution.timing import time_plan
+from dexplan.model.grasp.grip_forces import (
+    ForceSettings,
+    GripForceError,
+    GripForces,
+    GripForceSolver,
+    joint_effort_limits,
+)
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan
 
@@ -63,7 +62,7 @@ MAX_RATE = 10000.0
 class Unbalanced(StrEnum):
     """What :func:`build_trajectory` does where no grip forces balance the wrench."""
 
-    #: Raise a :class:`~dexplan.execution.forces.GripForceError`.
+    #: Raise a :class:`~dexplan.model.grasp.grip_forces.GripForceError`.
     RAISE = "raise"
     #: No grip forces there (NaN margin): the physics replay of a tampered plan.
     ZERO = "zero"
@@ -89,7 +88,7 @@ class Trajectory:
         margins: (m,) cone margin each sample's forces keep (fraction of ``mu``).
         segments: per segment ``(kind, finger, first_sample, last_sample)``.
         timing: the :class:`~dexplan.execution.segment_timing.PlanTiming`.
-        settings: the :class:`~dexplan.execution.forces.ForceSettings`.
+        settings: the :class:`~dexplan.model.grasp.grip_forces.ForceSettings`.
         joint_effort: (nq,) the URDF's joint effort (torque) limits (N m), NaN
             where a joint has none; None when unknown.
     """

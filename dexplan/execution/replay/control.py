@@ -43,8 +43,8 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
-from dexplan.execution.forces import GripForceError, GripForceSolver
 from dexplan.execution.trajectory import Trajectory
+from dexplan.model.grasp.grip_forces import GripForceError, GripForceSolver
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import shape_of
 
@@ -99,7 +99,7 @@ class ObjectFeedback:
     Args:
         hand: the plan's :class:`~dexplan.model.hand.hand.Hand`.
         traj: the sampled trajectory (:class:`dexplan.execution.trajectory.Trajectory`).
-        solver: the plan's :class:`~dexplan.execution.forces.GripForceSolver` (the
+        solver: the plan's :class:`~dexplan.model.grasp.grip_forces.GripForceSolver` (the
             replay's gravity): the feed-forward forces are recomputed at the
             measured contacts; None keeps the planned ones.
     """

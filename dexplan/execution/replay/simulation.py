@@ -33,10 +33,11 @@ import pinocchio as pin
 from dexplan.core.errors import DependencyError, PlanFileError
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
-from dexplan.execution.forces import ForceSettings, force_settings_from_plan, solver_from_plan
+from dexplan.execution.forces import force_settings_from_plan, solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
 from dexplan.execution.replay.mjcf import TIMESTEP, build_mjcf
 from dexplan.execution.trajectory import Trajectory, Unbalanced, build_trajectory
+from dexplan.model.grasp.grip_forces import ForceSettings
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan
 
@@ -277,7 +278,7 @@ def _replay_settings(
         gravity_vector: (3,) gravity overriding the plan's, or None.
 
     Returns:
-        ``(settings, g)``: the :class:`~dexplan.execution.forces.ForceSettings` (their
+        ``(settings, g)``: the :class:`~dexplan.model.grasp.grip_forces.ForceSettings` (their
         gravity ``g``) and (3,) ``g`` (m/s^2, world frame).
     """
     settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)

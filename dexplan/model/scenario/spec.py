@@ -161,9 +161,9 @@ class Scenario:
         torsion: soft-finger torsion coefficient (m), ``|tau_n| <= torsion f_n``,
             in (0, ``MAX_TORSION``] for soft contacts; 0 for point contacts.
         object_mass: ``[object] mass`` (kg), or None (executing a plan then
-            assumes :data:`dexplan.execution.forces.DEFAULT_MASS`).
+            assumes :data:`dexplan.model.grasp.grip_forces.DEFAULT_MASS`).
         gravity: ``[world] gravity`` (m/s^2, world frame), or None
-            (:data:`dexplan.execution.forces.DEFAULT_GRAVITY`).
+            (:data:`dexplan.model.grasp.grip_forces.DEFAULT_GRAVITY`).
     """
 
     name: str
