@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from dexplan.core.errors import InvalidInputError
-from dexplan.execution.timing import (
+from dexplan.execution.segment_timing import (
     DEFAULT_JOINT_VELOCITY,
     TimingLimits,
     joint_velocity_limits,
-    time_plan,
 )
+from dexplan.execution.timing import time_plan
 from dexplan.planfile import hand_from_plan, read_plan
 
 

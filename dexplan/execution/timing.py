@@ -23,7 +23,7 @@ Constraints
 -----------
 - joint velocity: ``|dq_j/dt| <= v_j``, ``v_j`` the URDF ``velocity`` limit
   (Pinocchio ``model.velocityLimit``); a missing or zero limit gets
-  :data:`DEFAULT_JOINT_VELOCITY`;
+  :data:`~dexplan.execution.segment_timing.DEFAULT_JOINT_VELOCITY`;
 - joint acceleration: ``|d2q_j/dt2| <= a`` (:attr:`TimingLimits.max_acceleration`);
 - object (quasi-static): speed ``|dp/dt| <= v_o`` and angular speed
   ``|dc/dt| <= w_o`` (Euclidean norms, defaults 2 cm/s and 0.5 rad/s, enforced
@@ -47,7 +47,7 @@ checks the exported samples against the full limits.
 The time law between grid points is toppra's own constant-acceleration
 interpretation (``toppra.parametrizer.ParametrizeConstAccel``): ``sddot``
 constant on each grid interval. The time laws and their states are
-:mod:`dexplan.execution.segment_timing`, whose names are re-exported here.
+:mod:`dexplan.execution.segment_timing`.
 """
 
 from __future__ import annotations
@@ -67,27 +67,18 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.segments import SegmentKind
 from dexplan.core.typing import FloatArray, IntArray
 from dexplan.execution.segment_timing import (
-    DEFAULT_JOINT_VELOCITY,
     PlanTiming,
     SegmentTiming,
     TimingError,
     TimingLimits,
-    TrajectorySample,
     joint_velocity_limits,
 )
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan
 
 __all__ = [
-    "DEFAULT_JOINT_VELOCITY",
     "DEFAULT_LIMITS",
     "SAFETY",
-    "PlanTiming",
-    "SegmentTiming",
-    "TimingError",
-    "TimingLimits",
-    "TrajectorySample",
-    "joint_velocity_limits",
     "time_plan",
     "time_segment",
 ]

@@ -15,7 +15,7 @@ from dexplan.core.files import check_output_path, file_sha256
 from dexplan.execution.check import check_trajectory
 from dexplan.execution.export import TrajectoryFormat, trajectory_document, write_trajectory
 from dexplan.execution.forces import force_settings_from_plan
-from dexplan.execution.timing import TimingLimits
+from dexplan.execution.segment_timing import TimingLimits
 from dexplan.execution.trajectory import build_trajectory
 from dexplan.planfile import hand_from_plan, read_plan
 
