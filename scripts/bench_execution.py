@@ -1,4 +1,4 @@
-"""Execution benchmark (issue 16): export limits check and MuJoCo replay over N seeds.
+"""Execution benchmark: export limits check and MuJoCo replay over N seeds.
 
     python scripts/bench_execution.py [--scenario TOML] [--seeds 20] [--first-seed 1]
         [--seed-list 3,9,16] [--time-limit S] [--out DIR] [--open-loop]

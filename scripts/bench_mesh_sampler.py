@@ -1,4 +1,4 @@
-"""Valid GSn samples per second on meshes of 5k to 330k triangles (issue 13's ratio figure).
+"""Valid GSn samples per second on meshes of 5k to 330k triangles (how the rate scales).
 
 Builds the paper_sphere task with the ball replaced by a geodesic sphere mesh
 of the same radius (5,120, 81,920, 100,820 or 327,680 triangles: the
@@ -34,7 +34,7 @@ def geodesic_sphere(frequency: int, radius: float) -> trimesh.Trimesh:
     """A closed sphere mesh of ``20 frequency^2`` triangles (a geodesic polyhedron).
 
     trimesh's icospheres come in powers of 4 (81,920 then 327,680 triangles);
-    this one takes any frequency, 71 for the issue's 100k.
+    this one takes any frequency, 71 for about 100k triangles.
     """
     ico = trimesh.creation.icosahedron()
     verts, faces = [], []

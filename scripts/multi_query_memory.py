@@ -1,4 +1,4 @@
-"""Memory of many queries on one loaded roadmap (issue 15: no growth over 1000 queries).
+"""Memory of many queries on one loaded roadmap (it should not grow over 1000 queries).
 
 Loads a roadmap, answers N cheap queries (a 3 degree turn of the paper sphere,
 answered on the roadmap) one after the other in this process, and prints the

@@ -1,4 +1,4 @@
-"""Wall time against the time limit on unsolvable queries (issue: time limits everywhere).
+"""Wall time against the time limit on unsolvable queries.
 
 Runs ``dexplan plan`` in a fresh process on an unsolvable query, once with the
 builtin paper hand (tests/data/unsolvable_lid.toml) and once with the Allegro
@@ -37,7 +37,7 @@ mu = 0.8
 shape = "box"
 size = [0.01, 0.3, 0.3]
 pose_xyzquat = [0.19, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
-[start]         # the valid grasp of MEASURED.md, in palm_link coordinates
+[start]         # a valid fingertip grasp of the ball, in palm_link coordinates
 object_pose_xyzquat = [0.09, 0.0, -0.01, 0.0, 0.0, 0.0, 1.0]
 q = [0.224, 0.8432, 0.7398, 1.5262, 1.2633, 0.4505, -0.1501, 0.9058,
      0.1159, 0.491, 0.9425, 0.4704, -0.2485, 0.4538, 1.6597, 0.6968]
