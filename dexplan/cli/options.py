@@ -42,7 +42,12 @@ class Reduction(StrEnum):
 
 
 class GoalKind(StrEnum):
-    """``plan --goal-kind``: what ``--random-goals`` draws."""
+    """``plan --goal-kind``: what ``--random-goals`` draws.
+
+    The goals' own list (``dexplan.model.scenario.goals.GoalKind``); repeated
+    here because importing the scenario package would load SciPy and the
+    grasp model for ``dexplan --help``.
+    """
 
     ORIENTATION = "orientation"
     POSE = "pose"
