@@ -31,7 +31,6 @@ __all__ = [
     "PLANNERS",
     "PLANNER_NOTES",
     "PLANNER_TRAITS",
-    "PROJECTION_PLANNERS",
     "RESTARTED_PLANNERS",
     "UNSUPPORTED_PLANNERS",
     "PlannerTraits",
@@ -206,9 +205,6 @@ RESTARTED_PLANNERS = planners_with("restarted")
 
 MULTI_QUERY_PLANNERS = planners_with("multi_query")
 """Planners with :attr:`PlannerTraits.multi_query` (the PRM family)."""
-
-PROJECTION_PLANNERS = planners_with("needs_projection")
-"""Planners with :attr:`PlannerTraits.needs_projection` (the KPIECE family)."""
 
 CAPPED_PLANNERS = planners_with("capped")
 """Planners with :attr:`PlannerTraits.capped`."""

@@ -1,9 +1,10 @@
 """The learning phase in tasks: one roadmap, built by local processes or a Ray cluster.
 
-:func:`build_roadmap_tasks` grows the same kind of roadmap as
-:func:`~dexplan.planning.roadmap.learning.build_roadmap`, PRM's way (GSn samples,
-then a GSn motion check from each vertex to its nearest neighbours, then
-module-2 links between components), but cut into tasks that workers run:
+:func:`run_build` (what :func:`~dexplan.planning.roadmap.learning.build_roadmap`
+runs with ``--jobs`` or ``--ray``) grows the same kind of roadmap as the serial
+build, PRM's way (GSn samples, then a GSn motion check from each vertex to its
+nearest neighbours, then module-2 links between components), but cut into
+tasks that workers run:
 
 - **sample** tasks draw :data:`SAMPLES_PER_TASK` RLG states each;
 - **edge** tasks check :data:`PAIRS_PER_TASK` candidate GSn motions each;
@@ -35,7 +36,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from dexplan.core.errors import DexplanError, InvalidInputError
+from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario
@@ -424,8 +425,3 @@ def run_build(
         if count == 1:
             break
     return st
-
-
-def check_runner_error(exc: BaseException) -> DexplanError:
-    """A worker's failure as one line."""
-    return DexplanError(f"a build worker failed: {type(exc).__name__}: {str(exc)[:200]}")
