@@ -260,7 +260,9 @@ class BenchDatabase:
         return run_id
 
     def records(self, keys: Iterable[str] | None = None) -> list[RunRow]:
-        """Stored runs as flat records (:data:`CSV_COLUMNS` plus ``key``), in run order.
+        """Stored runs as flat records, in run order.
+
+        A record holds :data:`~dexplan.bench.schema.CSV_COLUMNS` plus ``key``.
 
         Args:
             keys: resume keys to return (None: every run).

@@ -106,7 +106,7 @@ PLAN_STATUSES: tuple[str, ...] = tuple(RunStatus)
 """Run outcomes, in the order of the ``plan status`` enum (its values are indexes here)."""
 
 FAILED_RUN_STATUSES = frozenset({RunStatus.ERROR, RunStatus.CRASH})
-"""Statuses of runs that failed as runs (see :attr:`BenchResult.failed`)."""
+"""Statuses of runs that failed as runs (see :attr:`~dexplan.bench.sweep.BenchResult.failed`)."""
 
 
 class ReductionMethod(StrEnum):

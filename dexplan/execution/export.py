@@ -69,7 +69,7 @@ def trajectory_document(
     """The ``dexplan-trajectory/1`` JSON document of a trajectory.
 
     Args:
-        traj: from :func:`build_trajectory`.
+        traj: from :func:`~dexplan.execution.trajectory.build_trajectory`.
         plan: the plan it was built from (joint names, friction).
         sha256: the plan file's SHA-256 (default: :func:`plan_sha256` of ``plan``).
     """

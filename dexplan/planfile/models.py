@@ -117,7 +117,7 @@ def models_from_document(
     trajectory export and the replay all use it.
 
     Args:
-        doc: a ``dexplan-plan/1`` document (see :func:`read_plan`).
+        doc: a ``dexplan-plan/1`` document (see :func:`~dexplan.planfile.document.read_plan`).
         base_dir: folder relative mesh paths resolve against.
         hand: the hand if already rebuilt (:func:`hand_from_plan`).
         package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.

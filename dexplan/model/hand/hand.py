@@ -242,7 +242,7 @@ class Hand:
         (3 x 3 DOF, capsule links) ship with dexplan; ``"allegro"`` and
         ``"allegro_left"`` (4 x 4 DOF) are read from the installed
         ``example-robot-data`` distribution and mounted palm-up (see
-        :data:`ALLEGRO_MOUNT_RPY`).
+        :data:`~dexplan.model.hand.builtin.ALLEGRO_MOUNT_RPY`).
 
         Raises:
             InvalidInputError: unknown name.

@@ -20,9 +20,9 @@ from dexplan.model.hand.hand import Hand
 from dexplan.planning.gsn.space import POSE_DIM
 
 #: Of a pose's combination draws, those best balanced, this many per combination
-#: kept (:attr:`SamplerSettings.combinations`), get the half-space test; the rest
-#: are dropped unranked: few draws pass the test, and valid grasps rank near the
-#: top of the balance order.
+#: kept (:attr:`~dexplan.planning.gsn.sampler.SamplerSettings.combinations`), get
+#: the half-space test; the rest are dropped unranked: few draws pass the test,
+#: and valid grasps rank near the top of the balance order.
 RANKED_PER_COMBINATION = 4
 
 #: One finger's pool: fingertip centres ``(P, 3)`` and outward normals ``(P, 3)``

@@ -8,8 +8,9 @@ time are counted.
 
 One link loop, :func:`link_pass`, serves every caller: a single query
 (:func:`link_query`, towards the goal region), the learning phase
-(:func:`link_components`, every component towards the largest) and the build
-in tasks (its link attempts run in parallel, in batches).
+(:func:`~dexplan.planning.roadmap.learning.link_components`, every component
+towards the largest) and the build in tasks (its link attempts run in
+parallel, in batches).
 """
 
 from __future__ import annotations
