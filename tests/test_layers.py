@@ -62,3 +62,12 @@ def test_no_cycle_no_private_import_no_import_inside_a_function():
     assert g.cycles(g.edges(imports)) == []
     assert [(i.src, i.dst, i.names) for i in g.private_imports(imports)] == []
     assert [(i.src, i.line, i.dst) for i in g.function_imports(imports)] == []
+
+
+def test_every_package_declares_its_public_names():
+    missing = [
+        str(p.relative_to(ROOT))
+        for p in sorted((ROOT / "dexplan").rglob("__init__.py"))
+        if "__all__" not in p.read_text()
+    ]
+    assert missing == []

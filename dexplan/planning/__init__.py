@@ -3,3 +3,17 @@
 The :mod:`dexplan.planning.ompl` package is the only part of dexplan that imports
 ``ompl``; the other planning modules hand it plain NumPy callables.
 """
+
+__all__ = [
+    "context",
+    "deadline",
+    "diagnostics",
+    "gsn",
+    "local",
+    "ompl",
+    "planner",
+    "progress",
+    "roadmap",
+    "start",
+    "stats",
+]

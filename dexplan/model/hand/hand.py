@@ -120,6 +120,18 @@ class Hand:
     The URDF's root link is fixed in the world frame (the scenario's palm
     frame); see ``docs/hands.md`` for the rules a URDF hand must follow.
 
+    Inverse kinematics, one method per use (the solver behind each is chosen
+    per finger when the hand is loaded: closed form where the geometry allows,
+    damped least squares otherwise):
+
+    - :meth:`finger_ik`: one target, inputs checked, a full :class:`IKResult`;
+    - :meth:`finger_ik_fast`: one target in an inner loop, unchecked, None on failure;
+    - :meth:`finger_ik_alternatives`: the solutions one tracking step away
+      (a redundant finger following a moving contact);
+    - :meth:`finger_ik_batch`: one solution per target for many targets;
+    - :meth:`finger_ik_candidates`: every branch per target for many targets
+      (the sampler and the landing choice try them all).
+
     Args:
         urdf_xml: full URDF text (``str``; UTF-8 ``bytes`` are decoded).
             Collision geometry may be boxes, spheres, cylinders, meshes
