@@ -41,8 +41,8 @@ from dexplan.model.grasp.grip_forces import (
     GripForceError,
     GripForces,
     GripForceSolver,
-    joint_effort_limits,
 )
+from dexplan.model.grasp.grip_program import joint_effort_limits
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan
 

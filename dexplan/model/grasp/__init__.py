@@ -155,8 +155,6 @@ from dexplan.model.grasp.force_closure import (
     DEFAULT,
     DIRECTIONS,
     MAX_FRICTION_EDGES_DENSE,
-    MAX_INTERIOR_NORM,
-    RANK_TOL,
     VERDICTS,
     ForceClosure,
     ForceClosureStats,
@@ -167,6 +165,7 @@ from dexplan.model.grasp.force_closure import (
     is_force_closure,
     min_subgrasp_quality,
 )
+from dexplan.model.grasp.subgrasps import MAX_INTERIOR_NORM, RANK_TOL
 
 __all__ = [
     "CONTACT_MODELS",

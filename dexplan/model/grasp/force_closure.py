@@ -18,8 +18,6 @@ from dexplan.core.typing import FloatArray, as_positive
 from dexplan.model.grasp.cones import ContactModel, check_grasp, ellipsoid_facets, min_contacts
 from dexplan.model.grasp.least_distance import PairQP
 from dexplan.model.grasp.subgrasps import (
-    MAX_INTERIOR_NORM,
-    RANK_TOL,
     Contacts,
     PairBounds,
     Subsets,
@@ -31,8 +29,6 @@ from dexplan.model.grasp.subgrasps import (
 __all__ = [
     "DEFAULT",
     "DIRECTIONS",
-    "MAX_INTERIOR_NORM",
-    "RANK_TOL",
     "ForceClosure",
     "force_closure_quality",
     "is_force_closure",

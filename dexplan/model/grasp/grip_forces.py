@@ -79,7 +79,6 @@ from dexplan.model.grasp.grip_program import (
 from dexplan.model.objects.fingertip import fingertip_contact
 
 __all__ = [
-    "BALANCE_TOL",
     "DEFAULT_CONE_MARGIN",
     "DEFAULT_GRAVITY",
     "DEFAULT_MASS",
@@ -88,7 +87,6 @@ __all__ = [
     "GripForceError",
     "GripForceSolver",
     "GripForces",
-    "joint_effort_limits",
     "loaded_fingers",
 ]
 
