@@ -85,17 +85,7 @@ def build_hand(scenario: Scenario, *, check_contacts: bool = True) -> Hand:
         ScenarioError: with ``check_contacts``, no (n-1)-finger subgrasp can be
             force closure under the scenario's contact model.
     """
-    spec = scenario.hand
-    if spec.builtin is not None:
-        hand = Hand.builtin(spec.builtin)
-    else:
-        assert spec.urdf is not None and spec.fingertip_radius is not None
-        hand = Hand.from_urdf_file(
-            spec.urdf,
-            spec.fingertip_frames,
-            spec.fingertip_radius,
-            collision_exclude=spec.collision_exclude,
-        )
+    hand = Hand.from_spec(scenario.hand)
     if check_contacts:
         validity_settings(scenario, hand.n_fingers)
     return hand

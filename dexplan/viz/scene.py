@@ -23,7 +23,6 @@ from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
 from dexplan.model.scenario import Scenario
 from dexplan.planfile import hand_from_plan, models_from_document, shape_of, validate_plan
-from dexplan.planning.context import build_hand
 from dexplan.viz.session import (
     GOAL,
     GREY,
@@ -138,7 +137,7 @@ def scene_from_scenario(scenario: Scenario) -> Scene:
     """Hand, object and obstacles of a :class:`~dexplan.model.scenario.scenario.Scenario`."""
     base = Path(scenario.base_dir)
     return Scene(
-        hand=build_hand(scenario, check_contacts=False),
+        hand=Hand.from_spec(scenario.hand),
         obj=shape_from_dict(scenario.object, base),
         obstacles=obstacles_from_dicts(scenario.obstacles, base),
         mu=float(scenario.mu),

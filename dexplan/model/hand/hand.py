@@ -41,6 +41,7 @@ from dexplan.model.hand.urdf import (
     parse_urdf,
     urdf_text,
 )
+from dexplan.model.scenario.spec import HandSpec
 
 
 def _joint_limits(
@@ -224,6 +225,19 @@ class Hand:
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
 
     # ------------------------------------------------------------------ loading
+    @classmethod
+    def from_spec(cls, spec: HandSpec) -> Hand:
+        """The hand a scenario's ``[hand]`` table names: a builtin hand or a URDF file."""
+        if spec.builtin is not None:
+            return cls.builtin(spec.builtin)
+        assert spec.urdf is not None and spec.fingertip_radius is not None
+        return cls.from_urdf_file(
+            spec.urdf,
+            spec.fingertip_frames,
+            spec.fingertip_radius,
+            collision_exclude=spec.collision_exclude,
+        )
+
     @classmethod
     def from_urdf_file(
         cls,

@@ -15,7 +15,7 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -27,9 +27,11 @@ from dexplan.core.files import atomic_output
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 from dexplan.model.scenario import scenario_description
-from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.roadmap.file import ROADMAP_FORMAT, read_roadmap_arrays
+
+if TYPE_CHECKING:  # annotation only: the planning context loads OMPL, a roadmap does not need it
+    from dexplan.planning.context import PlanningContext
 
 __all__ = [
     "Geodesic",
