@@ -1,6 +1,6 @@
 """Contact models: the soft-finger force closure against independent references.
 
-The references rebuild the soft-finger generators from DESIGN.md (the point
+The references rebuild the soft-finger generators of docs/force_closure.md (the point
 pyramid edges of ``test_grasp.ref_edges`` plus ``[n, (p x n + s torsion n) / L]``)
 and judge them with scipy's qhull, as ``tests/test_grasp.py`` does for point
 contacts; the exact sets (round Coulomb cone, elliptic soft-finger set) are
@@ -246,7 +246,7 @@ def test_exact_sets_against_dense_samples() -> None:
     Sampled points lie in the exact set, so a sample hull that is force closure
     means the exact set is: the verdict must not be ``not_fc`` (which claims
     not FC even for a polytope containing the exact set). A rotated 8-edge
-    pyramid (the "other basis" of MEASURED.md) is such a sample for point
+    pyramid (a pyramid in another tangent basis) is such a sample for point
     contacts.
     """
     rng = np.random.default_rng(24)
@@ -276,7 +276,7 @@ def test_exact_sets_against_dense_samples() -> None:
 
 def test_exact_round_cone_rescues_a_rotated_pyramid() -> None:
     """Near the boundary the 8-edge verdict depends on the pyramid's turn; the
-    round cone does not (DESIGN.md: judged against the round cone)."""
+    round cone does not (a plan's force closure is judged against the round cone)."""
     rng = np.random.default_rng(25)
     found = 0
     for _ in range(3000):

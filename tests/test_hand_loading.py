@@ -22,7 +22,7 @@ from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.urdf import MOUNT_LINK, mount_urdf
 from dexplan.model.objects.primitives import Sphere
 
-#: MEASURED.md: a valid fingertip-only grasp of a R 6 cm sphere at (0.09, 0, -0.01)
+#: A valid fingertip-only grasp of a R 6 cm sphere at (0.09, 0, -0.01)
 #: in palm_link (right hand), joints in Pinocchio order.
 ALLEGRO_GRASP_Q = np.array(
     [
