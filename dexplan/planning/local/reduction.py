@@ -25,8 +25,9 @@ result and the regrasps onto given contacts here serve both.
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -562,7 +563,8 @@ def regrasps_onto(
 
 def reduction_stats(trans: Transitions, regrasps: int) -> dict[str, int]:
     """The local planners' counters with the reduction's regrasps (``reduction_regrasps``)."""
-    out = dict(trans.stats)
+    # every counter of LocalCounts is an int; a TypedDict is not a dict[str, int] to mypy
+    out = dict(cast("Mapping[str, int]", trans.stats))
     out["reduction_regrasps"] = regrasps
     return out
 

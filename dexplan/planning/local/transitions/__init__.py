@@ -1,6 +1,7 @@
 """Transfer and regrasp local planners (paper, section IV) and the landing choice of regrasps."""
 
 from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts
 from dexplan.planning.local.transitions.landings import LandingPool
 from dexplan.planning.local.transitions.planners import Transitions
 from dexplan.planning.local.transitions.settings import TransitionSettings
@@ -9,6 +10,7 @@ from dexplan.planning.local.transitions.transfer import TransferResult, Transfer
 __all__ = [
     "GraspContacts",
     "LandingPool",
+    "LocalCounts",
     "TransferResult",
     "TransferStop",
     "TransitionSettings",

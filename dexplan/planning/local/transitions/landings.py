@@ -23,6 +23,7 @@ from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn.validity import ValiditySettings
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts
 from dexplan.planning.local.transitions.following import FingerFollower
 from dexplan.planning.local.transitions.settings import TransitionSettings
 
@@ -65,7 +66,7 @@ class Landings:
         follower: FingerFollower,
         rng: np.random.Generator,
         deadline: Deadline,
-        stats: dict[str, int],
+        stats: LocalCounts,
     ) -> None:
         self.hand = hand
         self.obj = obj

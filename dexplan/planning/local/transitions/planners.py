@@ -24,6 +24,7 @@ from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn.validity import ValiditySettings
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts, new_counts
 from dexplan.planning.local.transitions.following import FingerFollower
 from dexplan.planning.local.transitions.landings import LandingPool, Landings
 from dexplan.planning.local.transitions.regrasp import RegraspPlanner
@@ -75,14 +76,7 @@ class Transitions:
         self.world = world
         self.validity = validity
         self.settings = settings
-        self.stats: dict[str, int] = {
-            "transfers": 0,
-            "regrasp_attempts": 0,
-            "regrasps": 0,
-            "landing_checks": 0,
-            "weak_holds": 0,
-            "backtracks": 0,
-        }
+        self.stats: LocalCounts = new_counts()
         self.checks = FingerChecks(hand, world, settings)
         self.follower = FingerFollower(hand, settings, self.checks)
         self.landings = Landings(

@@ -23,6 +23,7 @@ from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts
 from dexplan.planning.local.transitions.settings import TransitionSettings
 from dexplan.planning.ompl import plan_joint_path
 
@@ -56,7 +57,7 @@ class RegraspPlanner:
         rng: np.random.Generator,
         deadline: Deadline,
         grip: GripForceSolver | None,
-        stats: dict[str, int],
+        stats: LocalCounts,
     ) -> None:
         self.hand = hand
         self.settings = settings

@@ -24,6 +24,7 @@ from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts
 from dexplan.planning.local.transitions.settings import TransitionSettings
 
 #: Times a transfer step whose joints jump is halved before it gives up.
@@ -111,7 +112,7 @@ class TransferPlanner:
         hand: Hand,
         settings: TransitionSettings,
         checks: FingerChecks,
-        stats: dict[str, int],
+        stats: LocalCounts,
     ) -> None:
         self.hand = hand
         self.settings = settings
