@@ -18,8 +18,8 @@ from dexplan.model.grasp.grip_forces import (
     DEFAULT_GRAVITY,
     DEFAULT_MASS,
     ForceSettings,
-    GripForceSolver,
 )
+from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
 from dexplan.model.scenario import Scenario
@@ -112,23 +112,28 @@ def validity_settings(scenario: Scenario, n_fingers: int) -> ValiditySettings:
     return vset
 
 
-def grip_forces(
-    scenario: Scenario, hand: Hand, obj: Shape, vset: ValiditySettings
-) -> GripForceSolver:
-    """The grip forces an export of the scenario's plans computes.
+def hold_checker(scenario: Scenario, hand: Hand, obj: Shape, vset: ValiditySettings) -> HoldChecker:
+    """The holds of the scenario's plans (:mod:`dexplan.model.grasp.holds`).
 
     The scenario's object mass and gravity (the export's defaults where it
-    gives none), its friction and contact model: the local planners let a
-    finger go only where the others hold the object within the hand's
-    effort limits (:meth:`Transitions.can_release`).
+    gives none), its friction, contact model and hold shift: the local
+    planners let a finger go only where the others hold the object within
+    the hand's effort limits (:meth:`Transitions.can_release`).
     """
     g = scenario.gravity
     settings = ForceSettings(
         mass=DEFAULT_MASS if scenario.object_mass is None else scenario.object_mass,
         gravity=DEFAULT_GRAVITY if g is None else (float(g[0]), float(g[1]), float(g[2])),
     )
-    return GripForceSolver(
-        hand, obj, vset.mu, vset.friction_edges, vset.contact_model, vset.torsion, settings
+    return HoldChecker(
+        hand,
+        obj,
+        vset.mu,
+        vset.friction_edges,
+        vset.contact_model,
+        vset.torsion,
+        settings,
+        shift_m=scenario.hold_shift,
     )
 
 
@@ -201,7 +206,7 @@ def build_context(
         transition_settings or TransitionSettings(),
         rng_local,
         deadline,
-        grip_forces(scenario, hand, obj, vset),
+        hold_checker(scenario, hand, obj, vset),
     )
     return PlanningContext(
         scenario, hand, obj, world, gsn, validity, sampler, transitions, rng, deadline, seed

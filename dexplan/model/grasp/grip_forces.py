@@ -27,12 +27,11 @@ keeps a margin from the cone boundary:
   was kept;
 - each normal force is at least ``min_normal_force`` (N): the fingers always
   squeeze, which also keeps a margin from the cone's apex;
-- the joint torques they need (below) within the URDF's effort limits: every
-  margin is tried within them first, so a grasp that the joints can hold
-  keeps a smaller margin rather than asking for more torque than the joints
-  have (a wide margin can need several times the torque a narrower one
-  does); where no margin works within them the forces are computed without
-  them, and the export's limits check names the joint that cannot follow;
+- the joint torques they need (below) within the URDF's effort limits, always:
+  a grasp the joints can hold keeps a smaller margin rather than asking for
+  more torque than the joints have (a wide margin can need several times the
+  torque a narrower one does), and where no margin works within them there
+  are no grip forces (:class:`GripForceError`): a limit is never relaxed;
 - objective ``sum |f_c|^2 + (tau_c / L)^2`` (``tau_c`` the soft-finger
   torsional moment, ``L`` the object's characteristic length), solved by OSQP
   over the contact forces (strictly convex; balance as equalities, the cones
@@ -388,22 +387,25 @@ class GripForceSolver:
         """:meth:`_qp` with the largest margin of ``cone_margin * (1, 1/2, 1/4, 0)`` that works.
 
         With ``torque`` (the joint torque rows and effort limits of
-        :meth:`_torque_rows`), forces the joints can produce are preferred
-        to a wider margin: every margin is tried within the effort limits
-        first, then without them (the export's limits check reports the
-        excess).
+        :meth:`_torque_rows`), every margin is tried within the effort
+        limits, never without them.
         """
         m0 = self.settings.cone_margin
         margins = [m0, m0 / 2, m0 / 4, 0.0] if m0 > 0 else [0.0]
         # the plan's linearization, then the densest one (closer to the round
         # cone the verifier judges by) without margin
         tries = [(mg, self.edges) for mg in margins] + [(0.0, MAX_FRICTION_EDGES)]
-        for limits in ([torque] if torque is not None else []) + [None]:
-            for margin, edges in tries:
-                out = self._qp(P, N, w_ext, margin, edges, limits)
-                if out is not None:
-                    return (*out, margin)
+        for margin, edges in tries:
+            out = self._qp(P, N, w_ext, margin, edges, torque)
+            if out is not None:
+                return (*out, margin)
         st = self.settings
+        if torque is not None and self._qp(P, N, w_ext, 0.0, MAX_FRICTION_EDGES, None) is not None:
+            raise GripForceError(
+                f"{where}: the {P.shape[0]} loaded contact(s) hold the object's weight "
+                f"({st.mass:g} kg) only with joint torques beyond the hand's effort limits "
+                "(a limit is never relaxed)"
+            )
         model = (
             f"soft contacts, mu {self.mu:g}, torsion {self.torsion:g} m"
             if self.contact_model == "soft"

@@ -13,17 +13,22 @@ order as Pinocchio reads it). ``finger_q_index[i]`` gives the entries of
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.errors import InvalidInputError, ModelError, shorten
+from dexplan.core.errors import InvalidInputError, ModelError
 from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_vector
 from dexplan.model.hand.builtin import builtin_hand
+from dexplan.model.hand.frames import (
+    finger_joint_indices,
+    fingertip_frame_id,
+    fingertip_list,
+    joint_limits,
+)
 from dexplan.model.hand.ik import (
     FingerChain,
     IKResult,
@@ -40,79 +45,9 @@ from dexplan.model.hand.urdf import (
     check_fingertip_radius,
     parse_urdf,
     urdf_text,
+    with_effort_limits,
 )
 from dexplan.model.scenario.spec import HandSpec
-
-
-def _joint_limits(
-    model: pin.Model, joint_names: Sequence[str], name: str
-) -> tuple[FloatArray, FloatArray]:
-    """(nq,) lower and upper joint limits, checked finite and ordered.
-
-    Raises:
-        ModelError: a joint without finite limits or with lower > upper.
-    """
-    lower = np.array(model.lowerPositionLimit, dtype=float)
-    upper = np.array(model.upperPositionLimit, dtype=float)
-    for j, joint in enumerate(joint_names):
-        lo, hi = lower[j], upper[j]
-        if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
-            raise ModelError(
-                f"hand {name!r}: joint {joint!r} needs finite limits with lower <= upper, "
-                f"got lower={lo!r}, upper={hi!r}"
-            )
-    return lower, upper
-
-
-def _fingertip_list(fingertip_frames: object, name: str) -> tuple[str, ...]:
-    """The fingertip frame names as given: a list of at least 2, none repeated.
-
-    Raises:
-        ModelError: not a list, fewer than 2 frames, or a repeated frame.
-    """
-    if isinstance(fingertip_frames, str | bytes) or not isinstance(fingertip_frames, Sequence):
-        raise ModelError(
-            f"hand {name!r}: fingertip_frames must be a list of frame names, "
-            f"got {shorten(fingertip_frames)}"
-        )
-    tips = list(fingertip_frames)
-    if len(tips) < 2:
-        raise ModelError(f"hand {name!r} needs at least 2 fingertip frames, got {shorten(tips)}")
-    if len(set(map(repr, tips))) != len(tips):
-        raise ModelError(f"hand {name!r}: fingertip_frames repeat a frame: {shorten(tips)}")
-    return tuple(tips)
-
-
-def _fingertip_frame_id(model: pin.Model, tip: object, name: str) -> int:
-    """Pinocchio frame id of the fingertip frame ``tip``.
-
-    Raises:
-        ModelError: ``tip`` is not the name of a frame of the model.
-    """
-    frames = [f.name for f in model.frames]
-    if not isinstance(tip, str) or tip not in frames:
-        raise ModelError(
-            f"unknown fingertip frame {shorten(tip)} in hand {name!r}; "
-            f"frames are {shorten(frames, 200)}"
-        )
-    return int(model.getFrameId(tip))
-
-
-def _finger_chain(model: pin.Model, fid: int, tip: str) -> list[int]:
-    """Sorted ``q`` indices of the joints between the root and frame ``fid``.
-
-    Raises:
-        ModelError: no joint moves the frame.
-    """
-    chain = []
-    jid = model.frames[fid].parentJoint
-    while jid > 0:
-        chain.append(model.joints[jid].idx_q)
-        jid = model.parents[jid]
-    chain.sort()
-    if not chain:
-        raise ModelError(f"fingertip frame {tip!r} is not moved by any joint")
-    return chain
 
 
 class Hand:
@@ -146,6 +81,8 @@ class Hand:
             (beyond adjacent links, which are always excluded).
         name: human-readable name.
         package_dirs: directories searched for mesh files.
+        effort_limits: joint effort limits (N m) replacing the URDF's: one for
+            every joint, or a table by joint name (written into ``urdf_xml``).
 
     Raises:
         ModelError: text that is not UTF-8, malformed XML, an invalid URDF (the
@@ -165,9 +102,12 @@ class Hand:
         collision_exclude: Sequence[tuple[str, str]] = (),
         name: str = "hand",
         package_dirs: Sequence[str | Path] = (),
+        effort_limits: float | Mapping[str, float] | None = None,
     ) -> None:
         self.name = name
         self.urdf_xml = urdf_text(urdf_xml, f"URDF of hand {name!r}")
+        if effort_limits is not None:  # written into the URDF text a plan carries
+            self.urdf_xml = with_effort_limits(self.urdf_xml, effort_limits)
         self.fingertip_radius = check_fingertip_radius(fingertip_radius, name)
         description = parse_urdf(self.urdf_xml, name)
         #: folders the URDF's mesh files were found in (viewers load its visual meshes there)
@@ -176,17 +116,17 @@ class Hand:
         self.data: pin.Data = self.model.createData()
 
         self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])
-        self.lower, self.upper = _joint_limits(self.model, self.joint_names, name)
+        self.lower, self.upper = joint_limits(self.model, self.joint_names, name)
         links = {f.name for f in self.model.frames if f.type == pin.FrameType.BODY}
         self.collision_exclude = check_collision_exclude(collision_exclude, links, name)
-        self.fingertip_frames: tuple[str, ...] = _fingertip_list(fingertip_frames, name)
+        self.fingertip_frames: tuple[str, ...] = fingertip_list(fingertip_frames, name)
         self.tip_frame_ids: tuple[int, ...] = ()
         finger_q_index: list[IntArray] = []
         used: set[int] = set()
         for tip in self.fingertip_frames:
-            fid = _fingertip_frame_id(self.model, tip, name)
+            fid = fingertip_frame_id(self.model, tip, name)
             self.tip_frame_ids += (fid,)
-            chain = _finger_chain(self.model, fid, tip)
+            chain = finger_joint_indices(self.model, fid, tip)
             if used.intersection(chain):
                 raise ModelError(f"fingertip frame {tip!r} shares joints with another finger")
             used.update(chain)
@@ -229,13 +169,14 @@ class Hand:
     def from_spec(cls, spec: HandSpec) -> Hand:
         """The hand a scenario's ``[hand]`` table names: a builtin hand or a URDF file."""
         if spec.builtin is not None:
-            return cls.builtin(spec.builtin)
+            return cls.builtin(spec.builtin, effort_limits=spec.effort_limits)
         assert spec.urdf is not None and spec.fingertip_radius is not None
         return cls.from_urdf_file(
             spec.urdf,
             spec.fingertip_frames,
             spec.fingertip_radius,
             collision_exclude=spec.collision_exclude,
+            effort_limits=spec.effort_limits,
         )
 
     @classmethod
@@ -261,7 +202,9 @@ class Hand:
         return cls(text, fingertip_frames, fingertip_radius, **kwargs)  # type: ignore[arg-type]
 
     @classmethod
-    def builtin(cls, name: str = "paper") -> Hand:
+    def builtin(
+        cls, name: str = "paper", effort_limits: float | Mapping[str, float] | None = None
+    ) -> Hand:
         """Return a builtin hand (see :data:`~dexplan.model.hand.builtin.BUILTIN_HANDS`).
 
         ``"paper"`` (4 x 3 DOF, after the paper) and ``"three_finger"``
@@ -282,6 +225,7 @@ class Hand:
             collision_exclude=spec.collision_exclude,
             name=spec.name,
             package_dirs=spec.package_dirs,
+            effort_limits=effort_limits,
         )
 
     # --------------------------------------------------------------- properties

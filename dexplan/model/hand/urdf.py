@@ -13,7 +13,7 @@ import difflib
 import math
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -510,3 +510,74 @@ def mount_urdf(
         "\n  </joint>"
     )
     return urdf_xml[: tag.end()] + mount + urdf_xml[tag.end() :]
+
+
+# --------------------------------------------------------------- effort limits
+#: Largest effort limit accepted (N m or N): larger values are taken for a unit mistake.
+MAX_EFFORT_LIMIT = 1e4
+
+
+def with_effort_limits(
+    urdf_xml: str, limits: float | Mapping[str, float], *, what: str = "hand.effort_limits"
+) -> str:
+    """The URDF text with its joints' ``<limit effort=...>`` replaced.
+
+    The planner, ``verify`` and ``export`` read the effort limits from the
+    URDF a plan carries, so a scenario's override is written into that text.
+
+    Args:
+        urdf_xml: URDF text.
+        limits: one limit (N m; N for prismatic joints) for every actuated
+            joint, or a table by joint name (the others keep the URDF's).
+        what: the field named in error messages.
+
+    Returns:
+        The URDF text with the new ``effort`` attributes (comments kept).
+
+    Raises:
+        ModelError: a limit that is not a finite number in (0, 1e4], a joint
+            name the URDF has not (with the closest names), or an actuated
+            joint without a ``<limit>`` element.
+    """
+    try:
+        root = ET.fromstring(
+            urdf_xml, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+        )
+    except ET.ParseError as exc:
+        raise ModelError(f"{what}: malformed URDF XML: {exc}") from None
+    joints = {
+        j.get("name", ""): j
+        for j in root.iter("joint")
+        if j.get("type") in ("revolute", "continuous", "prismatic")
+    }
+    table = (
+        dict.fromkeys(joints, limits)
+        if not isinstance(limits, Mapping)
+        else {str(k): v for k, v in limits.items()}
+    )
+    for name, value in table.items():
+        if name not in joints:
+            close = difflib.get_close_matches(name, list(joints), n=3, cutoff=0.5)
+            hint = f" (did you mean {', '.join(map(repr, close))}?)" if close else ""
+            raise ModelError(
+                f"{what}: the hand has no actuated joint {shorten(name)}{hint}; "
+                f"its joints: {shorten(sorted(joints), 200)}"
+            )
+        v = _effort_value(value, f"{what}[{name!r}]" if isinstance(limits, Mapping) else what)
+        elem = joints[name].find("limit")
+        if elem is None:
+            raise ModelError(f"{what}: joint {name!r} has no <limit> element to set")
+        elem.set("effort", repr(v))
+    return ET.tostring(root, encoding="unicode")
+
+
+def _effort_value(value: object, what: str) -> float:
+    """``value`` as an effort limit in (0, :data:`MAX_EFFORT_LIMIT`], else ModelError."""
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    v = float(value) if ok else math.nan  # type: ignore[arg-type]
+    if not (math.isfinite(v) and 0.0 < v <= MAX_EFFORT_LIMIT):
+        raise ModelError(
+            f"{what} must be a finite number in (0, {MAX_EFFORT_LIMIT:g}] (N m), "
+            f"got {shorten(value)}"
+        )
+    return v

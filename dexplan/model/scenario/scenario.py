@@ -50,14 +50,17 @@ from dexplan.model.scenario.fields import check_only as _only
 from dexplan.model.scenario.spec import (
     DEFAULT_SCENARIO,
     HAND_BUILTIN_FIELDS,
+    HAND_COMMON_FIELDS,
     HAND_URDF_FIELDS,
     MAX_ANGLE_TOL,
     MAX_COLLISION_EXCLUDE,
+    MAX_EFFORT_LIMIT,
     MAX_FC_MARGIN,
     MAX_FINGERS,
     MAX_FINGERTIP_RADIUS,
     MAX_GRAVITY,
     MAX_HALF_EXTENT,
+    MAX_HOLD_SHIFT,
     MAX_JOINT_VALUE,
     MAX_JOINTS,
     MAX_MESH_SCALE,
@@ -142,7 +145,7 @@ def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
 def _builtin_hand(h: Mapping[str, Any]) -> HandSpec:
     """``[hand] builtin``: one of the builtin hands' names (``"paper"`` by default)."""
     for key, val in h.items():
-        if key in HAND_URDF_FIELDS:
+        if key in HAND_URDF_FIELDS - HAND_COMMON_FIELDS:
             fail(
                 f"hand.{key} (= {shorten(val, 40)}) is only used with hand.urdf; "
                 "a builtin hand defines its own"
@@ -155,7 +158,25 @@ def _builtin_hand(h: Mapping[str, Any]) -> HandSpec:
     builtin = h.get("builtin", "paper")
     if not isinstance(builtin, str) or builtin not in BUILTIN_HANDS:
         fail(f"hand.builtin must be one of {', '.join(BUILTIN_HANDS)}, got {shorten(builtin)}")
-    return HandSpec(builtin=builtin)
+    return HandSpec(builtin=builtin, effort_limits=_effort_limits(h))
+
+
+def _effort_limits(h: Mapping[str, Any]) -> float | dict[str, float] | None:
+    """``[hand] effort_limits``: one limit (N m) for every joint, or a table by joint name.
+
+    The joint names are checked when the hand is built (they are the URDF's).
+    """
+    if "effort_limits" not in h:
+        return None
+    v = h["effort_limits"]
+    if isinstance(v, Mapping):
+        if not v or len(v) > MAX_FINGERS * 16:
+            fail(f"hand.effort_limits must name 1 to {MAX_FINGERS * 16} joints, got {shorten(v)}")
+        return {
+            str(k): number(v, k, "hand.effort_limits", lo=0.0, lo_open=True, hi=MAX_EFFORT_LIMIT)
+            for k in v
+        }
+    return number(h, "effort_limits", "hand", lo=0.0, lo_open=True, hi=MAX_EFFORT_LIMIT)
 
 
 def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
@@ -198,6 +219,7 @@ def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
             h, "fingertip_radius", "hand", lo=0.0, lo_open=True, hi=MAX_FINGERTIP_RADIUS
         ),
         collision_exclude=tuple((a, b) for a, b in excl),
+        effort_limits=_effort_limits(h),
     )
 
 
@@ -282,7 +304,10 @@ def _world(doc: Mapping[str, Any]) -> tuple[float, float, float] | None:
 
 
 def _contact(doc: Mapping[str, Any]) -> tuple[float, int, float, ContactModel, float]:
-    """``[contact]``: ``mu``, ``friction_edges``, ``fc_margin``, ``model``, ``torsion``."""
+    """``[contact]``: ``mu``, ``friction_edges``, ``fc_margin``, ``model``, ``torsion``.
+
+    ``hold_shift`` is read by :func:`_hold_shift`.
+    """
     c = table(doc, "contact", required=False)
     _only(c, "contact", SCENARIO_FIELDS["contact"])
     mu = number(c, "mu", "contact", 0.8, lo=0.0, hi=MAX_MU)
@@ -290,6 +315,12 @@ def _contact(doc: Mapping[str, Any]) -> tuple[float, int, float, ContactModel, f
     fc_margin = number(c, "fc_margin", "contact", 0.005, lo=0.0, hi=MAX_FC_MARGIN)
     model, torsion = _contact_model(c)
     return mu, edges, fc_margin, model, torsion
+
+
+def _hold_shift(doc: Mapping[str, Any]) -> float:
+    """``[contact] hold_shift`` (m): how far each contact is moved when a hold is checked."""
+    c = table(doc, "contact", required=False)
+    return number(c, "hold_shift", "contact", 0.002, lo=0.0, hi=MAX_HOLD_SHIFT)
 
 
 def _obstacles(doc: Mapping[str, Any], base_dir: Path) -> tuple[dict[str, Any], ...]:
@@ -390,6 +421,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     obj, mass = _object(doc, base_dir)
     gravity = _world(doc)
     mu, edges, fc_margin, model, torsion = _contact(doc)
+    hold_shift = _hold_shift(doc)
     obstacles = _obstacles(doc, base_dir)
     start, goal = _start(doc), _goal(doc)
     planner = _planner(doc)
@@ -411,6 +443,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         torsion=torsion,
         object_mass=mass,
         gravity=gravity,
+        hold_shift=hold_shift,
     )
 
 

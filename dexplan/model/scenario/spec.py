@@ -57,6 +57,8 @@ MAX_JOINT_VALUE = 1000.0  # |start.q[i]| (rad or m; joint limits are the hand's)
 MAX_FINGERS = 32  # hand.fingertip_frames entries
 MAX_FINGERTIP_RADIUS = 0.5  # m: hand.fingertip_radius
 MAX_COLLISION_EXCLUDE = 4096  # hand.collision_exclude pairs
+MAX_EFFORT_LIMIT = 1e4  # N m: hand.effort_limits (one number or each entry)
+MAX_HOLD_SHIFT = 0.05  # m: contact.hold_shift
 MAX_URDF_BYTES = 50_000_000  # hand.urdf file size
 MAX_NAME = 256  # characters of a name (scenario, obstacle, planner, frame, parameter)
 MAX_PATH = 4096  # characters of a file name (hand.urdf; mesh paths likewise)
@@ -67,8 +69,12 @@ MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
 # ----------------------------------------------------------------------- fields
 # The fields each table accepts; the parser rejects any other, and
 # docs/scenario.md documents every one (tests/test_scenario_docs.py checks it).
-HAND_BUILTIN_FIELDS = frozenset({"builtin"})
-HAND_URDF_FIELDS = frozenset({"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude"})
+HAND_BUILTIN_FIELDS = frozenset({"builtin", "effort_limits"})
+HAND_URDF_FIELDS = frozenset(
+    {"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude", "effort_limits"}
+)
+#: Fields of ``[hand]`` both kinds of hand accept.
+HAND_COMMON_FIELDS = frozenset({"effort_limits"})
 OBSTACLE_OWN_FIELDS = frozenset({"name", "pose_xyzquat"})  # beside its shape fields
 OBJECT_OWN_FIELDS = frozenset({"mass"})  # a property of the object, not of its shape
 SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
@@ -88,7 +94,7 @@ SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
     ),
     "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS,  # builtin, or urdf and its fields
     "object": ALL_SHAPE_FIELDS | OBJECT_OWN_FIELDS,  # its shape kind's (SHAPE_FIELDS), mass
-    "contact": frozenset({"mu", "friction_edges", "fc_margin", "model", "torsion"}),
+    "contact": frozenset({"mu", "friction_edges", "fc_margin", "model", "torsion", "hold_shift"}),
     "obstacles": ALL_SHAPE_FIELDS | OBSTACLE_OWN_FIELDS,
     "start": frozenset({"object_pose_xyzquat", "q"}),
     "goal": frozenset({"object_pose_xyzquat", "position_tol", "angle_tol"}),
@@ -108,6 +114,9 @@ class HandSpec:
     fingertip_frames: tuple[str, ...] = ()
     fingertip_radius: float | None = None
     collision_exclude: tuple[tuple[str, str], ...] = ()
+    #: ``[hand] effort_limits``: one limit (N m) for every joint, a table by
+    #: joint name, or None (the URDF's own)
+    effort_limits: float | Mapping[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -164,6 +173,9 @@ class Scenario:
             assumes :data:`dexplan.model.grasp.grip_forces.DEFAULT_MASS`).
         gravity: ``[world] gravity`` (m/s^2, world frame), or None
             (:data:`dexplan.model.grasp.grip_forces.DEFAULT_GRAVITY`).
+        hold_shift: ``[contact] hold_shift`` (m): a hold counts only if it
+            still holds with each contact moved this far along the surface
+            (:mod:`dexplan.model.grasp.holds`).
     """
 
     name: str
@@ -182,3 +194,4 @@ class Scenario:
     torsion: float = 0.0
     object_mass: float | None = None
     gravity: tuple[float, float, float] | None = None
+    hold_shift: float = 0.002

@@ -17,7 +17,7 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.grasp import min_subgrasp_quality
-from dexplan.model.grasp.grip_forces import GripForceSolver
+from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
 from dexplan.planning.deadline import Deadline
@@ -44,10 +44,10 @@ class Transitions:
         rng: random generator for landing candidates and via points.
         deadline: when regrasps and landings give up (None: never); the
             planner shares its query deadline here.
-        grip: the grip forces of the plan's export (the scenario's object
-            mass and gravity): a finger is let go only where the others hold
-            the object within the joints' effort limits (:meth:`can_release`);
-            None: force closure alone decides.
+        holds: the hold check (the scenario's object mass, gravity, effort
+            limits and hold shift): a finger is let go only where the others
+            hold the object (:meth:`can_release`); None: force closure alone
+            decides.
 
     Attributes:
         checks: per-finger collision checks and joint bounds.
@@ -67,10 +67,10 @@ class Transitions:
         settings: TransitionSettings,
         rng: np.random.Generator,
         deadline: Deadline | None = None,
-        grip: GripForceSolver | None = None,
+        holds: HoldChecker | None = None,
     ) -> None:
         self.hand = hand
-        self.grip = grip
+        self.holds = holds
         self.deadline = deadline or Deadline()
         self.obj = obj
         self.world = world
@@ -98,7 +98,7 @@ class Transitions:
             self.landings.postures,
             rng,
             self.deadline,
-            grip,
+            holds,
             self.stats,
         )
         # the components' inner steps and stores, under the names the tests probe

@@ -18,7 +18,7 @@ import numpy as np
 from dexplan.core.pose import quat_to_matrix
 from dexplan.core.segments import Segment, SegmentKind, Waypoint
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp.grip_forces import GripForceSolver
+from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.local.transitions.checks import FingerChecks
@@ -42,9 +42,10 @@ class RegraspPlanner:
             keyed by (finger, contact point bytes), tried first.
         rng: random generator for via points and the OMPL seed.
         deadline: when regrasps give up.
-        grip: the grip forces of the plan's export: a finger is let go only
-            where the others hold the object within the joints' effort limits
-            (:meth:`can_release`); None: force closure alone decides.
+        holds: the hold check (the object's weight, the joints' effort
+            limits, the contact shift): a finger is let go only where the
+            others hold the object (:meth:`can_release`); None: force closure
+            alone decides.
         stats: the local planners' counters.
     """
 
@@ -56,7 +57,7 @@ class RegraspPlanner:
         landing_postures: dict[tuple[int, bytes], FloatArray],
         rng: np.random.Generator,
         deadline: Deadline,
-        grip: GripForceSolver | None,
+        holds: HoldChecker | None,
         stats: LocalCounts,
     ) -> None:
         self.hand = hand
@@ -65,7 +66,7 @@ class RegraspPlanner:
         self.landing_postures = landing_postures
         self.rng = rng
         self.deadline = deadline
-        self.grip = grip
+        self.holds = holds
         self.stats = stats
 
     def can_release(
@@ -74,9 +75,11 @@ class RegraspPlanner:
         """Whether the other fingers hold the object while ``finger`` is lifted.
 
         Every (n-1)-subgrasp is force closure, so some forces always balance
-        the object's weight; the joints must also produce them: an (n-1)
-        hold can need several times a joint's effort limit, and a plan with
-        it could not be exported. Counted in ``stats["weak_holds"]``.
+        the object's weight; the joints must also produce them within their
+        effort limits, with each contact moved the hold shift along the
+        surface (:mod:`dexplan.model.grasp.holds`): an (n-1) hold can need
+        several times a joint's effort limit, and a plan with it would drop
+        the object. Counted in ``stats["weak_holds"]``.
 
         Args:
             finger: the finger to let go.
@@ -84,10 +87,10 @@ class RegraspPlanner:
             q: (nq,) the configuration the regrasp starts from.
             grasp: the current contacts, object frame.
         """
-        if self.grip is None:
+        if self.holds is None:
             return True
         contacts = [None if i == finger else grasp.points[i] for i in range(self.hand.n_fingers)]
-        if self.grip.holds(q, pose, contacts):
+        if self.holds.holds(q, pose, contacts):
             return True
         self.stats["weak_holds"] += 1
         return False

@@ -1,0 +1,294 @@
+"""Holds: can the fingers in contact hold the object's weight within the joints' effort limits?
+
+A *hold* is one configuration of a plan with its loaded contacts (every
+contact on a transfer waypoint, the n-1 holding fingers during a regrasp).
+It counts when contact forces exist that
+
+- lie in the friction cones (the plan's contact model and linearization:
+  the pyramid's edges lie on the round Coulomb cone, so a hold of the
+  pyramid is a hold of the round cone),
+- press every contact with at least ``min_normal_force``,
+- balance the object's weight (``mass`` times ``gravity``, world frame, at
+  the object-frame origin) plus any extra wrench,
+- need joint torques ``tau = sum_c J_c^T [f_c; m_c]`` within every joint's
+  effort limit,
+
+and it still counts with **each contact moved** ``shift_m`` (default 2 mm)
+along the surface, one contact at a time, in each of four tangent
+directions (``+-t1``, ``+-t2`` of the contact's tangent basis), with the
+normal of the surface where it lands. A real fingertip never lands exactly
+where the plan says, and a hold on a knife edge of the torque limits or of
+force closure would drop the object.
+
+The figure of a hold is its **torque ratio**: the least, over admissible
+forces, of the largest ``|tau_j| / effort_j``, maximised over the nominal
+contacts and every shifted set. It is one linear program (HiGHS) with one
+block of force variables per contact set sharing the ratio ``t``:
+``min t`` s.t. each block balances the wrench in its cones with
+``|T_s x_s| <= t e``. The hold counts iff the ratio is at most 1; it is
+``inf`` when some contact set cannot balance the wrench at all (not force
+closure). A hand without effort limits has ratio 0 wherever it can hold.
+
+Frames and units as :mod:`dexplan.model.grasp.grip_forces`: contacts and
+normals in the object frame, forces in newtons, torques in N m.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import linprog
+
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.typing import FloatArray
+from dexplan.model.grasp.cones import tangent_basis
+from dexplan.model.grasp.grip_forces import ForceSettings
+from dexplan.model.grasp.grip_program import grip_program, joint_effort_limits
+from dexplan.model.objects.fingertip import fingertip_contact
+
+__all__ = ["DEFAULT_HOLD_SHIFT", "HoldChecker"]
+
+#: How far (m) each contact is moved along the surface when a hold is checked.
+DEFAULT_HOLD_SHIFT = 0.002
+#: Largest accepted shift (m): a larger one is a unit mistake.
+MAX_HOLD_SHIFT = 0.05
+
+
+class HoldChecker:
+    """Torque ratios of holds for one plan's hand, object, friction and load.
+
+    Args:
+        hand: the plan's :class:`~dexplan.model.hand.hand.Hand` (its effort limits).
+        obj: the object :class:`~dexplan.model.objects.Shape`.
+        mu: friction coefficient.
+        edges: friction-cone edges of the linearization.
+        contact_model: ``"point"`` or ``"soft"``.
+        torsion: soft-finger torsion coefficient (m).
+        forces: mass, gravity, extra wrench and least normal force
+            (``cone_margin`` is not used: the shifts are the margin); default
+            :class:`~dexplan.model.grasp.grip_forces.ForceSettings`.
+        shift_m: how far each contact is moved along the surface (m), in [0, 0.05].
+    """
+
+    def __init__(
+        self,
+        hand: Any,
+        obj: Any,
+        mu: float,
+        edges: int = 8,
+        contact_model: str = "point",
+        torsion: float = 0.0,
+        forces: ForceSettings | None = None,
+        shift_m: float = DEFAULT_HOLD_SHIFT,
+    ) -> None:
+        if not (
+            isinstance(shift_m, int | float)
+            and math.isfinite(shift_m)
+            and 0.0 <= shift_m <= MAX_HOLD_SHIFT
+        ):
+            raise InvalidInputError(
+                f"hold shift must be a number in [0, {MAX_HOLD_SHIFT}] m, got {shift_m!r}"
+            )
+        self.hand, self.obj = hand, obj
+        self.mu, self.edges = float(mu), int(edges)
+        self.soft = contact_model == "soft"
+        self.torsion = float(torsion)
+        self.forces = forces if forces is not None else ForceSettings()
+        self.shift_m = float(shift_m)
+        self.L = float(obj.characteristic_length)
+        self._data = hand.model.createData()
+        e = joint_effort_limits(hand.model)
+        self._limited = np.flatnonzero(~np.isnan(e))
+        self._effort = e[self._limited]
+        self._memo: dict[bytes, float] = {}
+
+    def holds(
+        self, q: FloatArray, object_pose: FloatArray, contacts: Sequence[FloatArray | None]
+    ) -> bool:
+        """Whether the loaded contacts hold the object within the effort limits (ratio <= 1)."""
+        return self.ratio(q, object_pose, contacts) <= 1.0
+
+    def ratio(
+        self, q: FloatArray, object_pose: FloatArray, contacts: Sequence[FloatArray | None]
+    ) -> float:
+        """The hold's torque ratio (see the module); ``inf`` when it cannot hold at all.
+
+        Args:
+            q: (nq,) joints (rad).
+            object_pose: (7,) object pose, world frame, XYZW.
+            contacts: per finger, its contact point (3,) in the object frame,
+                or None for a finger that carries no load.
+        """
+        q = np.asarray(q, dtype=float)
+        pose = np.asarray(object_pose, dtype=float)
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        w = self.forces.wrench_world()
+        w_ext = np.concatenate([R.T @ w[:3], R.T @ w[3:]])
+        idx = [i for i, c in enumerate(contacts) if c is not None]
+        if not idx:
+            return 0.0 if float(np.linalg.norm(w_ext)) <= 1e-9 else math.inf
+        P = np.array([np.asarray(contacts[i], dtype=float).reshape(3) for i in idx])
+        held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
+        key = np.round(np.concatenate([P.ravel(), w_ext, q[held]]), 12).tobytes()
+        hit = self._memo.get(key)
+        if hit is None:
+            hit = self._solve(q, pose, R, idx, P, w_ext)
+            if len(self._memo) > 4096:
+                self._memo.clear()
+            self._memo[key] = hit
+        return hit
+
+    def _solve(
+        self,
+        q: FloatArray,
+        pose: FloatArray,
+        R: FloatArray,
+        idx: list[int],
+        P: FloatArray,
+        w_ext: FloatArray,
+    ) -> float:
+        """The shared-ratio linear program over the nominal and shifted contact sets."""
+        tips = (self.hand.fingertip_positions(q) - pose[:3]) @ R  # object frame
+        N = np.array(
+            [
+                -fingertip_contact(self.obj, P[c], tips[i], self.hand.fingertip_radius)[1]
+                for c, i in enumerate(idx)
+            ]
+        ).reshape(-1, 3)
+        jac = self._jacobians(q, idx)
+        blocks = [self._block(P, N, w_ext, pose, R, jac, tips, idx)]
+        for c in range(len(idx)) if self.shift_m > 0 else ():
+            for P2, N2 in self._shifted(P, N, c):
+                blocks.append(self._block(P2, N2, w_ext, pose, R, jac, tips, idx))
+        used = self._used(idx)
+        blocks = [_Block(b.A, b.lo, b.hi, b.T[used]) for b in blocks]
+        return _shared_ratio(blocks, self._effort[used])
+
+    def _shifted(self, P: FloatArray, N: FloatArray, c: int) -> list[tuple[FloatArray, FloatArray]]:
+        """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways."""
+        t1, t2 = tangent_basis(N[c][None, :])
+        out = []
+        for d in (t1[0], -t1[0], t2[0], -t2[0]):
+            p, n_out = self.obj.closest_point(P[c] + self.shift_m * d)
+            P2, N2 = P.copy(), N.copy()
+            P2[c] = np.asarray(p, dtype=float).reshape(3)
+            N2[c] = -np.asarray(n_out, dtype=float).reshape(3)
+            out.append((P2, N2))
+        return out
+
+    def _jacobians(self, q: FloatArray, idx: list[int]) -> list[tuple[FloatArray, FloatArray]]:
+        """Per loaded finger: its tip frame's (6, nv) LOCAL_WORLD_ALIGNED Jacobian and centre."""
+        model, data = self.hand.model, self._data
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        out = []
+        for i in idx:
+            fid = self.hand.tip_frame_ids[i]
+            J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+            out.append((np.asarray(J), data.oMf[fid].translation.copy()))
+        return out
+
+    def _block(
+        self,
+        P: FloatArray,
+        N: FloatArray,
+        w_ext: FloatArray,
+        pose: FloatArray,
+        R: FloatArray,
+        jac: list[tuple[FloatArray, FloatArray]],
+        tips: FloatArray,
+        idx: list[int],
+    ) -> _Block:
+        """One contact set's balance, normal-force and cone rows and its torque rows."""
+        prog = grip_program(
+            P,
+            N,
+            w_ext,
+            mu_eff=self.mu,
+            torsion_eff=self.torsion if self.soft else None,
+            L=self.L,
+            edges=self.edges,
+            min_normal_force=self.forces.min_normal_force,
+            torque=None,
+        )
+        r = 4 if self.soft else 3
+        T = np.zeros((self.hand.model.nv, len(idx) * r))
+        for c, (J, centre) in enumerate(jac):
+            d = pose[:3] + R @ P[c] - centre  # tip centre to contact, world frame
+            S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
+            T[:, c * r : c * r + 3] = J.T @ np.vstack([R, S @ R])
+            if self.soft:
+                T[:, c * r + 3] = J.T @ np.concatenate([np.zeros(3), R @ N[c]]) * self.L
+        return _Block(prog.A, prog.lo, prog.hi, T[self._limited])
+
+    def _used(self, idx: list[int]) -> np.ndarray:
+        """Positions in the limited joints of the joints of the loaded fingers ``idx``."""
+        held = np.concatenate([self.hand.finger_q_index[i] for i in idx])
+        return np.flatnonzero(np.isin(self._limited, held))
+
+
+@dataclass(frozen=True)
+class _Block:
+    """One contact set of the shared-ratio program: ``lo <= A x <= hi``, torques ``T x``."""
+
+    A: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    T: FloatArray
+
+
+def _shared_ratio(blocks: list[_Block], effort: FloatArray) -> float:
+    """``min t`` such that every block is feasible with ``|T_s x_s| <= t effort``; inf if none.
+
+    Variables ``(x_1, ..., x_S, t)``; with no limited joint the program only
+    decides feasibility and the ratio is 0.
+    """
+    sizes = [b.A.shape[1] for b in blocks]
+    m = sum(sizes)
+    n_eq = sum(int(np.sum(b.lo == b.hi)) for b in blocks)
+    n_ub = sum(
+        int(np.sum(np.isfinite(b.hi) & (b.lo != b.hi)) + np.sum(np.isfinite(b.lo) & (b.lo != b.hi)))
+        + 2 * len(effort)
+        for b in blocks
+    )
+    A_eq, b_eq = np.zeros((n_eq, m + 1)), np.zeros(n_eq)
+    A_ub, b_ub = np.zeros((n_ub, m + 1)), np.zeros(n_ub)
+    col = re_ = ru = 0
+    for b, k in zip(blocks, sizes, strict=True):
+        eq = b.lo == b.hi
+        up = np.isfinite(b.hi) & ~eq
+        dn = np.isfinite(b.lo) & ~eq
+        ne, nu, nd = int(eq.sum()), int(up.sum()), int(dn.sum())
+        A_eq[re_ : re_ + ne, col : col + k] = b.A[eq]
+        b_eq[re_ : re_ + ne] = b.hi[eq]
+        A_ub[ru : ru + nu, col : col + k] = b.A[up]
+        b_ub[ru : ru + nu] = b.hi[up]
+        A_ub[ru + nu : ru + nu + nd, col : col + k] = -b.A[dn]
+        b_ub[ru + nu : ru + nu + nd] = -b.lo[dn]
+        ru += nu + nd
+        if effort.size:
+            ne_ = len(effort)
+            A_ub[ru : ru + ne_, col : col + k] = b.T
+            A_ub[ru + ne_ : ru + 2 * ne_, col : col + k] = -b.T
+            A_ub[ru : ru + 2 * ne_, m] = -np.tile(effort, 2)
+            ru += 2 * ne_
+        re_ += ne
+        col += k
+    lp = linprog(
+        np.r_[np.zeros(m), 1.0],
+        A_ub=A_ub,
+        b_ub=b_ub,
+        A_eq=A_eq,
+        b_eq=b_eq,
+        bounds=[(None, None)] * m + [(0.0, None)],
+        method="highs-ds",
+        options={"presolve": False},
+    )
+    if lp.status != 0 or lp.x is None:
+        return math.inf
+    return float(lp.x[-1]) if effort.size else 0.0

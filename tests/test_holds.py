@@ -1,0 +1,156 @@
+"""Holds: the torque ratio of :mod:`dexplan.model.grasp.holds` and the effort limits it reads."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dexplan.core.errors import InvalidInputError, ModelError, ScenarioError
+from dexplan.model.grasp.grip_forces import ForceSettings, GripForceSolver
+from dexplan.model.grasp.holds import HoldChecker
+from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.urdf import with_effort_limits
+from dexplan.planfile import hand_from_plan, read_plan
+from dexplan.planfile.models import models_from_document
+
+
+@pytest.fixture(scope="module")
+def regrasp_holds(tmp_path_factory, paper_plan):
+    """The paper plan's models and its regrasp holds: (q, pose, contacts), the free finger None."""
+    doc = read_plan(paper_plan(2, tmp_path_factory.mktemp("holds")))
+    m = models_from_document(doc, tmp_path_factory.getbasetemp(), hand=hand_from_plan(doc["hand"]))
+    holds = []
+    for seg in doc["segments"]:
+        if seg["kind"] != "regrasp":
+            continue
+        w = seg["waypoints"][1]
+        contacts = [None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]]
+        holds.append((np.asarray(w["q"]), np.asarray(w["object_pose_xyzquat"]), contacts))
+    assert holds
+    return m, holds
+
+
+def _checker(m, *, mass=0.1, shift=0.0, hand=None) -> HoldChecker:
+    return HoldChecker(
+        hand or m.hand,
+        m.obj,
+        m.mu,
+        m.friction_edges,
+        m.contact_model,
+        m.torsion,
+        ForceSettings(mass=mass, min_normal_force=0.0),
+        shift_m=shift,
+    )
+
+
+def test_ratio_agrees_with_the_grip_force_feasibility_program(regrasp_holds) -> None:
+    """ratio <= 1 exactly where GripForceSolver's own LP (torque rows, no margin) finds forces.
+
+    Two formulations: the solver's feasibility program with the URDF's limits
+    as bounds, and the shared-ratio program minimising the largest
+    ``|tau_j| / effort_j``. Masses around the threshold make both answers occur.
+    """
+    m, holds = regrasp_holds
+    answers = set()
+    for mass in (0.1, 1.0, 3.0, 10.0):
+        hc = _checker(m, mass=mass)
+        gs = GripForceSolver(
+            m.hand,
+            m.obj,
+            m.mu,
+            m.friction_edges,
+            m.contact_model,
+            m.torsion,
+            ForceSettings(mass=mass, min_normal_force=0.0),
+        )
+        for q, pose, contacts in holds:
+            r = hc.ratio(q, pose, contacts)
+            if abs(r - 1.0) < 1e-6:
+                continue  # on the boundary, either answer is right
+            assert (r <= 1.0) == gs.holds(q, pose, contacts), (mass, r)
+            answers.add(r <= 1.0)
+    assert answers == {True, False}
+
+
+def test_ratio_scales_with_the_weight_and_the_limits(regrasp_holds) -> None:
+    """With no least normal force the program is homogeneous: twice the mass, twice the ratio.
+
+    Halving every effort limit (written into the URDF) doubles the ratio as well.
+    """
+    m, holds = regrasp_holds
+    half = Hand(
+        with_effort_limits(m.hand.urdf_xml, 0.5),
+        m.hand.fingertip_frames,
+        m.hand.fingertip_radius,
+        collision_exclude=m.hand.collision_exclude,
+    )
+    assert np.allclose(half.model.effortLimit, 0.5)
+    base, heavy, weak = _checker(m), _checker(m, mass=0.2), _checker(m, hand=half)
+    for q, pose, contacts in holds:
+        r = base.ratio(q, pose, contacts)
+        assert 0.0 < r < math.inf
+        assert heavy.ratio(q, pose, contacts) == pytest.approx(2 * r, rel=1e-5)
+        assert weak.ratio(q, pose, contacts) == pytest.approx(2 * r, rel=1e-5)
+
+
+def test_shifted_contacts_never_need_less_than_the_nominal_ones(regrasp_holds) -> None:
+    """The shifted sets are added to the nominal one: the robust ratio is at least the nominal.
+
+    A shift of 1 cm on the 4 cm ball needs strictly more somewhere.
+    """
+    m, holds = regrasp_holds
+    nominal, robust, wide = _checker(m), _checker(m, shift=0.002), _checker(m, shift=0.01)
+    more = 0
+    for q, pose, contacts in holds:
+        r0 = nominal.ratio(q, pose, contacts)
+        r2, r10 = robust.ratio(q, pose, contacts), wide.ratio(q, pose, contacts)
+        assert r2 >= r0 - 1e-9 and r10 >= r0 - 1e-9
+        more += r10 > r0 * 1.01
+    assert more > 0
+
+
+def test_no_contact_holds_nothing_and_a_massless_object_is_held_by_none(regrasp_holds) -> None:
+    m, holds = regrasp_holds
+    q, pose, contacts = holds[0]
+    assert _checker(m).ratio(q, pose, [None] * len(contacts)) == math.inf
+    assert _checker(m, mass=0.0).ratio(q, pose, [None] * len(contacts)) == 0.0
+
+
+@pytest.mark.parametrize("shift", [-0.001, 0.5, math.nan])
+def test_bad_shift_is_refused(regrasp_holds, shift) -> None:
+    m, _ = regrasp_holds
+    with pytest.raises(InvalidInputError, match="hold shift"):
+        _checker(m, shift=shift)
+
+
+def test_effort_limits_by_joint_name_and_their_errors() -> None:
+    hand = Hand.builtin("paper", effort_limits={"f0_mcp": 0.25})
+    assert hand.model.effortLimit[hand.joint_names.index("f0_mcp")] == pytest.approx(0.25)
+    assert 'effort="0.25"' in hand.urdf_xml  # a plan carries the limit in its URDF
+    with pytest.raises(ModelError, match=r"no actuated joint 'f0_mpc'.*did you mean 'f0_mcp'"):
+        Hand.builtin("paper", effort_limits={"f0_mpc": 0.25})
+    with pytest.raises(ModelError, match="must be a finite number"):
+        Hand.builtin("paper", effort_limits=-1.0)
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("effort_limits = 0", r"hand.effort_limits must be in \(0, 10000\]"),
+        ('effort_limits = "strong"', "hand.effort_limits must be a finite number"),
+        ("effort_limits = { f0_mcp = -2 }", r"hand.effort_limits.f0_mcp must be in"),
+    ],
+)
+def test_scenario_effort_limits_are_validated(tmp_path, line, message) -> None:
+    from dexplan.model.scenario import load_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text(
+        f'[hand]\nbuiltin = "paper"\n{line}\n[object]\nshape = "sphere"\nradius = 0.04\n'
+        "[start]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0, 1]\n"
+        "[goal]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0, 1]\n"
+    )
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario(path)
