@@ -133,11 +133,26 @@ class Violation:
 
 @dataclass(frozen=True)
 class VerifyReport:
-    """Result of :func:`verify_plan`."""
+    """Result of :func:`verify_plan`.
+
+    Attributes:
+        violations: every broken rule.
+        waypoints: waypoints checked.
+        segments: segments checked.
+        weakest_hold: the least force-closure quality of a hold of the plan
+            (transfer waypoints: the weakest (n-1)-finger subgrasp; regrasps:
+            the n-1 holding fingers), per unit contact force; None without holds.
+        worst_torque_ratio: the largest torque ratio of a hold
+            (:mod:`dexplan.model.grasp.holds`: the share of the effort limits
+            the joints need, each contact moved the plan's ``hold_shift``);
+            ``inf`` where a hold cannot balance the weight; None without holds.
+    """
 
     violations: tuple[Violation, ...]
     waypoints: int
     segments: int
+    weakest_hold: float | None = None
+    worst_torque_ratio: float | None = None
 
     @property
     def ok(self) -> bool:
