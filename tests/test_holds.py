@@ -154,3 +154,29 @@ def test_scenario_effort_limits_are_validated(tmp_path, line, message) -> None:
     )
     with pytest.raises(ScenarioError, match=message):
         load_scenario(path)
+
+
+def test_verify_reports_the_holds_and_rejects_a_weight_the_joints_cannot_carry(
+    tmp_path_factory, paper_plan
+) -> None:
+    """The ``holds`` rule: the plan's own weight passes, fifty times it does not.
+
+    The verifier also reports the worst torque ratio (at most 1 when the plan
+    passes) and the weakest hold (a force-closure quality above 0).
+    """
+    import copy
+
+    from dexplan.planfile import verify_plan
+
+    path = paper_plan(2, tmp_path_factory.mktemp("holds_verify"))
+    doc = read_plan(path)
+    report = verify_plan(doc, path.parent)
+    assert report.ok, [str(v) for v in report.violations]
+    assert report.worst_torque_ratio is not None and 0.0 < report.worst_torque_ratio <= 1.0
+    assert report.weakest_hold is not None and report.weakest_hold > 0.0
+    heavy = copy.deepcopy(doc)
+    heavy["object"]["mass"] = 5.0
+    bad = verify_plan(heavy, path.parent)
+    assert {v.rule for v in bad.violations} == {"holds"}
+    assert bad.worst_torque_ratio == pytest.approx(50 * report.worst_torque_ratio, rel=0.05)
+    assert any("effort limits" in str(v) and "kg" in str(v) for v in bad.violations)

@@ -213,6 +213,7 @@ def build_plan_document(
         "friction_edges": scenario.friction_edges,
         "contact_model": scenario.contact_model,
         "torsion": scenario.torsion,
+        "hold_shift": scenario.hold_shift,
         "obstacles": [_portable_shape(o, base, out_dir) for o in scenario.obstacles],
         "start": {
             "object_pose_xyzquat": [float(v) for v in result.start_pose],

@@ -10,13 +10,15 @@ is the inverse of :func:`hand_from_plan`: the ``hand`` table a plan is written w
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
 from dexplan.core.errors import DexplanError, PlanFileError, one_line, shorten
 from dexplan.model.collision import CollisionWorld, Obstacle
 from dexplan.model.grasp import ContactModel
+from dexplan.model.grasp.grip_forces import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings
+from dexplan.model.grasp.holds import DEFAULT_HOLD_SHIFT
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
 
@@ -26,6 +28,7 @@ __all__ = [
     "hand_from_plan",
     "hand_table",
     "models_from_document",
+    "plan_force_settings",
     "shape_of",
 ]
 
@@ -86,6 +89,8 @@ class PlanModels:
         world: the collision world of hand, object and obstacles.
         mu: friction coefficient. friction_edges: edges of the linearized cone.
         contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
+        hold_shift: how far each contact is moved when a hold is checked (m).
+        forces: the object's mass and gravity (the file's, else the defaults).
     """
 
     hand: Hand
@@ -96,6 +101,8 @@ class PlanModels:
     friction_edges: int
     contact_model: ContactModel
     torsion: float
+    hold_shift: float = DEFAULT_HOLD_SHIFT
+    forces: ForceSettings = field(default_factory=ForceSettings)
 
 
 def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
@@ -146,4 +153,15 @@ def models_from_document(
         # one of CONTACT_MODELS: validate_plan checked it
         contact_model=cast("ContactModel", str(doc.get("contact_model", "point"))),
         torsion=float(doc.get("torsion", 0.0)),
+        hold_shift=float(doc.get("hold_shift", DEFAULT_HOLD_SHIFT)),
+        forces=plan_force_settings(doc),
+    )
+
+
+def plan_force_settings(doc: Mapping[str, Any]) -> ForceSettings:
+    """The load a plan's holds carry: ``object.mass`` and ``world.gravity``, else the defaults."""
+    g = doc.get("world", {}).get("gravity", DEFAULT_GRAVITY)
+    return ForceSettings(
+        mass=float(doc["object"].get("mass", DEFAULT_MASS)),
+        gravity=(float(g[0]), float(g[1]), float(g[2])),
     )

@@ -31,6 +31,7 @@ from typing import Any, NoReturn
 from dexplan.core.errors import DexplanError, PlanFileError, shorten, unknown_field
 from dexplan.core.segments import SegmentKind
 from dexplan.model.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
+from dexplan.model.grasp.holds import MAX_HOLD_SHIFT
 from dexplan.model.objects import shape_from_dict
 
 __all__ = [
@@ -87,7 +88,16 @@ SEGMENT_KINDS: tuple[str, ...] = tuple(k.value for k in SegmentKind)
 _Fields = tuple[set[str], set[str]]
 _TOP: _Fields = (
     {"format", "hand", "object", "mu", "start", "goal", "segments"},
-    {"scenario", "friction_edges", "contact_model", "torsion", "obstacles", "world", "stats"},
+    {
+        "scenario",
+        "friction_edges",
+        "contact_model",
+        "torsion",
+        "hold_shift",
+        "obstacles",
+        "world",
+        "stats",
+    },
 )
 _HAND: _Fields = (
     {"urdf_xml", "joint_names", "fingertip_frames", "fingertip_radius"},
@@ -329,6 +339,8 @@ def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
         if "gravity" in world:
             _vector(world["gravity"], "world.gravity", 3, "3 numbers [gx, gy, gz] (m/s^2)")
     _number(doc["mu"], "mu", lo=0.0)
+    if "hold_shift" in doc and _number(doc["hold_shift"], "hold_shift", lo=0.0) > MAX_HOLD_SHIFT:
+        _fail("hold_shift", f"must be at most {MAX_HOLD_SHIFT:g} m", doc["hold_shift"])
     if "friction_edges" in doc:
         _integer(doc["friction_edges"], "friction_edges", MIN_FRICTION_EDGES, MAX_FRICTION_EDGES)
     model = doc.get("contact_model", "point")

@@ -31,7 +31,8 @@ from dexplan.core.errors import DexplanError, PlanFileError, one_line
 from dexplan.core.pose import inverse_transform_points, quat_angle
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp import exact_force_closure
+from dexplan.model.grasp import exact_force_closure, force_closure_quality, min_subgrasp_quality
+from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.planfile.document import segments_from_dicts
@@ -87,6 +88,12 @@ RULES: dict[str, str] = {
         "under the plan's `contact_model` (below)"
     ),
     "subgrasp_force_closure": "on transfer waypoints, every (n-1)-finger subgrasp too",
+    # holds
+    "holds": (
+        "at every waypoint the holding contacts (all on a transfer, the n-1 holding fingers "
+        "during a regrasp) balance the object's weight within the joints' effort limits, "
+        "also with each contact moved `hold_shift` along the surface (torque ratio <= 1)"
+    ),
     # segments and steps
     "segments": "the plan has at least one segment",
     "step": (
@@ -171,6 +178,19 @@ class _Checker:
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
         self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
+        self._quality_memo: dict[tuple[bytes, bytes, bool], float] = {}
+        self.holds = HoldChecker(
+            self.hand,
+            self.obj,
+            self.mu,
+            self.edges,
+            self.contact_model,
+            self.torsion,
+            m.forces,
+            shift_m=m.hold_shift,
+        )
+        self.weakest_hold: float | None = None
+        self.worst_torque_ratio: float | None = None
         self._surface_memo: dict[bytes, tuple[float, tuple[FloatArray, FloatArray]]] = {}
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
@@ -184,6 +204,7 @@ class _Checker:
         """Every rule of one segment: its waypoints, steps, kind and continuity."""
         for wi, w in enumerate(seg.waypoints):
             self.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
+        self.holds_of(si, seg)
         self.steps(si, seg)
         if seg.kind == "transfer":
             self.transfer(si, seg)
@@ -317,6 +338,90 @@ class _Checker:
                 "dense inner and outer polytopes of the exact contact sets"
             )
         return f"not force closure ({where})"
+
+    def holds_of(self, si: int, seg: Segment) -> None:
+        """``holds`` of one segment, and the figures of its holds kept.
+
+        A regrasp's hold (the n-1 holding fingers; they and the object stay
+        still) is checked with every contact moved ``hold_shift``. A
+        transfer's waypoints, where every finger holds, are checked at their
+        stated contacts, all in one program (:meth:`HoldChecker.worst_ratio`),
+        waypoint by waypoint only where it finds a ratio above 1. The plan's
+        own linearization is used: its edges lie on the round cone, so a hold
+        of it is a hold of the round cone.
+        """
+        wps = [
+            (wi, w)
+            for wi, w in enumerate(seg.waypoints)
+            if abs(float(np.linalg.norm(w.object_pose_xyzquat[3:])) - 1.0) <= 1e-6
+            and sum(c is not None for c in w.contacts) >= 2  # else force_closure reports it
+        ]
+        if seg.kind == "transfer":
+            holds = [(w.q, w.object_pose_xyzquat, list(w.contacts)) for _, w in wps]
+            worst = self.holds.worst_ratio(holds) if holds else 0.0
+            ratios = [
+                (wi, w, self.holds.ratio(*h, shifted=False) if worst > 1.0 else worst)
+                for (wi, w), h in zip(wps, holds, strict=True)
+            ]
+            free = None
+        else:
+            free = seg.finger
+            inner = [(wi, w) for wi, w in wps if 0 < wi < len(seg.waypoints) - 1]
+            ratios = [
+                (wi, w, self.holds.ratio(w.q, w.object_pose_xyzquat, self._held(w, free)))
+                for wi, w in inner
+                if sum(c is not None for c in self._held(w, free)) >= 2
+            ]
+        for wi, w, ratio in ratios:
+            self._keep_hold(si, wi, w, free, ratio)
+
+    @staticmethod
+    def _held(w: Waypoint, free: int | None) -> list[Any]:
+        return [None if i == free else c for i, c in enumerate(w.contacts)]
+
+    def _keep_hold(self, si: int, wi: int, w: Waypoint, free: int | None, ratio: float) -> None:
+        """Record a hold's figures (quality, torque ratio) and its violation, if any."""
+        q = self._hold_quality(w, self._held(w, free), subgrasps=free is None)
+        self.weakest_hold = q if self.weakest_hold is None else min(self.weakest_hold, q)
+        worst = self.worst_torque_ratio
+        self.worst_torque_ratio = ratio if worst is None else max(worst, ratio)
+        if not ratio <= 1.0:
+            need = "cannot balance it at all" if ratio == math.inf else f"need {ratio:.2f} x"
+            moved = f", contacts moved {self.holds.shift_m * 1e3:g} mm" if free is not None else ""
+            msg = (
+                f"the holding contacts {need} the joints' effort limits for the object's "
+                f"weight ({self.holds.forces.mass:g} kg{moved})"
+            )
+            self.add(si, wi, "holds", msg)
+
+    def _hold_quality(
+        self, w: Waypoint, contacts: Sequence[Any], *, subgrasps: bool
+    ) -> float:
+        """Force-closure quality of a hold's contacts (with the fingertip-read normals)."""
+        tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
+        r = self.hand.fingertip_radius
+        pts, nrm = [], []
+        for i, c in enumerate(contacts):
+            if c is not None:
+                p_s, n_s, _ = fingertip_contact(self.obj, np.asarray(c, dtype=float), tips[i], r)
+                pts.append(np.asarray(p_s).reshape(3))
+                nrm.append(-np.asarray(n_s).reshape(3))
+        P, N = np.array(pts), np.array(nrm)
+        key = (P.tobytes(), N.tobytes(), subgrasps)
+        if key not in self._quality_memo:
+            fn = min_subgrasp_quality if subgrasps else force_closure_quality
+            self._quality_memo[key] = float(
+                fn(
+                    P,
+                    N,
+                    self.mu,
+                    edges=self.edges,
+                    torque_scale=self.obj.characteristic_length,
+                    contact_model=self.contact_model,
+                    torsion=self.torsion,
+                )
+            )
+        return self._quality_memo[key]
 
     # -- steps, transfer, regrasp, continuity --------------------------------
     def steps(self, si: int, seg: Segment) -> None:
@@ -488,4 +593,10 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         chk.start(doc["start"], segments)
         chk.goal(doc["goal"], segments)
     total = sum(len(s.waypoints) for s in segments)
-    return VerifyReport(tuple(chk.violations), total, len(segments))
+    return VerifyReport(
+        tuple(chk.violations),
+        total,
+        len(segments),
+        weakest_hold=chk.weakest_hold,
+        worst_torque_ratio=chk.worst_torque_ratio,
+    )

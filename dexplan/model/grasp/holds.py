@@ -51,7 +51,7 @@ from dexplan.model.grasp.grip_forces import ForceSettings
 from dexplan.model.grasp.grip_program import grip_program, joint_effort_limits
 from dexplan.model.objects.fingertip import fingertip_contact
 
-__all__ = ["DEFAULT_HOLD_SHIFT", "HoldChecker"]
+__all__ = ["DEFAULT_HOLD_SHIFT", "MAX_HOLD_SHIFT", "HoldChecker"]
 
 #: How far (m) each contact is moved along the surface when a hold is checked.
 DEFAULT_HOLD_SHIFT = 0.002
@@ -114,7 +114,12 @@ class HoldChecker:
         return self.ratio(q, object_pose, contacts) <= 1.0
 
     def ratio(
-        self, q: FloatArray, object_pose: FloatArray, contacts: Sequence[FloatArray | None]
+        self,
+        q: FloatArray,
+        object_pose: FloatArray,
+        contacts: Sequence[FloatArray | None],
+        *,
+        shifted: bool = True,
     ) -> float:
         """The hold's torque ratio (see the module); ``inf`` when it cannot hold at all.
 
@@ -123,36 +128,57 @@ class HoldChecker:
             object_pose: (7,) object pose, world frame, XYZW.
             contacts: per finger, its contact point (3,) in the object frame,
                 or None for a finger that carries no load.
+            shifted: also with each contact moved ``shift_m`` (False: the
+                stated contacts only).
         """
-        q = np.asarray(q, dtype=float)
-        pose = np.asarray(object_pose, dtype=float)
-        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
-        w = self.forces.wrench_world()
-        w_ext = np.concatenate([R.T @ w[:3], R.T @ w[3:]])
-        idx = [i for i, c in enumerate(contacts) if c is not None]
+        hold = _Hold(np.asarray(q, dtype=float), np.asarray(object_pose, dtype=float), contacts)
+        w_ext = self._wrench(hold.pose)
+        idx = hold.loaded()
         if not idx:
             return 0.0 if float(np.linalg.norm(w_ext)) <= 1e-9 else math.inf
         P = np.array([np.asarray(contacts[i], dtype=float).reshape(3) for i in idx])
         held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
-        key = np.round(np.concatenate([P.ravel(), w_ext, q[held]]), 12).tobytes()
+        key = np.round(np.concatenate([P.ravel(), w_ext, hold.q[held], [shifted]]), 12).tobytes()
         hit = self._memo.get(key)
         if hit is None:
-            hit = self._solve(q, pose, R, idx, P, w_ext)
+            hit = _shared_ratio(self._blocks(hold, shifted=shifted))
             if len(self._memo) > 4096:
                 self._memo.clear()
             self._memo[key] = hit
         return hit
 
-    def _solve(
-        self,
-        q: FloatArray,
-        pose: FloatArray,
-        R: FloatArray,
-        idx: list[int],
-        P: FloatArray,
-        w_ext: FloatArray,
+    def worst_ratio(
+        self, holds: Sequence[tuple[FloatArray, FloatArray, Sequence[FloatArray | None]]]
     ) -> float:
-        """The shared-ratio linear program over the nominal and shifted contact sets."""
+        """The largest torque ratio of many holds at their stated contacts, in one program.
+
+        One linear program for all of them (their blocks share the ratio), far
+        cheaper than one program each: along a transfer every waypoint is a hold.
+
+        Args:
+            holds: ``(q, object_pose, contacts)`` per hold, as :meth:`ratio` takes them.
+        """
+        blocks: list[_Block] = []
+        for q, pose, contacts in holds:
+            hold = _Hold(np.asarray(q, dtype=float), np.asarray(pose, dtype=float), contacts)
+            if not hold.loaded():
+                return 0.0 if float(np.linalg.norm(self._wrench(hold.pose))) <= 1e-9 else math.inf
+            blocks += self._blocks(hold, shifted=False)
+        return _shared_ratio(blocks) if blocks else 0.0
+
+    def _wrench(self, pose: FloatArray) -> FloatArray:
+        """(6,) the external wrench in the object frame (torque about its origin)."""
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        w = self.forces.wrench_world()
+        return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
+
+    def _blocks(self, hold: _Hold, *, shifted: bool) -> list[_Block]:
+        """A hold's blocks: its stated contacts, then (``shifted``) the moved ones."""
+        q, pose = hold.q, hold.pose
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        w_ext = self._wrench(pose)
+        idx = hold.loaded()
+        P = np.array([np.asarray(hold.contacts[i], dtype=float).reshape(3) for i in idx])
         tips = (self.hand.fingertip_positions(q) - pose[:3]) @ R  # object frame
         N = np.array(
             [
@@ -161,13 +187,11 @@ class HoldChecker:
             ]
         ).reshape(-1, 3)
         jac = self._jacobians(q, idx)
-        blocks = [self._block(P, N, w_ext, pose, R, jac, tips, idx)]
-        for c in range(len(idx)) if self.shift_m > 0 else ():
-            for P2, N2 in self._shifted(P, N, c):
-                blocks.append(self._block(P2, N2, w_ext, pose, R, jac, tips, idx))
         used = self._used(idx)
-        blocks = [_Block(b.A, b.lo, b.hi, b.T[used]) for b in blocks]
-        return _shared_ratio(blocks, self._effort[used])
+        sets = [(P, N)]
+        for c in range(len(idx)) if shifted and self.shift_m > 0 else ():
+            sets += self._shifted(P, N, c)
+        return [self._block(P2, N2, w_ext, pose, R, jac, used) for P2, N2 in sets]
 
     def _shifted(self, P: FloatArray, N: FloatArray, c: int) -> list[tuple[FloatArray, FloatArray]]:
         """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways."""
@@ -201,8 +225,7 @@ class HoldChecker:
         pose: FloatArray,
         R: FloatArray,
         jac: list[tuple[FloatArray, FloatArray]],
-        tips: FloatArray,
-        idx: list[int],
+        used: np.ndarray,
     ) -> _Block:
         """One contact set's balance, normal-force and cone rows and its torque rows."""
         prog = grip_program(
@@ -217,14 +240,15 @@ class HoldChecker:
             torque=None,
         )
         r = 4 if self.soft else 3
-        T = np.zeros((self.hand.model.nv, len(idx) * r))
+        T = np.zeros((self.hand.model.nv, P.shape[0] * r))
         for c, (J, centre) in enumerate(jac):
             d = pose[:3] + R @ P[c] - centre  # tip centre to contact, world frame
             S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
             T[:, c * r : c * r + 3] = J.T @ np.vstack([R, S @ R])
             if self.soft:
                 T[:, c * r + 3] = J.T @ np.concatenate([np.zeros(3), R @ N[c]]) * self.L
-        return _Block(prog.A, prog.lo, prog.hi, T[self._limited])
+        joints = self._limited[used]
+        return _Block(prog.A, prog.lo, prog.hi, T[joints], self._effort[used])
 
     def _used(self, idx: list[int]) -> np.ndarray:
         """Positions in the limited joints of the joints of the loaded fingers ``idx``."""
@@ -233,16 +257,34 @@ class HoldChecker:
 
 
 @dataclass(frozen=True)
+class _Hold:
+    """One hold: joints (nq,), object pose (7,), world frame, and per-finger contacts or None."""
+
+    q: FloatArray
+    pose: FloatArray
+    contacts: Sequence[FloatArray | None]
+
+    def loaded(self) -> list[int]:
+        """The fingers that carry load."""
+        return [i for i, c in enumerate(self.contacts) if c is not None]
+
+
+@dataclass(frozen=True)
 class _Block:
-    """One contact set of the shared-ratio program: ``lo <= A x <= hi``, torques ``T x``."""
+    """One contact set of the shared-ratio program.
+
+    ``lo <= A x <= hi``; joint torques ``T x`` of the limited joints of its
+    loaded fingers, whose effort limits are ``effort``.
+    """
 
     A: FloatArray
     lo: FloatArray
     hi: FloatArray
     T: FloatArray
+    effort: FloatArray
 
 
-def _shared_ratio(blocks: list[_Block], effort: FloatArray) -> float:
+def _shared_ratio(blocks: list[_Block]) -> float:
     """``min t`` such that every block is feasible with ``|T_s x_s| <= t effort``; inf if none.
 
     Variables ``(x_1, ..., x_S, t)``; with no limited joint the program only
@@ -253,7 +295,7 @@ def _shared_ratio(blocks: list[_Block], effort: FloatArray) -> float:
     n_eq = sum(int(np.sum(b.lo == b.hi)) for b in blocks)
     n_ub = sum(
         int(np.sum(np.isfinite(b.hi) & (b.lo != b.hi)) + np.sum(np.isfinite(b.lo) & (b.lo != b.hi)))
-        + 2 * len(effort)
+        + 2 * len(b.effort)
         for b in blocks
     )
     A_eq, b_eq = np.zeros((n_eq, m + 1)), np.zeros(n_eq)
@@ -271,6 +313,7 @@ def _shared_ratio(blocks: list[_Block], effort: FloatArray) -> float:
         A_ub[ru + nu : ru + nu + nd, col : col + k] = -b.A[dn]
         b_ub[ru + nu : ru + nu + nd] = -b.lo[dn]
         ru += nu + nd
+        effort = b.effort
         if effort.size:
             ne_ = len(effort)
             A_ub[ru : ru + ne_, col : col + k] = b.T
@@ -291,4 +334,4 @@ def _shared_ratio(blocks: list[_Block], effort: FloatArray) -> float:
     )
     if lp.status != 0 or lp.x is None:
         return math.inf
-    return float(lp.x[-1]) if effort.size else 0.0
+    return float(lp.x[-1])
