@@ -1,9 +1,10 @@
-"""Executing a plan: time parameterisation, grip forces, trajectories, their files, replay."""
+"""Executing a plan: timing, grip forces, trajectories, their files, replay, plan quality."""
 
 __all__ = [
     "check",
     "export",
     "forces",
+    "quality",
     "replay",
     "segment_timing",
     "timing",
