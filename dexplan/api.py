@@ -14,12 +14,15 @@ Everything a script needs, re-exported by ``dexplan`` itself::
 This is the layer above planning and the plan file: the planner never imports
 the plan-file module; :func:`plan` hands it the plan-file verifier, so a plan
 that fails the independent check is returned as ``invalid_plan``, never as
-solved.
+solved. A solved plan then gets its quality figures
+(:mod:`dexplan.execution.quality`, the verifier's report reused), which its
+plan file carries as ``stats.quality``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from dexplan.core.errors import InvalidInputError
 from dexplan.core.segments import Segment
+from dexplan.execution.quality import PlanQuality, QualityLevel, plan_quality
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import GoalSpec, Scenario, default_scenario, load_scenario
 from dexplan.planfile import (
@@ -56,11 +61,16 @@ class Plan:
             (status, segments, statistics, roadmap, diagnostics).
         scenario: the scenario planned.
         hand: the hand model used.
+        quality: the solved plan's quality figures
+            (:class:`~dexplan.execution.quality.PlanQuality`), None when not computed.
+        quality_time_s: seconds spent on them (not in ``result.stats.time_s``).
     """
 
     result: PlanResult
     scenario: Scenario
     hand: Hand
+    quality: PlanQuality | None = None
+    quality_time_s: float | None = None
 
     @property
     def status(self) -> PlanStatus:
@@ -78,8 +88,15 @@ class Plan:
         return self.result.segments
 
     def to_document(self, out_dir: str | Path = ".") -> dict[str, Any]:
-        """The ``dexplan-plan/1`` document (mesh paths relative to ``out_dir``)."""
-        return build_plan_document(self.scenario, self.hand, self.result, Path(out_dir))
+        """The ``dexplan-plan/1`` document (mesh paths relative to ``out_dir``).
+
+        Its ``stats`` are the planner's, plus the ``quality`` table when computed
+        (:meth:`PlanQuality.as_dict` and ``time_s``, the seconds it took).
+        """
+        doc = build_plan_document(self.scenario, self.hand, self.result, Path(out_dir))
+        if self.quality is not None:
+            doc["stats"]["quality"] = {**self.quality.as_dict(), "time_s": self.quality_time_s}
+        return doc
 
     def save(self, path: str | Path) -> Path:
         """Write the plan file atomically; return its path.
@@ -111,6 +128,7 @@ def plan(
     roadmap: Roadmap | None = None,
     progress: Progress | None = None,
     hand: Hand | None = None,
+    quality: QualityLevel | str = QualityLevel.FULL,
 ) -> Plan:
     """Plan a scenario and check the plan with the independent verifier.
 
@@ -128,6 +146,10 @@ def plan(
         progress: called with a :class:`~dexplan.planning.progress.ProgressEvent`
             at each stage.
         hand: the scenario's hand, if already built (saves loading it again).
+        quality: the quality figures of a solved plan
+            (:class:`~dexplan.execution.quality.QualityLevel`): ``full`` (every
+            figure; the execution time and grip forces take seconds), ``fast``
+            (no execution figures: milliseconds) or ``none``.
 
     Returns:
         A :class:`Plan`; "no plan" is a status, not an exception.
@@ -135,15 +157,20 @@ def plan(
     Raises:
         DexplanError: bad input (scenario, planner name or parameter, ...).
     """
+    level = _quality_level(quality)
     scen = _scenario(scenario)
     if params is not None:
         spec = dataclasses.replace(scen.planner, params=dict(params))
         scen = dataclasses.replace(scen, planner=spec)
     hand = hand or build_hand(scen)
 
+    checked: list[tuple[dict[str, Any], VerifyReport]] = []  # the last plan verified
+
     def check(result: PlanResult) -> list[str]:
         doc = build_plan_document(scen, hand, result, scen.base_dir)
-        return [str(v) for v in verify_plan(doc, scen.base_dir).violations]
+        report = verify_plan(doc, scen.base_dir)
+        checked[:] = [(doc, report)]
+        return [str(v) for v in report.violations]
 
     result = _plan(
         scen,
@@ -156,7 +183,27 @@ def plan(
         verify=check,
         hand=hand,
     )
-    return Plan(result, scen, hand)
+    if level == QualityLevel.NONE or not result.solved or not checked:
+        return Plan(result, scen, hand)
+    t0 = time.perf_counter()
+    doc, report = checked[-1]  # the solved plan's document and the verifier's report on it
+    figures = plan_quality(
+        doc, scen.base_dir, hand=hand, report=report, execution=level == QualityLevel.FULL
+    )
+    return Plan(result, scen, hand, figures, time.perf_counter() - t0)
+
+
+def _quality_level(quality: QualityLevel | str) -> QualityLevel:
+    """The :class:`QualityLevel` of a ``quality`` argument.
+
+    Raises:
+        InvalidInputError: not one of the levels.
+    """
+    try:
+        return QualityLevel(quality)
+    except ValueError:
+        levels = ", ".join(QualityLevel)
+        raise InvalidInputError(f"quality must be one of {levels}, got {quality!r}") from None
 
 
 class RoadmapPlanner:

@@ -19,6 +19,7 @@ from dexplan.cli.console import ExitCode, err, plan_progress
 from dexplan.cli.options import PlanOptions
 from dexplan.core.errors import InvalidInputError, one_line
 from dexplan.core.files import check_output_path
+from dexplan.execution.quality import PlanQuality, format_quality
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import (
     MAX_TIME_LIMIT,
@@ -131,7 +132,7 @@ def _plan_one(opts: PlanOptions, scenario: Scenario, hand: Hand, roadmap: Roadma
         record_plan(doc, opts.rrd, roadmap=result.roadmap, base_dir=out.resolve().parent)
         if not opts.quiet:
             err(f"recording written to {opts.rrd}")
-    sys.stdout.write(_summary(out, result.stats))
+    sys.stdout.write(_summary(out, result.stats, planned.quality))
     return ExitCode.OK
 
 
@@ -151,8 +152,9 @@ def _report_no_plan(planned: Plan, out: Path) -> int:
     return ExitCode.FAILED
 
 
-def _summary(out: Path, st: PlanStats) -> str:
-    """The stdout summary of a solved plan."""
+def _summary(out: Path, st: PlanStats, quality: PlanQuality | None) -> str:
+    """The stdout summary of a solved plan (its quality in two lines, when computed)."""
+    lines = "".join(f"{line}\n" for line in format_quality(quality)) if quality else ""
     return (
         f"status: solved\nplan: {out}\nplanner: {st.planner}  seed: {st.seed}\n"
         f"time_s: {st.time_s:.3f}  (GSn {st.gsn_time_s or 0:.3f}, "
@@ -161,4 +163,5 @@ def _summary(out: Path, st: PlanStats) -> str:
         f"components: {st.components}\n"
         f"transfers: {st.transfers}  regrasps: {st.regrasps}  "
         f"waypoints: {st.waypoints}  reduction: {st.reduction_method}\n"
+        f"{lines}"
     )
