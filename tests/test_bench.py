@@ -7,6 +7,7 @@ import importlib.util
 import math
 import os
 import sqlite3
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -29,8 +30,9 @@ from dexplan.bench import (
     summarize,
     write_csv,
 )
-from dexplan.bench.records import empty_record, set_status
+from dexplan.bench.records import empty_record, fill_quality, set_status
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
+from dexplan.execution.quality import PlanQuality
 from dexplan.model.scenario import builtin_scenario_path, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,7 +94,25 @@ def _fake_record(task: RunTask, solved: bool, time_s: float, nodes: int) -> dict
             plan_verify_ratio=time_s / 0.5,
             plan_sha256="ab" * 32,
         )
+        fill_quality(rec, _fake_quality(time_s), 0.25)
     return rec
+
+
+def _fake_quality(time_s: float) -> PlanQuality:
+    """Plan-quality figures that vary with the run's time (10 regrasps, 2 transfers)."""
+    return PlanQuality(
+        regrasps=10,
+        transfers=2,
+        regrasps_without_progress=int(time_s) % 3,
+        rotation_per_transfer_deg_median=20.0 + time_s,
+        rotation_per_transfer_deg_min=5.0,
+        rotation_per_transfer_deg_max=40.0 + time_s,
+        joint_travel_rad=10.0 * time_s,
+        execution_time_s=30.0 + time_s,
+        max_grip_force_n=2.0 + 0.1 * time_s,
+        weakest_hold=0.01 * time_s,
+        worst_torque_ratio=0.1 * time_s,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -260,6 +280,46 @@ def test_resume_keys_and_partial_database(tmp_path, sphere):
     other_limit = make_tasks([sphere], ["PRM"], [1], 6.0)[0]
     assert other_limit.key != tasks[0].key
     assert "paper_sphere@" in tasks[0].key
+
+
+def test_quality_columns_in_database_csv_and_summary(tmp_path, sphere, monkeypatch):
+    """Solved runs carry the plan-quality columns; a database without them gains them."""
+    from dexplan.bench import database
+
+    assert set(bench.QUALITY_COLUMNS) < set(CSV_COLUMNS)
+    tasks = make_tasks([sphere], ["PRM", "RRTConnect"], [1, 2, 3], 5.0)
+    old = tuple(c for c in RUN_COLUMNS if c[0] not in {*bench.QUALITY_COLUMNS, "quality_time"})
+    monkeypatch.setattr(database, "RUN_COLUMNS", old)  # a database of an earlier version
+    with BenchDatabase(tmp_path / "b.db") as db:
+        _fill_db(db, tasks[:2])
+    monkeypatch.undo()
+    with BenchDatabase(tmp_path / "b.db") as db:  # reopened: the columns are added
+        recs = _fill_db(db, tasks[2:])
+        rows = db.records()
+    assert [r["execution_time_s"] for r in rows[:2]] == [None, None]  # stored before
+    for rec, row in zip(recs, rows[2:], strict=True):
+        for name in (*bench.QUALITY_COLUMNS, "quality_time"):
+            assert row[name] == rec[name], name
+        if row["solved"]:
+            want = _fake_quality(rec["time"])
+            assert row["execution_time_s"] == want.execution_time_s
+            assert row["worst_torque_ratio"] == want.worst_torque_ratio
+            assert rec["stats"]["quality"]["weakest_hold"] == want.weakest_hold
+        else:
+            assert row["weakest_hold"] is None and row["max_grip_force_n"] is None
+    path = write_csv(rows, tmp_path / "runs.csv")
+    with open(path, newline="") as fh:
+        got = list(csv.DictReader(fh))
+    assert float(got[2]["max_grip_force_n"]) == rows[2]["max_grip_force_n"]
+    summary = summarize(rows[2:], "PRM")
+    solved = [r for r in recs if r["solved"] and r["planner"] == "PRM"]
+    by = {r["planner"]: r for r in summary}
+    assert by["PRM"]["execution_time_median"] == pytest.approx(
+        statistics.median(r["execution_time_s"] for r in solved)
+    )
+    assert by["PRM"]["worst_torque_ratio_max"] == max(r["worst_torque_ratio"] for r in solved)
+    text = format_summary(summary, "PRM")
+    assert "rot deg" in text and "no-prog" in text
 
 
 def test_scenario_hash_tracks_content(tmp_path, sphere):
@@ -485,6 +545,11 @@ def test_sweep_writes_database_csv_plots(sweep):
             assert len(r["plan_sha256"]) == 64
             assert r["regrasps"] + r["transfers"] == r["solution_segments"] >= 1
             assert bench.REDUCTION_METHODS[r["reduction_method"]] in ("gaits", "edges")
+            # the plan's quality, computed after the query
+            assert r["execution_time_s"] > 0 and r["max_grip_force_n"] > 0
+            assert r["weakest_hold"] > 0 and 0 <= r["worst_torque_ratio"] <= 1
+            assert 0 <= r["regrasps_without_progress"] <= r["regrasps"]
+            assert r["quality_time"] > 0
     assert any(r["solved"] for r in res.records), "no run solved paper_sphere"
     # progress: a first call with the totals, then one per run
     assert events[0].record is None and events[0].total == 4

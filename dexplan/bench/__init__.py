@@ -5,7 +5,9 @@ its own process, reads the verifier's verdict and time on every plan, and
 stores one row per run in an SQLite database in the schema of OMPL's Planner
 Arena, committed as soon as the run finishes (a sweep run again skips the runs
 already stored). It also writes a CSV file, PNG plots and a summary with
-medians, success rates and ratios against a baseline planner.
+medians, success rates and ratios against a baseline planner; every solved
+run's plan quality (:mod:`dexplan.execution.quality`) has columns, a summary
+table and plots of its own.
 
 The package, along its seams:
 
@@ -49,6 +51,7 @@ from dexplan.bench.schema import (
     OMPL_STATUSES,
     PLAN_STATUSES,
     PLOT_NAMES,
+    QUALITY_COLUMNS,
     REDUCTION_METHODS,
     RUN_COLUMNS,
     STAGE_NAMES,
@@ -83,6 +86,7 @@ __all__ = [
     "OMPL_STATUSES",
     "PLAN_STATUSES",
     "PLOT_NAMES",
+    "QUALITY_COLUMNS",
     "REDUCTION_METHODS",
     "RUN_COLUMNS",
     "STAGES",

@@ -1,4 +1,4 @@
-"""Benchmark plots (PNG, matplotlib, the ``bench`` extra): time, success, nodes, regrasps."""
+"""Benchmark plots (PNG, matplotlib, the ``bench`` extra): time, success, nodes, plan quality."""
 
 from __future__ import annotations
 
@@ -59,6 +59,38 @@ class _Grid:
         return path
 
 
+_Column = Literal[
+    "time",
+    "graph_states",
+    "regrasps",
+    "execution_time_s",
+    "weakest_hold",
+    "worst_torque_ratio",
+]
+
+#: The plan-quality box plots: (column, title, y label, file name); solved runs.
+_QUALITY_PLOTS: tuple[tuple[_Column, str, str, Plot], ...] = (
+    (
+        "execution_time_s",
+        "execution time per plan, toppra (solved runs)",
+        "execution time (s)",
+        Plot.EXECUTION_TIME,
+    ),
+    (
+        "weakest_hold",
+        "weakest hold per plan: least force-closure quality (solved runs)",
+        "force-closure quality",
+        Plot.WEAKEST_HOLD,
+    ),
+    (
+        "worst_torque_ratio",
+        "worst torque ratio per plan: share of the effort limits (solved runs)",
+        "torque ratio",
+        Plot.TORQUE_RATIO,
+    ),
+)
+
+
 def plot_results(
     records: Sequence[RunRow],
     out_dir: str | Path,
@@ -70,6 +102,10 @@ def plot_results(
     time limit dashed), one panel per scenario. ``bench_success.png``: success
     rate per planner and scenario. ``bench_nodes.png``: box plots of roadmap
     nodes (``graph_states``). ``bench_regrasps.png``: regrasps per solved plan.
+    The plan quality of solved plans: ``bench_execution_time.png`` (the
+    export's execution time), ``bench_weakest_hold.png`` (the weakest hold's
+    force-closure quality) and ``bench_torque_ratio.png`` (the worst torque
+    ratio; 1, the effort limits, dashed).
 
     Returns:
         The paths written.
@@ -104,12 +140,16 @@ def plot_results(
             solved_only=True,
             log=False,
         ),
+        *(
+            _boxes(grid, column, title, ylabel, name, solved_only=True, log=False)
+            for column, title, ylabel, name in _QUALITY_PLOTS
+        ),
     ]
 
 
 def _boxes(
     grid: _Grid,
-    column: Literal["time", "graph_states", "regrasps"],
+    column: _Column,
     title: str,
     ylabel: str,
     name: str,
@@ -154,6 +194,8 @@ def _boxes(
             limits = {float(r["time_limit"]) for p in grid.planners for r in grid.by[(scen, p)]}
             for lim in limits:
                 ax.axhline(lim, color="0.5", ls="--", lw=0.8)
+        if column == "worst_torque_ratio":
+            ax.axhline(1.0, color="tab:red", ls="--", lw=0.8)  # the effort limits
         if log and any(v > 0 for d in data for v in d if not math.isnan(v)):
             ax.set_yscale("log")
         ax.set_title(scen)

@@ -16,16 +16,19 @@ import json
 import math
 import socket
 from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from typing import Any, TypedDict, cast
 
 from dexplan.bench.schema import (
     CSV_COLUMNS,
     OMPL_STATUS_OF,
     PLAN_STATUSES,
+    QUALITY_COLUMNS,
     REDUCTION_METHODS,
     RunStatus,
 )
 from dexplan.bench.tasks import RunTask
+from dexplan.execution.quality import PlanQuality
 from dexplan.planning.stats import PlanStats
 
 
@@ -79,6 +82,15 @@ class RunRow(TypedDict):
     object_path_m: float | None
     object_path_rad: float | None
     joint_travel_rad: float | None
+    execution_time_s: float | None
+    rotation_per_transfer_deg_median: float | None
+    rotation_per_transfer_deg_min: float | None
+    rotation_per_transfer_deg_max: float | None
+    regrasps_without_progress: int | None
+    weakest_hold: float | None
+    worst_torque_ratio: float | None
+    max_grip_force_n: float | None
+    quality_time: float | None
     states_checked: int | None
     states_valid: int | None
     rejected_bounds: int | None
@@ -105,6 +117,7 @@ class RunRecord(RunRow):
 
 # the record types and the schema's columns must name the same fields
 assert set(RunRow.__annotations__) == {"key", *CSV_COLUMNS}, "RunRow out of step with the schema"
+assert set(QUALITY_COLUMNS) <= {f.name for f in fields(PlanQuality)}, "no PlanQuality field"
 
 
 def empty_record(task: RunTask) -> RunRecord:
@@ -181,6 +194,16 @@ def fill_stats(rec: RunRecord, stats: PlanStats) -> None:
     rec["rejected_force_closure"] = rejected.get("force_closure")
     rec["sampler_attempts"] = stats.sampler.get("attempts")
     rec["sampler_valid"] = stats.sampler.get("valid")
+
+
+def fill_quality(rec: RunRecord, quality: PlanQuality, time_s: float | None) -> None:
+    """Copy a plan's quality figures into a record's columns (and its ``stats``)."""
+    table = quality.as_dict()  # non-finite figures as None, as the database stores them
+    columns = cast("dict[str, Any]", rec)  # the columns by name
+    for name in QUALITY_COLUMNS:
+        columns[name] = table[name]
+    rec["quality_time"] = time_s
+    rec["stats"]["quality"] = jsonable({**table, "time_s": time_s})
 
 
 def jsonable(value: Any) -> Any:

@@ -19,6 +19,10 @@ class SummaryRow(TypedDict):
 
     Medians are NaN when no run gives the figure; ``*_vs_base`` divide by the
     baseline planner's figure on the same scenario (NaN without a baseline).
+    The plan-quality figures (``execution_time_median`` ... ``max_grip_force_median``)
+    are over solved runs: medians of the runs' figures (the rotation: of each
+    run's median rotation per transfer), except ``worst_torque_ratio_max``, the
+    largest.
     """
 
     scenario: str
@@ -36,6 +40,13 @@ class SummaryRow(TypedDict):
     verify_time_median: float
     plan_verify_ratio_median: float
     memory_median: float
+    execution_time_median: float
+    joint_travel_median: float
+    rotation_per_transfer_median: float
+    regrasps_without_progress_median: float
+    weakest_hold_median: float
+    worst_torque_ratio_max: float
+    max_grip_force_median: float
     success_rate_vs_base: float
     time_median_vs_base: float
     nodes_median_vs_base: float
@@ -92,6 +103,7 @@ def summarize(
                 "verify_time_median": _median(r.get("verify_time") for r in solved),
                 "plan_verify_ratio_median": _median(r.get("plan_verify_ratio") for r in solved),
                 "memory_median": _median(r.get("memory") for r in recs),
+                **_quality_figures(solved),
                 "success_rate_vs_base": math.nan,
                 "time_median_vs_base": math.nan,
                 "nodes_median_vs_base": math.nan,
@@ -107,6 +119,41 @@ def summarize(
             row["nodes_median_vs_base"] = _ratio(row["nodes_median"], b["nodes_median"])
             row["regrasps_median_vs_base"] = _ratio(row["regrasps_median"], b["regrasps_median"])
     return rows
+
+
+class _QualityFigures(TypedDict):
+    """The plan-quality part of a :class:`SummaryRow`."""
+
+    execution_time_median: float
+    joint_travel_median: float
+    rotation_per_transfer_median: float
+    regrasps_without_progress_median: float
+    weakest_hold_median: float
+    worst_torque_ratio_max: float
+    max_grip_force_median: float
+
+
+def _largest(values: Iterable[float | None]) -> float:
+    """The largest of the finite values (None and NaN left out); NaN when there are none."""
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    return max(vals) if vals else math.nan
+
+
+def _quality_figures(solved: Sequence[RunRow]) -> _QualityFigures:
+    """Medians of the plan-quality columns over solved runs (the torque ratio: the largest)."""
+    return {
+        "execution_time_median": _median(r.get("execution_time_s") for r in solved),
+        "joint_travel_median": _median(r.get("joint_travel_rad") for r in solved),
+        "rotation_per_transfer_median": _median(
+            r.get("rotation_per_transfer_deg_median") for r in solved
+        ),
+        "regrasps_without_progress_median": _median(
+            r.get("regrasps_without_progress") for r in solved
+        ),
+        "weakest_hold_median": _median(r.get("weakest_hold") for r in solved),
+        "worst_torque_ratio_max": _largest(r.get("worst_torque_ratio") for r in solved),
+        "max_grip_force_median": _median(r.get("max_grip_force_n") for r in solved),
+    }
 
 
 def _fmt(value: object, spec: str) -> str:
@@ -141,7 +188,35 @@ def format_summary(rows: Sequence[SummaryRow], baseline: str | None = None) -> s
         "runs; verify: plans passing dexplan verify / solved"
         + (f"; x base: ratio to {baseline} (*)" if baseline else "")
     )
-    return "\n".join(lines)
+    return "\n".join([*lines, "", *_quality_table(rows, baseline)])
+
+
+def _quality_table(rows: Sequence[SummaryRow], baseline: str | None) -> list[str]:
+    """The lines of the plan-quality table of :func:`format_summary` (solved runs)."""
+    head = (
+        f"{'scenario':<16} {'planner':<11} {'solved':>6} {'exec s':>7} {'travel':>7} "
+        f"{'rot deg':>7} {'no-prog':>7} {'hold':>8} {'torque':>6} {'grip N':>7}"
+    )
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        mark = "*" if baseline is not None and r["planner"] == baseline else ""
+        lines.append(
+            f"{r['scenario'][:16]:<16} {(r['planner'] + mark)[:11]:<11} {r['solved']:>6} "
+            f"{_fmt(r['execution_time_median'], '7.1f')} "
+            f"{_fmt(r['joint_travel_median'], '7.1f')} "
+            f"{_fmt(r['rotation_per_transfer_median'], '7.1f')} "
+            f"{_fmt(r['regrasps_without_progress_median'], '7.1f')} "
+            f"{_fmt(r['weakest_hold_median'], '8.4f')} "
+            f"{_fmt(r['worst_torque_ratio_max'], '6.2f')} "
+            f"{_fmt(r['max_grip_force_median'], '7.2f')}"
+        )
+    lines.append(
+        "plan quality, solved runs: medians of execution time (s), joint travel (rad), "
+        "rotation per transfer (deg), regrasps without progress (no-prog), weakest hold "
+        "(force-closure quality) and largest grip force (N); torque: the worst torque "
+        "ratio (> 1: beyond the effort limits)"
+    )
+    return lines
 
 
 def write_csv(records: Sequence[RunRow], path: str | Path) -> Path:

@@ -38,6 +38,12 @@ class Plot(StrEnum):
     """Box plots of roadmap nodes generated."""
     REGRASPS = "bench_regrasps.png"
     """Box plots of regrasps per solved plan."""
+    EXECUTION_TIME = "bench_execution_time.png"
+    """Box plots of the execution time of each solved plan (the export's timing)."""
+    WEAKEST_HOLD = "bench_weakest_hold.png"
+    """Box plots of the weakest hold's force-closure quality per solved plan."""
+    TORQUE_RATIO = "bench_torque_ratio.png"
+    """Box plots of the worst torque ratio per solved plan (1: the effort limits)."""
 
 
 PLOT_NAMES: tuple[str, ...] = tuple(Plot)
@@ -182,6 +188,16 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     ("object_path_m", "REAL"),
     ("object_path_rad", "REAL"),
     ("joint_travel_rad", "REAL"),  # hand joints' total travel along the plan
+    # the plan's quality (dexplan.execution.quality), computed after the run
+    ("execution_time_s", "REAL"),  # the export's time-optimal execution time
+    ("rotation_per_transfer_deg_median", "REAL"),  # object rotation per transfer
+    ("rotation_per_transfer_deg_min", "REAL"),
+    ("rotation_per_transfer_deg_max", "REAL"),
+    ("regrasps_without_progress", "INTEGER"),  # regrasps followed by another regrasp
+    ("weakest_hold", "REAL"),  # least force-closure quality of a hold
+    ("worst_torque_ratio", "REAL"),  # largest share of the effort limits a hold needs
+    ("max_grip_force_n", "REAL"),  # largest grip force at a waypoint
+    ("quality_time", "REAL"),  # seconds computing the quality (not in time)
     ("states_checked", "INTEGER"),
     ("states_valid", "INTEGER"),
     ("rejected_bounds", "INTEGER"),
@@ -194,6 +210,19 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
 )
 """Columns of the ``runs`` table after ``id, experimentid, plannerid``: name and
 the type OMPL's log format gives it (``REAL``, ``INTEGER``, ``BOOLEAN``, ``ENUM``)."""
+
+QUALITY_COLUMNS: tuple[str, ...] = (
+    "execution_time_s",
+    "rotation_per_transfer_deg_median",
+    "rotation_per_transfer_deg_min",
+    "rotation_per_transfer_deg_max",
+    "regrasps_without_progress",
+    "weakest_hold",
+    "worst_torque_ratio",
+    "max_grip_force_n",
+)
+"""The run columns that are the plan's quality figures: fields of
+:class:`~dexplan.execution.quality.PlanQuality` of the same names."""
 
 IDENTITY_COLUMNS: tuple[str, ...] = (
     "scenario",

@@ -1,5 +1,9 @@
 """One run, in a worker process of its own: plan, read the verifier's verdict, return a record.
 
+A solved run's record also holds the plan's quality figures
+(:mod:`dexplan.execution.quality`), computed after the query: its ``time``
+leaves them out, its ``wall_time`` counts them (``quality_time``).
+
 Each run gets a fresh process (OMPL's random generator is process-global and
 PRM solves with two threads, so runs that share a process are neither
 independent nor reproducible). The fork server imports this module and the
@@ -19,6 +23,7 @@ from dexplan.api import plan
 from dexplan.bench.records import (
     RunRecord,
     empty_record,
+    fill_quality,
     fill_stats,
     jsonable,
     segments_sha256,
@@ -73,6 +78,8 @@ def execute_run(task: RunTask) -> RunRecord:
             verify_time, plan_time = rec["verify_time"], rec["time"]
             if verify_time and plan_time is not None:
                 rec["plan_verify_ratio"] = plan_time / verify_time
+        if planned.quality is not None:  # solved: the quality figures, after the query
+            fill_quality(rec, planned.quality, planned.quality_time_s)
         if result.solved:
             base = task.scenario.base_dir
             rec["plan_sha256"] = segments_sha256(planned.to_document(base)["segments"])
