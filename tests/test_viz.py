@@ -232,6 +232,7 @@ def _expected_plan_entities(hand: Hand) -> set[str]:
         "/roadmap/summary",
         "/plan/segment",
         "/plan/summary",
+        "/plan/quality",
         "/plan/state/mode",
         "/plan/state/free_finger",
         "/plan/fc/full",
@@ -320,6 +321,11 @@ def test_record_plan_entities_and_timeline(
     _check_timeline(ents, n_wp)
     _check_poses(ents, plan_doc, paper_hand)
     _check_contacts(ents, plan_doc, paper_hand, n_wp)
+    # the quality summary: the file has no stats.quality, so the segments' figures
+    # (one transfer turning the object 0.1 rad = 5.73 degrees, one regrasp)
+    (quality,) = column(ents["/plan/quality"], "TextDocument:text")
+    assert "| transfers | 1 |" in quality and "| regrasps | 1 |" in quality
+    assert "| rotation per transfer, median (deg) | 5.73 |" in quality
 
     # a blueprint travels with the recording
     from rerun.chunk import RrdReader

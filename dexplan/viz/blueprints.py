@@ -63,6 +63,7 @@ def plan_blueprint(has_roadmap: bool) -> rerun.blueprint.Blueprint:
         rrb.TextLogView(origin="plan/segment", name="Segments"),
         rrb.Tabs(
             rrb.TextDocumentView(origin="plan/summary", name="Plan"),
+            rrb.TextDocumentView(origin="plan/quality", name="Quality"),
             *(
                 [rrb.TextDocumentView(origin="roadmap/summary", name="Roadmap")]
                 if has_roadmap

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dexplan.core.segments import Segment, count_kinds
+from dexplan.execution.quality import PlanQuality, plan_quality
 from dexplan.planfile import segments_from_dicts
 from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.viz.blueprints import plan_blueprint
@@ -58,8 +59,11 @@ def record_plan(
     ``time`` (:data:`~dexplan.viz.STEP_SECONDS` per step). Per step: object
     pose, every moving hand link's pose, contacts with friction cones, the
     segment kind and free finger, and the force-closure quality of the
-    holding grasp and the minimum over its subgrasps. A blueprint lays out a
-    3D view, the FC plot, mode lanes and the segment log.
+    holding grasp and the minimum over its subgrasps. ``plan/quality`` holds
+    the plan's quality figures (:mod:`dexplan.execution.quality`): those of
+    the file's ``stats.quality``, or, for a file without them, the ones its
+    segments give (counts, rotation per transfer, joint travel). A blueprint
+    lays out a 3D view, the FC plot, mode lanes, the segment log and the summaries.
 
     Args:
         doc: the plan document (as from :func:`dexplan.planfile.document.read_plan` or
@@ -95,6 +99,13 @@ def record_plan(
             ),
             static=True,
         )
+        rec.log(
+            "plan/quality",
+            rr.TextDocument(
+                _quality_markdown(doc, Path(base_dir)), media_type=rr.MediaType.MARKDOWN
+            ),
+            static=True,
+        )
         if S:
             poses = np.array([w.object_pose_xyzquat for w in waypoints])
             qs = np.array([w.q for w in waypoints])
@@ -123,6 +134,39 @@ def _plan_summary_markdown(
     if stats:
         lines += ["", "| stat | value |", "|---|---|"]
         lines += [f"| {k} | {v} |" for k, v in stats.items() if not isinstance(v, dict | list)]
+    return "\n".join(lines) + "\n"
+
+
+def _quality_markdown(doc: Mapping[str, Any], base_dir: Path) -> str:
+    """The plan's quality figures in Markdown: the file's, or those its segments give."""
+    table = (doc.get("stats") or {}).get("quality")
+    if isinstance(table, Mapping):
+        q, from_file = PlanQuality.from_mapping(table), True
+    else:  # milliseconds: no verifier, no timing, no grip forces
+        q, from_file = plan_quality(doc, base_dir, holds=False, execution=False), False
+    rows = [
+        ("regrasps", q.regrasps),
+        ("transfers", q.transfers),
+        ("regrasps without progress", q.regrasps_without_progress),
+        ("rotation per transfer, median (deg)", q.rotation_per_transfer_deg_median),
+        ("rotation per transfer, min (deg)", q.rotation_per_transfer_deg_min),
+        ("rotation per transfer, max (deg)", q.rotation_per_transfer_deg_max),
+        ("joint travel (rad)", q.joint_travel_rad),
+        ("execution time (s)", q.execution_time_s),
+        ("weakest hold (force-closure quality)", q.weakest_hold),
+        ("worst torque ratio (share of the effort limits)", q.worst_torque_ratio),
+        ("largest grip force (N)", q.max_grip_force_n),
+    ]
+    lines = ["## Plan quality", "", "| figure | value |", "|---|---|"]
+    lines += [f"| {name} | {'-' if v is None else format(v, '.4g')} |" for name, v in rows]
+    lines += [f"- {note}" for note in q.notes]
+    if not from_file:
+        lines += [
+            "",
+            "The plan file has no `stats.quality`: the hold, execution time and grip "
+            "force figures are those `dexplan plan` writes (or "
+            "`dexplan.execution.quality.plan_quality` computes).",
+        ]
     return "\n".join(lines) + "\n"
 
 
