@@ -21,7 +21,8 @@ from dexplan.cli import main as cli
 from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.deadline import Deadline
-from dexplan.planning.local.reduction import grasp_from_state, reduce_object_path
+from dexplan.planning.local.grasps import grasp_from_state
+from dexplan.planning.local.reduction import reduce_object_path
 from dexplan.planning.planner import plan
 from dexplan.planning.progress import PlanStatus
 from dexplan.planning.start import start_state

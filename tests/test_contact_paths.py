@@ -18,7 +18,8 @@ from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.contact_paths import ContactPaths
 from dexplan.planning.local.edge_reduction import EdgeReducer as _EdgeReducer
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
-from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
+from dexplan.planning.local.reduction import ReductionSettings
 from dexplan.planning.local.transitions import GraspContacts
 from dexplan.planning.start import start_state
 

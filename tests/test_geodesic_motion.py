@@ -18,7 +18,7 @@ from dexplan.planning.local.geodesic_motion import (
     MotionFailure,
     geodesic_motion,
 )
-from dexplan.planning.local.reduction import grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.ompl import PlanningProblem
 from dexplan.planning.roadmap.graph import pose_distances
 from dexplan.planning.roadmap.problems import constraint_spec, geodesic_fallback, gsn_problem

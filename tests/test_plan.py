@@ -170,7 +170,7 @@ def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
 
 def _follows_all_the_way(ctx, x: np.ndarray) -> bool:
     """Whether the grasp ``x`` follows the scenario's straight move to the goal (IK-only)."""
-    from dexplan.planning.local.reduction import grasp_follow
+    from dexplan.planning.local.grasps import grasp_follow
     from dexplan.planning.local.transitions import densify_poses
 
     sc, st = ctx.scenario, ctx.transitions.settings

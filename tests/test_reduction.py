@@ -13,7 +13,8 @@ from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
-from dexplan.planning.local.reduction import ReductionSettings, grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
+from dexplan.planning.local.reduction import ReductionSettings
 from dexplan.planning.local.transitions import densify_poses
 from dexplan.planning.planner import plan
 from dexplan.planning.start import start_state
@@ -249,10 +250,12 @@ def test_blocked_finger_without_landing_moves_a_neighbour_that_gives_it_one(
     monkeypatch.setattr(trans, "can_land", recorded)
     # no neighbour could follow further on another contact: only the look-ahead moves one
     monkeypatch.setattr(reduction, "current_follow", lambda *a: len(poses) + 10)
-    found = reduction._regrasp_one(trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None)
+    found = reduction._regrasp_one(
+        trans, poses, 0, x0[POSE_DIM:], grasp, blocking, None, reduction.GaitSettings()
+    )
     assert verdicts, "the look-ahead was not consulted"
     assert found is not None
-    seg, new, mode = found
+    seg, new, mode, _ = found
     assert mode == "enable"
     assert seg.finger != blocking
     approved = {key for key, ok in verdicts if ok}
@@ -278,7 +281,7 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
         # a regrasp that changes nothing: the transfer stays blocked where it was
         calls.append(idx)
         w = Waypoint(poses[idx].copy(), q.copy(), grasp.as_tuple())
-        return Segment("regrasp", 1, (w, w)), grasp, mode
+        return Segment("regrasp", 1, (w, w)), grasp, mode, None
 
     monkeypatch.setattr(reduction, "_regrasp_retrying", idle)
     s = ctx.transitions.settings

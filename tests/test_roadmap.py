@@ -252,7 +252,7 @@ def test_a_link_into_the_goal_region_ends_on_the_goal_pose_and_is_kept(scenario)
 def test_a_link_via_another_start_grasp_regrasps_onto_it_first(scenario) -> None:
     """Module 2's second try from the start: regrasps (object fixed) onto another
     start grasp, then the gaits from there, one reduction from the start's joints."""
-    from dexplan.planning.local.reduction import grasp_from_state
+    from dexplan.planning.local.grasps import grasp_from_state
     from dexplan.planning.roadmap.module2 import link_reduction
 
     ctx = build_context(scenario, seed=1)

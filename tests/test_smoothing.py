@@ -4,7 +4,7 @@ import numpy as np
 
 from dexplan.model.scenario import default_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.local.reduction import grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.smoothing import merge_regrasps
 from dexplan.planning.local.transitions import GraspContacts, densify_poses
 

@@ -7,7 +7,7 @@ import numpy as np
 from dexplan.core.segments import Segment
 from dexplan.model.scenario import default_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.local.reduction import grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.smoothing import drop_regrasps
 from dexplan.planning.local.transitions import TransitionSettings, densify_poses
 

@@ -394,9 +394,7 @@ class _Checker:
             )
             self.add(si, wi, "holds", msg)
 
-    def _hold_quality(
-        self, w: Waypoint, contacts: Sequence[Any], *, subgrasps: bool
-    ) -> float:
+    def _hold_quality(self, w: Waypoint, contacts: Sequence[Any], *, subgrasps: bool) -> float:
         """Force-closure quality of a hold's contacts (with the fingertip-read normals)."""
         tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
         r = self.hand.fingertip_radius

@@ -36,11 +36,11 @@ from dexplan.planning.context import build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
+from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.reduction import (
     PathSource,
     Reduction,
     ReductionResult,
-    grasp_from_state,
     reduce_object_path,
 )
 from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path

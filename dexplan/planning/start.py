@@ -1,8 +1,8 @@
 """The start GSn state of a query: the scenario's start grasp, or a sampled one.
 
 A sampled start grasp is chosen among a few valid grasps at the start pose
-by how far its fingers can follow the object's straight move to the goal
-(:data:`START_CANDIDATES`); a given ``start.q`` is checked and moved onto GSn
+by how far its fingers can follow the object's straight move to the goal,
+then by strength (:data:`START_CANDIDATES`); a given ``start.q`` is checked and moved onto GSn
 within OMPL's tolerance.
 """
 
@@ -14,21 +14,18 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
-from dexplan.planning.local.reduction import grasp_follow
+from dexplan.planning.local.grasps import grasp_follow, grasp_from_state
 from dexplan.planning.local.transitions import densify_poses
 
-__all__ = ["START_CANDIDATES", "start_state"]
+__all__ = ["START_CANDIDATES", "START_FOLLOW_SHARE", "start_state"]
 
 
 #: Valid start grasps the planner samples to choose the one it starts from
-#: (1: the first, as the paper). The first is kept unless another one follows
-#: the object's straight move to the goal all the way (a plan without
-#: regrasps, where the first needs them). Choosing the best-following grasp
-#: whatever its follow removes most regrasps on boxes, but on a sphere that
-#: no grasp turns all the way its long partial transfers let the fingertips
-#: roll further from the planned contacts, and the physics replay then
-#: loses plans that replay from the first grasp.
+#: (1: the first, as the paper).
 START_CANDIDATES = 8
+#: Start grasps whose first blocked finger follows the object's straight move
+#: at least this share of the best one's are ranked by strength.
+START_FOLLOW_SHARE = 0.85
 
 
 def start_state(
@@ -39,19 +36,17 @@ def start_state(
 ) -> FloatArray | None:
     """The start GSn state: the scenario's ``start.q`` (checked) or a sampled grasp.
 
-    A sampled start grasp is the first valid grasp found at the start pose,
-    unless it cannot follow the object's straight move to the goal pose
-    all the way and one of ``candidates - 1`` more, drawn from ``rng``, can
-    (:func:`~dexplan.planning.local.reduction.grasp_follow`, IK-only: every finger
-    reaches its contact at every pose within the joint margin): then the
-    first of those. Every finger a transfer cannot follow costs a regrasp;
-    on a box some start grasps turn it with none and others need a dozen.
-    The extra grasps come from their own stream, so a query whose
-    first grasp is kept samples and plans exactly as with ``candidates=1``.
-    Hands with redundant fingers (the Allegro's 4 joints) take the first
-    grasp: the IK-only follow says little about how a redundant finger's
-    posture and links will fare (queries failed from the best-scored grasp
-    that plan from the first).
+    A sampled start grasp is chosen among ``candidates`` valid grasps at
+    the start pose (the first found, then ``candidates - 1`` more drawn from
+    ``rng``): one that follows the object's straight move to the goal pose
+    all the way if any does (a plan without regrasps), else, among those
+    whose first blocked finger follows at least :data:`START_FOLLOW_SHARE`
+    of the farthest one's (:func:`~dexplan.planning.local.grasps.grasp_follow`,
+    IK-only), the strongest: the largest least force-closure quality of its
+    (n-1)-finger subgrasps, the holds of its first regrasps. Fingers that
+    cannot follow cost regrasps; a weak grasp is where a real hand drops
+    the object. The extra grasps come from their own stream, so the first
+    grasp's sampling is the same whatever ``candidates`` is.
 
     Args:
         ctx: the planning context.
@@ -85,28 +80,25 @@ def start_state(
         if ctx.deadline.expired() or first is not None:
             break
         first = ctx.sampler.sample_at_pose(pose)
-    trans = ctx.transitions
-    if (
-        first is None
-        or candidates <= 1
-        or any(trans.redundant(f) for f in range(ctx.hand.n_fingers))
-    ):
+    if first is None or candidates <= 1:
         return first
+    trans = ctx.transitions
     goal = ctx.scenario.goal.object_pose_xyzquat
     future = densify_poses(
         np.array([pose, goal]), trans.settings.max_step_m, trans.settings.max_step_rad
     )
-
-    def all_the_way(x: FloatArray) -> bool:
-        return grasp_follow(trans, pose, x[POSE_DIM:], future)[0] >= len(future)
-
-    if all_the_way(first):
-        return first
     rng = np.random.default_rng(0) if rng is None else rng
-    for x in ctx.sampler.samples_at_pose(pose, candidates - 1, rng):
-        if all_the_way(x):
-            return x
-    return first
+    pool = [first, *ctx.sampler.samples_at_pose(pose, candidates - 1, rng)]
+    follows = [grasp_follow(trans, pose, x[POSE_DIM:], future)[0] for x in pool]
+    whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
+    if whole:
+        return whole[0]
+    far = max(follows)
+    near = [x for x, f in zip(pool, follows, strict=True) if f >= START_FOLLOW_SHARE * far]
+    strength = [
+        trans.grasp_quality(grasp_from_state(trans, pose, x[POSE_DIM:]), exact=True) for x in near
+    ]
+    return near[int(np.argmax(strength))]
 
 
 def _onto_gsn(ctx: PlanningContext, x: FloatArray, tol: float = 1e-9) -> FloatArray:

@@ -24,12 +24,12 @@ from dexplan.core.pose import interpolate_pose, inverse_transform_points
 from dexplan.core.segments import Segment, SegmentKind
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.contact_paths import ContactPaths
+from dexplan.planning.local.grasps import regrasps_onto
 from dexplan.planning.local.reduction import (
     Midpoint,
     ReductionResult,
     ReductionSettings,
     reduction_stats,
-    regrasps_onto,
 )
 from dexplan.planning.local.transitions import GraspContacts, Transitions, densify_poses
 

@@ -38,7 +38,7 @@ from dexplan.model.objects.geodesic import SurfacePath
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.gsn.validity import GraspValidity
 from dexplan.planning.local.contact_paths import ContactPaths
-from dexplan.planning.local.reduction import grasp_from_state
+from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.transitions import Transitions
 
 __all__ = [
@@ -118,7 +118,7 @@ def geodesic_motion(
     """The section VI motion between GSn states ``a`` and ``b: (7 + nq,)``.
 
     Every finger holds a contact (the grasps of ``a`` and ``b`` are those of
-    their fingertips, :func:`~dexplan.planning.local.reduction.grasp_from_state`).
+    their fingertips, :func:`~dexplan.planning.local.grasps.grasp_from_state`).
     A fingertip centre sits one radius along its triangle's normal off the
     geodesic point, plus its state's own offset from there (nonzero where a
     contact lies on a mesh edge or vertex), blended linearly from ``a``'s to

@@ -29,12 +29,16 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import cast
 
-import numpy as np
-
 from dexplan.core.errors import InvalidInputError
-from dexplan.core.pose import inverse_transform_points
 from dexplan.core.segments import Segment, SegmentKind
 from dexplan.core.typing import FloatArray
+from dexplan.planning.local.gait_choice import (
+    GaitSettings,
+    RegraspOption,
+    best_option,
+    look_ahead,
+)
+from dexplan.planning.local.grasps import current_follow
 from dexplan.planning.local.transitions import (
     GraspContacts,
     LandingPool,
@@ -161,6 +165,9 @@ class ReductionSettings:
             primitives and on meshes without geodesics). ``chord`` first
             solves more edges than ``geodesic`` first, and the second then
             only adds solutions; strings equal to the members are accepted.
+        gaits: how regrasps are compared (by the transfer each allows, then
+            grasp strength) and when a finger is reset before it blocks
+            (:mod:`dexplan.planning.local.gait_choice`).
     """
 
     max_regrasps: int = 200
@@ -173,6 +180,7 @@ class ReductionSettings:
     same_contact_m: float = 1e-3
     resync_m: float = 0.01
     midpoints: tuple[Midpoint, ...] = MIDPOINTS
+    gaits: GaitSettings = field(default_factory=GaitSettings)
 
     def __post_init__(self) -> None:
         bad = [m for m in self.midpoints if m not in MIDPOINTS]
@@ -232,15 +240,20 @@ def reduce_object_path(
     """
     settings = settings or ReductionSettings()
     gait = _GaitState(trans, settings, q_start, grasp)
+    reset: int | None = None  # a finger to regrasp before the next transfer
     while True:
         if trans.deadline.expired():
             return gait.result("time limit reached")
-        tr = gait.transfer(poses)
-        if tr.reason is None:
-            return gait.result(None)
-        if tr.blocking is None:
-            reason = f"transfer blocked: {tr.reason}"
-            return gait.result(reason, final=tr.reason == TransferStop.OBJECT_COLLISION)
+        tr: TransferResult | None = None
+        if reset is None:
+            tr = gait.transfer(poses)
+            if tr.reason is None:
+                return gait.result(None)
+            if tr.blocking is None:
+                reason = f"transfer blocked: {tr.reason}"
+                return gait.result(reason, final=tr.reason == TransferStop.OBJECT_COLLISION)
+        blocking = tr.blocking if tr is not None else reset
+        assert blocking is not None
         hint_row = None if hints is None else hints[min(gait.idx, len(hints) - 1)]
         found = _regrasp_retrying(
             trans,
@@ -248,21 +261,34 @@ def reduce_object_path(
             gait.idx,
             gait.q,
             gait.grasp,
-            tr.blocking,
+            blocking,
             hint_row,
             settings.regrasp_retries,
+            settings.gaits,
         )
+        reset = None
         if found is None:
+            if tr is None:
+                continue  # no reset there: transfer to where the finger blocks
             why = _no_regrasp(gait.idx, tr)
             if gait.backtrack():
                 continue
             return gait.result(why)
-        gait.regrasped(*found)
+        seg, new, mode, option = found
+        gait.regrasped(seg, new, mode)
         if gait.regrasps > settings.max_regrasps:
             return gait.result(gait.no_progress())
-        stuck = gait.stuck(tr.blocking)
+        stuck = gait.stuck(blocking)
         if stuck is not None and not gait.backtrack():
             return gait.result(stuck)
+        reset = _reset_finger(option, settings.gaits)
+
+
+def _reset_finger(option: RegraspOption | None, settings: GaitSettings) -> int | None:
+    """The finger to regrasp before transferring: one that would block within ``reset_steps``."""
+    if option is None or option.blocking is None:
+        return None
+    return option.blocking if 0 < option.reach < settings.reset_steps else None
 
 
 def _no_regrasp(idx: int, tr: TransferResult) -> str:
@@ -388,17 +414,23 @@ def _regrasp_retrying(
     blocking: int,
     hint_row: FloatArray | None,
     retries: int,
-) -> tuple[Segment, GraspContacts, RegraspPass] | None:
+    gaits: GaitSettings,
+) -> _Found | None:
     """:func:`_regrasp_one`, run again up to ``retries`` times while it finds nothing.
 
     The landing candidates are random samples: a fresh set often holds a
     feasible regrasp. Stops at the deadline.
     """
     for _ in range(1 + retries):
-        found = _regrasp_one(trans, poses, idx, q, grasp, blocking, hint_row)
+        found = _regrasp_one(trans, poses, idx, q, grasp, blocking, hint_row, gaits)
         if found is not None or trans.deadline.expired():
             return found
     return None
+
+
+#: A regrasp found: the segment, the grasp after it, its pass, and its look-ahead
+#: (None where the first feasible landing was taken).
+_Found = tuple[Segment, GraspContacts, "RegraspPass", RegraspOption | None]
 
 
 def _regrasp_one(
@@ -409,7 +441,8 @@ def _regrasp_one(
     grasp: GraspContacts,
     blocking: int,
     hint_row: FloatArray | None,
-) -> tuple[Segment, GraspContacts, RegraspPass] | None:
+    gaits: GaitSettings,
+) -> _Found | None:
     """One regrasp that lets the transfer blocked at ``poses[idx]`` go on, or None.
 
     The blocking finger first, then the others, least remaining follow first
@@ -417,9 +450,13 @@ def _regrasp_one(
     usually can, and tracking them costs more than the rest); see
     :func:`_passes`. ``hint_row: (n, 6)`` the GSn path's contact point and
     outward normal per finger there (object frame), offered as landings.
+    In the :attr:`RegraspPass.GAIN` passes the first
+    ``gaits.lookahead_landings`` feasible regrasps of a finger are compared
+    by the transfer each allows (:func:`~.gait_choice.best_option`).
 
     Returns:
-        ``(regrasp segment, new grasp, pass)``, the pass as :func:`_passes` names it.
+        ``(regrasp segment, new grasp, pass, look-ahead)``, the pass as
+        :func:`_passes` names it.
     """
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
@@ -430,6 +467,7 @@ def _regrasp_one(
             continue  # the other fingers cannot hold the object within the effort limits
         hint = None if hint_row is None else (hint_row[f, :3], hint_row[f, 3:])
         limit = _ENABLE_LANDINGS if mode == RegraspPass.ENABLE else _LANDINGS
+        options: list[RegraspOption] = []
         for point, normal, score in trans.landing_candidates(
             f, poses[idx], q, grasp, future, hint, limit
         ):
@@ -444,8 +482,16 @@ def _regrasp_one(
                 if not trans.can_land(blocking, q, new, pool, future):
                     continue
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
-            if seg is not None:
-                return seg, new, mode
+            if seg is None:
+                continue
+            if mode != RegraspPass.GAIN or gaits.lookahead_landings <= 1:
+                return seg, new, mode, None
+            options.append(look_ahead(trans, poses, idx, seg, new, gaits))
+            if len(options) >= gaits.lookahead_landings or options[-1].blocking is None:
+                break
+        best = best_option(options, gaits, blocking)
+        if best is not None:
+            return best.seg, best.grasp, mode, best
     return None
 
 
@@ -480,97 +526,9 @@ def _passes(
             yield f, mode
 
 
-def grasp_follow(
-    trans: Transitions, pose: FloatArray, q: FloatArray, future: FloatArray
-) -> tuple[int, ...]:
-    """How far each finger of the grasp held at ``(pose, q)`` follows ``future``, ascending.
-
-    The IK-only bound of :meth:`Transitions.follow_scores` per finger (joint
-    limits, no link collisions: tracking the links too costs far more,
-    ranks the grasps nearly alike, and the reduction tracks the grasp it
-    keeps), sorted: compared as tuples, a grasp
-    whose first blocked finger goes further, then whose second does, ranks
-    higher (a transfer stops at the first blocked finger).
-    """
-    grasp = grasp_from_state(trans, pose, q)
-    tips = grasp.points + trans.hand.fingertip_radius * grasp.normals_out
-    n = trans.hand.n_fingers
-    return tuple(sorted(int(trans.follow_scores(i, tips[i][None], future)[0]) for i in range(n)))
-
-
-def current_follow(
-    trans: Transitions, finger: int, q: FloatArray, grasp: GraspContacts, future: FloatArray
-) -> int:
-    """How many of the ``future`` poses ``finger`` can follow on its current contact.
-
-    The IK-only bound (:meth:`Transitions.follow_scores`), tightened by
-    tracking the finger with its links collision-checked
-    (:meth:`Transitions.track_score`) for tracked fingers (:meth:`Transitions.tracked_count`).
-    """
-    r = trans.hand.fingertip_radius
-    tip = grasp.points[finger] + r * grasp.normals_out[finger]
-    bound = int(trans.follow_scores(finger, tip[None], future)[0])
-    if trans.tracked_count(finger) <= 0 or bound <= 0:
-        return bound
-    limit = bound + max(1, trans.settings.follow_stride)
-    return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
-
-
-def regrasps_onto(
-    trans: Transitions,
-    pose: FloatArray,
-    q: FloatArray,
-    grasp: GraspContacts,
-    target: GraspContacts,
-    same_contact_m: float = 1e-3,
-) -> tuple[list[Segment], FloatArray, GraspContacts] | None:
-    """Regrasps (one finger at a time, the object fixed at ``pose``) from ``grasp`` onto ``target``.
-
-    Every intermediate grasp keeps all its (n-1) subgrasps force closure; the
-    finger order is chosen greedily, farthest contact first. Fingers already
-    within ``same_contact_m`` of their target stay.
-
-    Args:
-        trans: local planners.
-        pose: (7,) object pose, world frame.
-        q: (nq,) hand joints holding ``grasp``.
-        grasp: the current contacts, object frame.
-        target: the contacts to end on, object frame.
-        same_contact_m: contacts closer than this (m) count as the same.
-
-    Returns:
-        ``(regrasp segments, q, grasp)`` at the end (no segments when nothing
-        had to move), or None when no order works.
-    """
-    gap = np.linalg.norm(grasp.points - target.points, axis=1)
-    todo = [int(f) for f in np.argsort(-gap) if gap[f] > same_contact_m]
-    segs: list[Segment] = []
-    while todo:
-        for f in todo:
-            new = grasp.replace(f, target.points[f], target.normals_out[f])
-            if trans.grasp_quality(new, exact=True) <= trans.validity.fc_margin:
-                continue
-            seg = trans.regrasp(pose, q, grasp, f, target.points[f], target.normals_out[f])
-            if seg is not None:
-                segs.append(seg)
-                q, grasp = seg.end.q, new
-                todo.remove(f)
-                break
-        else:
-            return None
-    return segs, q, grasp
-
-
 def reduction_stats(trans: Transitions, regrasps: int) -> dict[str, int]:
     """The local planners' counters with the reduction's regrasps (``reduction_regrasps``)."""
     # every counter of LocalCounts is an int; a TypedDict is not a dict[str, int] to mypy
     out = dict(cast("Mapping[str, int]", trans.stats))
     out["reduction_regrasps"] = regrasps
     return out
-
-
-def grasp_from_state(trans: Transitions, pose: FloatArray, q: FloatArray) -> GraspContacts:
-    """Contacts (object frame) of the fingertips of ``q`` at an object pose."""
-    tips = inverse_transform_points(pose, trans.hand.fingertip_positions(q))
-    pts, n_out = trans.obj.closest_point(tips)
-    return GraspContacts(np.asarray(pts), np.asarray(n_out))

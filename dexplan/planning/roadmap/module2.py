@@ -26,12 +26,11 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.grasps import grasp_from_state, regrasps_onto
 from dexplan.planning.local.reduction import (
     ReductionResult,
     ReductionSettings,
-    grasp_from_state,
     reduce_object_path,
-    regrasps_onto,
 )
 from dexplan.planning.local.smoothing import straight_move_ok
 from dexplan.planning.local.transitions import densify_poses
@@ -101,7 +100,7 @@ def link_reduction(
     finger gaits carry it from ``a``'s grasp, or, with ``via`` states
     ``(7 + nq,)`` at ``a``'s object pose, from the grasp of the first of them
     the hand can regrasp onto with the object fixed
-    (:func:`~dexplan.planning.local.reduction.regrasps_onto`).
+    (:func:`~dexplan.planning.local.grasps.regrasps_onto`).
     """
     tr = ctx.transitions
     s = tr.settings

@@ -1,0 +1,129 @@
+"""Regrasps chosen by what the whole grasp does next.
+
+A regrasp is judged by the transfer it makes possible: a transfer stops at the
+first finger that blocks, so a landing from which the regrasped finger alone
+could follow the object a long way is worth little when another finger then
+blocks at once. For each of a few feasible regrasps (the landing search's best
+by the finger's own follow, :meth:`Transitions.landing_candidates`), the
+transfer that would follow is run (links collision-checked, as the plan will
+run it) up to a horizon, and the regrasps are ranked by
+
+1. how far that transfer goes (trajectory steps);
+2. among those within :attr:`GaitSettings.strength_tolerance` of the
+   farthest, the strength of the grasp they make: the least force-closure
+   quality of its (n-1)-finger subgrasps, the holds of the regrasps to come.
+
+The reduction (:mod:`dexplan.planning.local.reduction`) also uses the
+look-ahead to reset a finger *before* it blocks: when the transfer after a
+regrasp would stop within :attr:`GaitSettings.reset_steps` steps, the finger
+that would stop it is regrasped at once, where the object stands, rather
+than after a transfer of a few degrees (the same regrasps, one transfer
+fewer, and its landing is chosen for the whole rest of the trajectory).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.segments import Segment
+from dexplan.core.typing import FloatArray
+from dexplan.planning.local.transitions import GraspContacts, Transitions
+
+__all__ = ["GaitSettings", "RegraspOption", "best_option", "look_ahead"]
+
+
+@dataclass(frozen=True)
+class GaitSettings:
+    """How regrasps are compared (:func:`best_option`).
+
+    Attributes:
+        lookahead_landings: feasible regrasps of the finger to move compared
+            by the transfer each allows (1: the first feasible one, the
+            finger's own longest follow).
+        horizon_steps: trajectory steps a look-ahead transfer runs at most;
+            a regrasp that lets the grasp follow this far is as good as any.
+        strength_tolerance: regrasps whose transfer reaches at least this
+            share of the farthest one's are ranked by grasp strength.
+        reset_steps: a finger that would stop the next transfer within this
+            many trajectory steps is regrasped first (0: never).
+    """
+
+    lookahead_landings: int = 4
+    horizon_steps: int = 160
+    strength_tolerance: float = 0.85
+    reset_steps: int = 6
+
+    def __post_init__(self) -> None:
+        if self.lookahead_landings < 1 or self.horizon_steps < 1 or self.reset_steps < 0:
+            raise InvalidInputError(
+                "lookahead_landings and horizon_steps must be >= 1 and reset_steps >= 0, "
+                f"got {self.lookahead_landings}, {self.horizon_steps}, {self.reset_steps}"
+            )
+        if not 0.0 < self.strength_tolerance <= 1.0:
+            raise InvalidInputError(
+                f"strength_tolerance must be in (0, 1], got {self.strength_tolerance!r}"
+            )
+
+
+@dataclass(frozen=True)
+class RegraspOption:
+    """A feasible regrasp and what follows it.
+
+    Attributes:
+        seg: the regrasp segment.
+        grasp: the contacts after it, object frame.
+        reach: trajectory steps the next transfer follows (up to the horizon).
+        blocking: the finger that stops that transfer, or None (end or horizon).
+        strength: least force-closure quality of the grasp's (n-1)-finger subgrasps.
+    """
+
+    seg: Segment
+    grasp: GraspContacts
+    reach: int
+    blocking: int | None
+    strength: float
+
+
+def look_ahead(
+    trans: Transitions,
+    poses: FloatArray,
+    idx: int,
+    seg: Segment,
+    grasp: GraspContacts,
+    settings: GaitSettings,
+) -> RegraspOption:
+    """The transfer after regrasp ``seg`` (ending on ``grasp``) at trajectory step ``idx``.
+
+    Args:
+        trans: local planners.
+        poses: (P, 7) dense object trajectory.
+        idx: the step the regrasp is made at.
+        seg: the regrasp segment.
+        grasp: the contacts after it.
+        settings: the horizon.
+    """
+    end = min(len(poses), idx + settings.horizon_steps + 1)
+    tr = trans.transfers.transfer(poses[:end], idx, seg.end.q, grasp)
+    blocking = tr.blocking if tr.reason is not None else None
+    return RegraspOption(seg, grasp, tr.reached - idx, blocking, trans.grasp_quality(grasp))
+
+
+def best_option(
+    options: Iterable[RegraspOption], settings: GaitSettings, blocking: int
+) -> RegraspOption | None:
+    """The option whose transfer goes farthest, the strongest among the near-farthest.
+
+    Ties keep the first (the landing search's order: the finger's own follow).
+    An option after which the regrasped finger or the finger that blocked
+    (``blocking``) stops the transfer at once gains nothing and is never
+    chosen (None when only such are left: the reduction then tries other
+    fingers, and landings that give the blocking finger one of its own).
+    """
+    opts = [o for o in options if o.reach > 0 or o.blocking not in (None, o.seg.finger, blocking)]
+    if not opts:
+        return None
+    far = max(o.reach for o in opts)
+    near = [o for o in opts if o.reach >= settings.strength_tolerance * far]
+    return max(near, key=lambda o: (o.strength, o.reach))
