@@ -17,7 +17,7 @@ from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.grasps import grasp_follow, grasp_from_state
 from dexplan.planning.local.transitions import densify_poses
 
-__all__ = ["START_CANDIDATES", "START_FOLLOW_SHARE", "start_state"]
+__all__ = ["START_CANDIDATES", "START_FOLLOW_SHARE", "START_HOLD_CHECKS", "start_state"]
 
 
 #: Valid start grasps the planner samples to choose the one it starts from
@@ -26,6 +26,10 @@ START_CANDIDATES = 8
 #: Start grasps whose first blocked finger follows the object's straight move
 #: at least this share of the best one's are ranked by strength.
 START_FOLLOW_SHARE = 0.85
+#: Of those, the strongest few whose releases are checked: the grasp kept is
+#: the strongest from which every finger can be let go (the others hold the
+#: object within the effort limits), else the one from which most can.
+START_HOLD_CHECKS = 4
 
 
 def start_state(
@@ -43,7 +47,9 @@ def start_state(
     whose first blocked finger follows at least :data:`START_FOLLOW_SHARE`
     of the farthest one's (:func:`~dexplan.planning.local.grasps.grasp_follow`,
     IK-only), the strongest: the largest least force-closure quality of its
-    (n-1)-finger subgrasps, the holds of its first regrasps. Fingers that
+    (n-1)-finger subgrasps, among the :data:`START_HOLD_CHECKS` strongest the
+    first from which every finger can be let go (the holds of its first
+    regrasps, :meth:`Transitions.can_release`). Fingers that
     cannot follow cost regrasps; a weak grasp is where a real hand drops
     the object. The extra grasps come from their own stream, so the first
     grasp's sampling is the same whatever ``candidates`` is.
@@ -95,10 +101,17 @@ def start_state(
         return whole[0]
     far = max(follows)
     near = [x for x, f in zip(pool, follows, strict=True) if f >= START_FOLLOW_SHARE * far]
-    strength = [
-        trans.grasp_quality(grasp_from_state(trans, pose, x[POSE_DIM:]), exact=True) for x in near
-    ]
-    return near[int(np.argmax(strength))]
+    grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
+    strength = [trans.grasp_quality(g, exact=True) for g in grasps]
+    best, most = near[0], -1
+    for k in np.argsort(strength, kind="stable")[::-1][:START_HOLD_CHECKS]:
+        x, g = near[k], grasps[k]
+        free = sum(trans.can_release(f, pose, x[POSE_DIM:], g) for f in range(ctx.hand.n_fingers))
+        if free > most:
+            best, most = x, free
+        if free == ctx.hand.n_fingers:
+            break
+    return best
 
 
 def _onto_gsn(ctx: PlanningContext, x: FloatArray, tol: float = 1e-9) -> FloatArray:

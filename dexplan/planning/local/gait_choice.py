@@ -8,8 +8,11 @@ by the finger's own follow, :meth:`Transitions.landing_candidates`), the
 transfer that would follow is run (links collision-checked, as the plan will
 run it) up to a horizon, and the regrasps are ranked by
 
-1. how far that transfer goes (trajectory steps);
-2. among those within :attr:`GaitSettings.strength_tolerance` of the
+1. whether the finger that stops that transfer can then be let go: the
+   others must hold the object's weight within the joints' effort limits
+   there (:meth:`Transitions.can_release`), or the gait ends at that stop;
+2. how far that transfer goes (trajectory steps);
+3. among those within :attr:`GaitSettings.strength_tolerance` of the
    farthest, the strength of the grasp they make: the least force-closure
    quality of its (n-1)-finger subgrasps, the holds of the regrasps to come.
 
@@ -77,6 +80,8 @@ class RegraspOption:
         reach: trajectory steps the next transfer follows (up to the horizon).
         blocking: the finger that stops that transfer, or None (end or horizon).
         strength: least force-closure quality of the grasp's (n-1)-finger subgrasps.
+        releases: the finger that stops the transfer can be let go where it
+            stops (True when nothing stops it).
     """
 
     seg: Segment
@@ -84,6 +89,7 @@ class RegraspOption:
     reach: int
     blocking: int | None
     strength: float
+    releases: bool = True
 
 
 def look_ahead(
@@ -107,7 +113,12 @@ def look_ahead(
     end = min(len(poses), idx + settings.horizon_steps + 1)
     tr = trans.transfers.transfer(poses[:end], idx, seg.end.q, grasp)
     blocking = tr.blocking if tr.reason is not None else None
-    return RegraspOption(seg, grasp, tr.reached - idx, blocking, trans.grasp_quality(grasp))
+    releases = blocking is None or trans.can_release(
+        blocking, poses[tr.reached], tr.waypoints[-1].q, grasp
+    )
+    return RegraspOption(
+        seg, grasp, tr.reached - idx, blocking, trans.grasp_quality(grasp), releases
+    )
 
 
 def best_option(
@@ -122,6 +133,8 @@ def best_option(
     fingers, and landings that give the blocking finger one of its own).
     """
     opts = [o for o in options if o.reach > 0 or o.blocking not in (None, o.seg.finger, blocking)]
+    if any(o.releases for o in opts):
+        opts = [o for o in opts if o.releases]
     if not opts:
         return None
     far = max(o.reach for o in opts)

@@ -286,7 +286,7 @@ def reduce_object_path(
 
 def _reset_finger(option: RegraspOption | None, settings: GaitSettings) -> int | None:
     """The finger to regrasp before transferring: one that would block within ``reset_steps``."""
-    if option is None or option.blocking is None:
+    if option is None or option.blocking in (None, option.seg.finger):
         return None
     return option.blocking if 0 < option.reach < settings.reset_steps else None
 
@@ -450,7 +450,10 @@ def _regrasp_one(
     usually can, and tracking them costs more than the rest); see
     :func:`_passes`. ``hint_row: (n, 6)`` the GSn path's contact point and
     outward normal per finger there (object frame), offered as landings.
-    In the :attr:`RegraspPass.GAIN` passes the first
+    A regrasp of another finger must leave a grasp from which the blocking
+    finger can be let go (:meth:`Transitions.can_release`): under real
+    effort limits, moving a neighbour is often what makes the hold strong
+    enough. In the :attr:`RegraspPass.GAIN` passes the first
     ``gaits.lookahead_landings`` feasible regrasps of a finger are compared
     by the transfer each allows (:func:`~.gait_choice.best_option`).
 
@@ -484,6 +487,8 @@ def _regrasp_one(
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
             if seg is None:
                 continue
+            if f != blocking and not trans.can_release(blocking, poses[idx], seg.end.q, new):
+                continue  # the blocking finger still could not be let go
             if mode != RegraspPass.GAIN or gaits.lookahead_landings <= 1:
                 return seg, new, mode, None
             options.append(look_ahead(trans, poses, idx, seg, new, gaits))
