@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections import Counter
 from importlib import metadata
 from pathlib import Path
 
@@ -79,13 +80,34 @@ def test_allegro_structure(name: str) -> None:
     assert h.lower[4] == pytest.approx(0.263)  # pin.neutral's 0 is outside [0.263, 1.396]
     assert h.within_limits(h.neutral)
     assert h.collision_exclude == (("palm_link", "link_13.0"),)
-    # 17 boxes (palm + 16 phalanges) and 4 fingertip spheres, all loaded
-    kinds = [type(g.geometry).__name__ for g in h.geom_model.geometryObjects]
-    assert kinds.count("Box") == 17 and kinds.count("Sphere") == 4
-    assert len(kinds) == _collision_elements(h.urdf_xml) == 21
-    spheres = [g for g in h.geom_model.geometryObjects if isinstance(g.geometry, coal.Sphere)]
-    assert {h.model.frames[g.parentFrame].name for g in spheres} == set(ALLEGRO_TIPS)
-    assert all(g.geometry.radius == pytest.approx(0.012) for g in spheres)
+    # 16 boxes (3 on the palm, 2 on the thumb's base, 1 on each other
+    # non-distal link), a capsule on each distal link and a sphere on each
+    # fingertip: 24 shapes, all loaded
+    geoms = h.geom_model.geometryObjects
+    assert len(geoms) == _collision_elements(h.urdf_xml) == 24
+
+    def links_of(kind: type) -> Counter[str]:
+        return Counter(
+            h.model.frames[g.parentFrame].name for g in geoms if isinstance(g.geometry, kind)
+        )
+
+    boxes = links_of(coal.Box)
+    assert boxes == {
+        "palm_link": 3,
+        "link_12.0": 2,
+        **{f"link_{k}.0": 1 for k in (0, 1, 2, 4, 5, 6, 8, 9, 10, 13, 14)},
+    }
+    assert sum(boxes.values()) == 16
+    distal = {tip.removesuffix("_tip") for tip in ALLEGRO_TIPS}
+    assert distal == {"link_3.0", "link_7.0", "link_11.0", "link_15.0"}
+    assert links_of(coal.Capsule) == dict.fromkeys(distal, 1)
+    assert links_of(coal.Sphere) == dict.fromkeys(ALLEGRO_TIPS, 1)
+    for g in geoms:
+        if isinstance(g.geometry, coal.Capsule):  # no wider than the fingertip
+            assert g.geometry.radius == pytest.approx(0.0098)
+            assert g.geometry.radius < h.fingertip_radius
+        elif isinstance(g.geometry, coal.Sphere):
+            assert g.geometry.radius == pytest.approx(0.012)
 
 
 @pytest.mark.parametrize("name", ["allegro", "allegro_left"])
