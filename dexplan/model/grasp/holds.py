@@ -140,6 +140,12 @@ class HoldChecker:
         held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
         key = np.round(np.concatenate([P.ravel(), w_ext, hold.q[held], [shifted]]), 12).tobytes()
         hit = self._memo.get(key)
+        if hit is None and shifted:
+            # the shifted sets only add blocks: a hold that fails at its stated
+            # contacts fails with them, and that one block is cheap
+            nominal = self.ratio(q, object_pose, contacts, shifted=False)
+            if not nominal <= 1.0:
+                hit = nominal
         if hit is None:
             hit = _shared_ratio(self._blocks(hold, shifted=shifted))
             if len(self._memo) > 4096:

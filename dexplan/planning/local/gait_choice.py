@@ -11,8 +11,10 @@ run it) up to a horizon, and the regrasps are ranked by
 1. whether the finger that stops that transfer can then be let go: the
    others must hold the object's weight within the joints' effort limits
    there (:meth:`Transitions.can_release`), or the gait ends at that stop;
-2. how far that transfer goes (trajectory steps);
-3. among those within :attr:`GaitSettings.strength_tolerance` of the
+2. how many fingers the new grasp can let go where it is made (the holds of
+   the regrasps to come; checked at the stated contacts, a cheap screen);
+3. how far that transfer goes (trajectory steps);
+4. among those within :attr:`GaitSettings.strength_tolerance` of the
    farthest, the strength of the grasp they make: the least force-closure
    quality of its (n-1)-finger subgrasps, the holds of the regrasps to come.
 
@@ -82,6 +84,7 @@ class RegraspOption:
         strength: least force-closure quality of the grasp's (n-1)-finger subgrasps.
         releases: the finger that stops the transfer can be let go where it
             stops (True when nothing stops it).
+        free: fingers the new grasp can let go where it is made.
     """
 
     seg: Segment
@@ -90,6 +93,7 @@ class RegraspOption:
     blocking: int | None
     strength: float
     releases: bool = True
+    free: int = 0
 
 
 def look_ahead(
@@ -117,7 +121,30 @@ def look_ahead(
         blocking, poses[tr.reached], tr.waypoints[-1].q, grasp
     )
     return RegraspOption(
-        seg, grasp, tr.reached - idx, blocking, trans.grasp_quality(grasp), releases
+        seg,
+        grasp,
+        tr.reached - idx,
+        blocking,
+        trans.grasp_quality(grasp),
+        releases,
+        _free_fingers(trans, poses[idx], seg.end.q, grasp),
+    )
+
+
+def _free_fingers(trans: Transitions, pose: FloatArray, q: FloatArray, grasp: GraspContacts) -> int:
+    """Fingers of ``grasp`` (held at ``q``, object at ``pose``) the others hold the object without.
+
+    At the stated contacts only (:meth:`HoldChecker.ratio` without shifts):
+    a ranking screen, the release itself is checked in full when it is made.
+    """
+    if trans.holds is None:
+        return trans.hand.n_fingers
+    n = trans.hand.n_fingers
+    pts = grasp.points
+    return sum(
+        trans.holds.ratio(q, pose, [None if i == f else pts[i] for i in range(n)], shifted=False)
+        <= 1.0
+        for f in range(n)
     )
 
 
@@ -137,6 +164,8 @@ def best_option(
         opts = [o for o in opts if o.releases]
     if not opts:
         return None
+    most = max(o.free for o in opts)
+    opts = [o for o in opts if o.free == most]
     far = max(o.reach for o in opts)
     near = [o for o in opts if o.reach >= settings.strength_tolerance * far]
     return max(near, key=lambda o: (o.strength, o.reach))

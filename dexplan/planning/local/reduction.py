@@ -463,6 +463,9 @@ def _regrasp_one(
     """
     future = poses[idx:]
     others = [i for i in range(trans.hand.n_fingers) if i != blocking]
+    # where the blocking finger can be let go now, moving another keeps that
+    # (checked in full when it is let go); else a move must make it so
+    held = trans.can_release(blocking, poses[idx], q, grasp)
     follow: dict[int, int] = {}
     pool: LandingPool | None = None
     for f, mode in _passes(blocking, others, follow, trans, q, grasp, future):
@@ -487,7 +490,11 @@ def _regrasp_one(
             seg = trans.regrasp(poses[idx], q, grasp, f, point, normal)
             if seg is None:
                 continue
-            if f != blocking and not trans.can_release(blocking, poses[idx], seg.end.q, new):
+            if (
+                f != blocking
+                and not held
+                and not trans.can_release(blocking, poses[idx], seg.end.q, new)
+            ):
                 continue  # the blocking finger still could not be let go
             if mode != RegraspPass.GAIN or gaits.lookahead_landings <= 1:
                 return seg, new, mode, None
