@@ -172,12 +172,13 @@ def test_samples_on_a_non_convex_mesh_lie_on_gsn(per_finger: bool) -> None:
 
 
 def test_allegro_holds_a_cube_on_its_edges() -> None:
-    """The Allegro's pads reach only faces with parallel normals: its cube grasps use edges.
+    """Edge contacts are offered to hands with fingers of more than 3 joints, and hold.
 
-    Edge contacts are on by default for hands with fingers of more than 3
-    joints (off for the paper hand, whose box plans need fewer regrasps
-    without them); at allegro_cube's start pose the sampler finds a valid
-    grasp, and in it fingertips touch edges (the point on two faces' planes).
+    Edge contacts are on by default for such hands (off for the paper hand,
+    whose box plans need fewer regrasps without them). Among the valid
+    grasps the sampler finds at allegro_cube's start pose some touch an edge
+    (the point on two faces' planes), and such a grasp is valid: its
+    fingertip sits on the edge without its links touching the cube.
     """
     scenario = load_scenario("dexplan/data/scenarios/allegro_cube.toml")
     ctx = build_context(scenario, seed=1)
@@ -185,12 +186,17 @@ def test_allegro_holds_a_cube_on_its_edges() -> None:
     paper = build_context(load_scenario("dexplan/data/scenarios/suite/box_yaw90.toml"), seed=1)
     assert paper.sampler._edges == (0, 0)
     pose = scenario.start.object_pose_xyzquat
-    x = next(x for x in (ctx.sampler.sample_at_pose(pose) for _ in range(20)) if x is not None)
-    assert ctx.validity.is_valid(x)
-    p, _ = ctx.gsn.contacts(x)
     half = np.asarray(scenario.object["size"]) / 2
-    on_edge = np.isclose(np.abs(p), half, rtol=0.0, atol=1e-6).sum(axis=1) >= 2
-    assert on_edge.sum() >= 1
+    grasps = [x for x in (ctx.sampler.sample_at_pose(pose) for _ in range(60)) if x is not None]
+    edged = [
+        x
+        for x in grasps
+        if (
+            np.isclose(np.abs(ctx.gsn.contacts(x)[0]), half, rtol=0.0, atol=1e-6).sum(axis=1) >= 2
+        ).any()
+    ]
+    assert edged, f"none of {len(grasps)} valid grasps touches an edge"
+    assert all(ctx.validity.is_valid(x) for x in edged)
 
 
 def test_mesh_grasps_lie_on_gsn_in_concavities() -> None:
