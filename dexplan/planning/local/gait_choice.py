@@ -6,17 +6,23 @@ could follow the object a long way is worth little when another finger then
 blocks at once. For each of a few feasible regrasps (the landing search's best
 by the finger's own follow, :meth:`Transitions.landing_candidates`), the
 transfer that would follow is run (links collision-checked, as the plan will
-run it) up to a horizon, and the regrasps are ranked by
+run it) up to a horizon. Among the regrasps whose transfer goes at least
+:attr:`GaitSettings.strength_tolerance` of the farthest one's way, the
+reduction prefers, in this order:
 
-1. whether the finger that stops that transfer can then be let go: the
+1. one after which the finger that stops that transfer can be let go: the
    others must hold the object's weight within the joints' effort limits
-   there (:meth:`Transitions.can_release`), or the gait ends at that stop;
-2. how many fingers the new grasp can let go where it is made (the holds of
-   the regrasps to come; checked at the stated contacts, a cheap screen);
-3. how far that transfer goes (trajectory steps);
-4. among those within :attr:`GaitSettings.strength_tolerance` of the
-   farthest, the strength of the grasp they make: the least force-closure
-   quality of its (n-1)-finger subgrasps, the holds of the regrasps to come.
+   there (:meth:`Transitions.can_release`), or the gait must first move
+   another finger at that stop;
+2. one whose new grasp can let go the most fingers where it is made (the
+   holds of the regrasps to come; checked at the stated contacts, a cheap
+   screen);
+3. one whose grasp reaches :attr:`GaitSettings.strong_quality`;
+4. the strongest: the largest least force-closure quality of the grasp's
+   (n-1)-finger subgrasps.
+
+A regrasp after which the regrasped finger, or the finger that blocked, stops
+the transfer at once gains nothing and is never chosen.
 
 The reduction (:mod:`dexplan.planning.local.reduction`) also uses the
 look-ahead to reset a finger *before* it blocks: when the transfer after a
@@ -53,12 +59,16 @@ class GaitSettings:
             share of the farthest one's are ranked by grasp strength.
         reset_steps: a finger that would stop the next transfer within this
             many trajectory steps is regrasped first (0: never).
+        strong_quality: regrasps whose grasp's least (n-1)-subgrasp
+            force-closure quality reaches this are preferred to weaker ones
+            however far those go (0: strength only breaks ties of reach).
     """
 
     lookahead_landings: int = 4
     horizon_steps: int = 160
     strength_tolerance: float = 0.85
     reset_steps: int = 6
+    strong_quality: float = 0.0
 
     def __post_init__(self) -> None:
         if self.lookahead_landings < 1 or self.horizon_steps < 1 or self.reset_steps < 0:
@@ -151,7 +161,7 @@ def _free_fingers(trans: Transitions, pose: FloatArray, q: FloatArray, grasp: Gr
 def best_option(
     options: Iterable[RegraspOption], settings: GaitSettings, blocking: int
 ) -> RegraspOption | None:
-    """The option whose transfer goes farthest, the strongest among the near-farthest.
+    """The best option among those whose transfer goes nearly farthest (see the module).
 
     Ties keep the first (the landing search's order: the finger's own follow).
     An option after which the regrasped finger or the finger that blocked
@@ -160,12 +170,13 @@ def best_option(
     fingers, and landings that give the blocking finger one of its own).
     """
     opts = [o for o in options if o.reach > 0 or o.blocking not in (None, o.seg.finger, blocking)]
-    if any(o.releases for o in opts):
-        opts = [o for o in opts if o.releases]
     if not opts:
         return None
-    most = max(o.free for o in opts)
-    opts = [o for o in opts if o.free == most]
     far = max(o.reach for o in opts)
     near = [o for o in opts if o.reach >= settings.strength_tolerance * far]
+    if any(o.releases for o in near):
+        near = [o for o in near if o.releases]
+    most = max(o.free for o in near)
+    near = [o for o in near if o.free == most]
+    near = [o for o in near if o.strength >= settings.strong_quality] or near
     return max(near, key=lambda o: (o.strength, o.reach))
