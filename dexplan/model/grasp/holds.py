@@ -15,8 +15,9 @@ It counts when contact forces exist that
 
 and it still counts with **each contact moved** ``shift_m`` (default 2 mm)
 along the surface, one contact at a time, in each of four tangent
-directions (``+-t1``, ``+-t2`` of the contact's tangent basis), with the
-normal of the surface where it lands. A real fingertip never lands exactly
+directions (``+-t1``, ``+-t2`` of the contact's tangent basis): the
+fingertip sphere's centre moves that far and the contact is where the
+sphere then meets the surface, pushing towards the centre. A real fingertip never lands exactly
 where the plan says, and a hold on a knife edge of the torque limits or of
 force closure would drop the object.
 
@@ -200,14 +201,29 @@ class HoldChecker:
         return [self._block(P2, N2, w_ext, pose, R, jac, used) for P2, N2 in sets]
 
     def _shifted(self, P: FloatArray, N: FloatArray, c: int) -> list[tuple[FloatArray, FloatArray]]:
-        """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways."""
+        """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways.
+
+        The fingertip sphere's centre is moved ``shift_m`` along each tangent
+        direction; the contact is then where the sphere meets the surface
+        (the closest surface point to the centre) and pushes along the
+        direction to the centre, as the verifier reads a contact. On a smooth
+        surface the contact moves ``shift_m`` (to first order) and its normal
+        turns with the surface; a fingertip on a box edge rolls over it, its
+        normal turning gradually, rather than jumping onto a face's normal.
+        """
+        r = self.hand.fingertip_radius
+        centre = P[c] - r * N[c]  # N is inward
         t1, t2 = tangent_basis(N[c][None, :])
         out = []
         for d in (t1[0], -t1[0], t2[0], -t2[0]):
-            p, n_out = self.obj.closest_point(P[c] + self.shift_m * d)
+            moved = centre + self.shift_m * d
+            p, n_surf = self.obj.closest_point(moved)
+            p = np.asarray(p, dtype=float).reshape(3)
+            gap = moved - p
+            norm = float(np.linalg.norm(gap))
+            n_out = gap / norm if norm > 1e-9 else np.asarray(n_surf, dtype=float).reshape(3)
             P2, N2 = P.copy(), N.copy()
-            P2[c] = np.asarray(p, dtype=float).reshape(3)
-            N2[c] = -np.asarray(n_out, dtype=float).reshape(3)
+            P2[c], N2[c] = p, -n_out
             out.append((P2, N2))
         return out
 
