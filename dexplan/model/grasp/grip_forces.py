@@ -70,6 +70,7 @@ from dexplan.model.grasp.cones import MAX_FRICTION_EDGES, check_contact_model
 from dexplan.model.grasp.grip_program import (
     BALANCE_TOL,
     GripProgram,
+    contact_torque_columns,
     feasible_point,
     grip_program,
     joint_effort_limits,
@@ -507,10 +508,9 @@ class GripForceSolver:
         r = 4 if soft else 3
         T = np.zeros((model.nv, len(idx) * r))
         for c, (i, J, d) in enumerate(self._tip_jacobians(q, pose, R, P, idx)):
-            S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
-            T[:, c * r : c * r + 3] = J.T @ np.vstack([R, S @ R])
-            if soft:
-                T[:, c * r + 3] = J.T @ np.concatenate([np.zeros(3), R @ N[i]]) * self.L
+            T[:, c * r : (c + 1) * r] = contact_torque_columns(
+                J, d, R, N[i], self.L if soft else None
+            )
         return T[limited], e[limited]
 
     def _torques(

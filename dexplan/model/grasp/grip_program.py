@@ -26,6 +26,7 @@ __all__ = [
     "GripProgram",
     "balance_rows",
     "cone_rows",
+    "contact_torque_columns",
     "feasible_point",
     "frictionless_rows",
     "grip_program",
@@ -160,6 +161,32 @@ def joint_effort_limits(model: Any) -> FloatArray:
     e = np.array(model.effortLimit, dtype=float).reshape(-1)
     e[~(np.isfinite(e) & (e > 0))] = np.nan
     return e
+
+
+def contact_torque_columns(
+    J: FloatArray, d: FloatArray, R: FloatArray, n_in: FloatArray, L: float | None
+) -> FloatArray:
+    """Joint torques per unit of one contact's grip-force variables.
+
+    ``tau = J^T [f_w; d x f_w + tau_n R n]`` with ``f_w = R f`` the force in the
+    world frame: the columns map the contact's object-frame variables
+    ``(f, sigma)`` (``sigma = tau_n / L``, soft contacts only) to joint torques.
+
+    Args:
+        J: (6, nv) the fingertip frame's ``LOCAL_WORLD_ALIGNED`` Jacobian.
+        d: (3,) tip centre to contact point, world frame (m).
+        R: (3, 3) object orientation (object to world).
+        n_in: (3,) inward unit normal, object frame.
+        L: the torsion scale of soft contacts, or None for point contacts.
+
+    Returns:
+        (nv, 3) for point contacts, (nv, 4) for soft ones.
+    """
+    S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
+    cols = J.T @ np.vstack([R, S @ R])
+    if L is None:
+        return cols
+    return np.hstack([cols, (J.T @ np.concatenate([np.zeros(3), R @ n_in]) * L)[:, None]])
 
 
 def balance_rows(

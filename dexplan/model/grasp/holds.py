@@ -49,7 +49,11 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.cones import tangent_basis
 from dexplan.model.grasp.grip_forces import ForceSettings
-from dexplan.model.grasp.grip_program import grip_program, joint_effort_limits
+from dexplan.model.grasp.grip_program import (
+    contact_torque_columns,
+    grip_program,
+    joint_effort_limits,
+)
 from dexplan.model.objects.fingertip import fingertip_contact
 
 __all__ = ["DEFAULT_HOLD_SHIFT", "MAX_HOLD_SHIFT", "HoldChecker"]
@@ -265,10 +269,9 @@ class HoldChecker:
         T = np.zeros((self.hand.model.nv, P.shape[0] * r))
         for c, (J, centre) in enumerate(jac):
             d = pose[:3] + R @ P[c] - centre  # tip centre to contact, world frame
-            S = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
-            T[:, c * r : c * r + 3] = J.T @ np.vstack([R, S @ R])
-            if self.soft:
-                T[:, c * r + 3] = J.T @ np.concatenate([np.zeros(3), R @ N[c]]) * self.L
+            T[:, c * r : (c + 1) * r] = contact_torque_columns(
+                J, d, R, N[c], self.L if self.soft else None
+            )
         joints = self._limited[used]
         return _Block(prog.A, prog.lo, prog.hi, T[joints], self._effort[used])
 
