@@ -1,0 +1,279 @@
+"""Rolling contact kinematics: a fingertip sphere rolls on the object without slipping.
+
+A fingertip is a sphere of radius ``r`` centred on its tip frame. With a fixed
+contact (the paper's transfer), the contact point stays put on the object
+while the sphere turns with its link, so the fingertip's surface slides over
+it. A real fingertip rolls: the two material points in contact have the same
+velocity (point contact without slipping, Montana 1988), three equations; the
+relative angular velocity is free (rolling and spinning). The contact point
+then moves on both surfaces, and by the same arc length: with no sliding,
+the contact point's velocities on the two surfaces have equal magnitudes
+(Montana's contact equations), which ``dexplan verify`` checks.
+
+Given the object's motion, a finger's joint velocities solve
+``J_p(q) dq = dp_obj``, where ``J_p`` is the Jacobian of the fingertip's
+material point at the contact (``J_c - [p - c]x J_w`` from the tip frame's
+Jacobian) and ``dp_obj`` the displacement of the object's material point
+there:
+
+- a 3-joint finger is determined (``J_p`` is square);
+- a redundant finger takes the least-norm joint step (the smallest joint
+  motion that rolls; the joints' own posture is otherwise free);
+- a finger with fewer joints cannot follow every motion: the least-squares
+  step leaves a residual, reported as :attr:`RolledContact.slip`.
+
+Discretised, the object's pose change is split into substeps of at most
+:attr:`RollSettings.max_substep_rad` and :attr:`RollSettings.max_substep_m`.
+Each substep solves the velocity equation at the current contact and moves
+the joints; the second-order drift off the surface is then removed by moving
+the sphere's centre along the object's normal only (a normal correction adds
+no tangential slip), and the contact is read again on both surfaces: on the
+object where the sphere meets it (:meth:`Shape.closest_point`), on the tip in
+the tip frame. Joint limits and collisions are the caller's: a transfer ends
+where the rolled grasp stops being valid.
+
+Frames: ``p_obj`` object frame; ``p_tip`` the tip link's frame (the sphere's
+centre is its origin); world quantities are the hand's base frame, where
+object poses are given as ``(x, y, z, qx, qy, qz, qw)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.core.typing import FloatArray
+
+__all__ = ["FingertipRolling", "RollSettings", "RolledContact", "point_jacobian"]
+
+
+@dataclass(frozen=True)
+class RollSettings:
+    """Resolution of :meth:`FingertipRolling.roll`.
+
+    Attributes:
+        max_substep_rad: largest object rotation (rad) of one substep.
+        max_substep_m: largest object translation (m) of one substep.
+        normal_iterations: normal corrections per substep (the drift is
+            second order in the substep; one or two remove it to 1e-9 m).
+        damping: Tikhonov damping of the joint solves (near singular
+            postures take a bounded step instead of a huge one).
+    """
+
+    max_substep_rad: float = 0.005
+    max_substep_m: float = 0.0005
+    normal_iterations: int = 2
+    damping: float = 1e-9
+
+    def __post_init__(self) -> None:
+        for name in ("max_substep_rad", "max_substep_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise InvalidInputError(f"{name} must be a positive number, got {v!r}")
+        if self.normal_iterations < 0 or not (self.damping >= 0.0):
+            raise InvalidInputError(
+                "normal_iterations must be >= 0 and damping >= 0, got "
+                f"{self.normal_iterations!r}, {self.damping!r}"
+            )
+
+
+@dataclass(frozen=True)
+class RolledContact:
+    """A finger after rolling with the object's motion.
+
+    Attributes:
+        q: (nq,) the hand's joints, only the finger's changed.
+        p_obj: (3,) contact point, object frame.
+        normal_obj: (3,) outward unit normal of the object there, object frame.
+        p_tip: (3,) contact point in the tip link's frame (on the tip sphere).
+        arc_obj: (m) length of the contact's path on the object.
+        arc_tip: (m) length of the contact's path on the fingertip.
+        slip: (m) the displacement the joints could not follow, summed over
+            substeps (0 up to rounding for fingers of 3 joints or more away
+            from singular postures).
+    """
+
+    q: FloatArray
+    p_obj: FloatArray
+    normal_obj: FloatArray
+    p_tip: FloatArray
+    arc_obj: float
+    arc_tip: float
+    slip: float
+
+
+def point_jacobian(J6: FloatArray, p_world: FloatArray, c_world: FloatArray) -> FloatArray:
+    """Jacobian ``(3, m)`` of a point fixed on a link, from the link frame's.
+
+    Args:
+        J6: (6, m) the frame's Jacobian, ``LOCAL_WORLD_ALIGNED`` (linear
+            velocity of its origin, then angular velocity, world axes).
+        p_world: (3,) the point, world frame.
+        c_world: (3,) the frame's origin, world frame.
+
+    Returns:
+        ``J_p = J_v - [p - c]x J_w``: ``v_p = v_c + w x (p - c)``.
+    """
+    return J6[:3] - pin.skew(p_world - c_world) @ J6[3:]
+
+
+class FingertipRolling:
+    """Rolling of one hand's fingertips on one object.
+
+    Args:
+        hand: the :class:`~dexplan.model.hand.hand.Hand` (its Pinocchio model,
+            tip frames, finger joint indexes and fingertip radius).
+        obj: the object :class:`~dexplan.model.objects.Shape`.
+        settings: resolution (default :class:`RollSettings`).
+    """
+
+    def __init__(self, hand: Any, obj: Any, settings: RollSettings | None = None) -> None:
+        self.hand, self.obj = hand, obj
+        self.settings = settings or RollSettings()
+        self.radius = float(hand.fingertip_radius)
+        self._data = hand.model.createData()
+
+    def tip_frame(self, finger: int, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The tip frame at ``q: (nq,)``: ``(R_tip (3, 3), c_world (3,), J6 (6, m))``.
+
+        ``J6`` is the tip frame's Jacobian (``LOCAL_WORLD_ALIGNED``) in the
+        finger's own joints.
+        """
+        model, data = self.hand.model, self._data
+        fid = self.hand.tip_frame_ids[finger]
+        pin.computeJointJacobians(model, data, q)
+        M = pin.updateFramePlacement(model, data, fid)
+        J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        return M.rotation.copy(), M.translation.copy(), J[:, self.hand.finger_q_index[finger]]
+
+    def tip_point(
+        self, finger: int, q: FloatArray, object_pose: FloatArray, p_obj: FloatArray
+    ) -> FloatArray:
+        """The contact ``p_obj: (3,)`` (object frame) in the tip link's frame, ``(3,)``."""
+        R_t, c, _ = self.tip_frame(finger, q)
+        R, x = _pose(object_pose)
+        return R_t.T @ (x + R @ p_obj - c)
+
+    def roll(
+        self,
+        finger: int,
+        q: FloatArray,
+        pose_a: FloatArray,
+        pose_b: FloatArray,
+        p_obj: FloatArray,
+    ) -> RolledContact:
+        """Roll ``finger``'s tip on the object while it moves from ``pose_a`` to ``pose_b``.
+
+        Args:
+            finger: the finger.
+            q: (nq,) the hand's joints at ``pose_a``, the tip touching ``p_obj``.
+            pose_a: (7,) the object's pose before, world frame, XYZW.
+            pose_b: (7,) the object's pose after.
+            p_obj: (3,) the contact point at ``pose_a``, object frame.
+
+        Returns:
+            The :class:`RolledContact` at ``pose_b``.
+
+        Raises:
+            InvalidInputError: a bad finger index, or the tip does not touch the
+                object at ``p_obj`` (farther than 1 mm from tangency there).
+        """
+        if not 0 <= finger < self.hand.n_fingers:
+            raise InvalidInputError(f"finger must be in [0, {self.hand.n_fingers}), got {finger}")
+        q = np.array(q, dtype=float)
+        p_obj = np.asarray(p_obj, dtype=float).reshape(3)
+        self._check_touch(finger, q, pose_a, p_obj)
+        s = self.settings
+        angle = quat_angle(pose_a[3:7], pose_b[3:7])
+        dist = float(np.linalg.norm(np.asarray(pose_b[:3]) - pose_a[:3]))
+        k = max(1, math.ceil(max(angle / s.max_substep_rad, dist / s.max_substep_m)))
+        p_tip = self.tip_point(finger, q, pose_a, p_obj)
+        normal = self.obj.closest_point(p_obj)[1]
+        arc_obj = arc_tip = slip = 0.0
+        prev = pose_a
+        for j in range(1, k + 1):
+            pose = interpolate_pose(pose_a, pose_b, j / k)
+            q, moved_slip = self._substep(finger, q, prev, pose, p_obj)
+            p_new, normal = self._contact_on_object(finger, q, pose)
+            tip_new = self.tip_point(finger, q, pose, p_new)
+            arc_obj += float(np.linalg.norm(p_new - p_obj))
+            arc_tip += float(np.linalg.norm(tip_new - p_tip))
+            slip += moved_slip
+            p_obj, p_tip, prev = p_new, tip_new, pose
+        return RolledContact(q, p_obj, normal, p_tip, arc_obj, arc_tip, slip)
+
+    def _check_touch(self, finger: int, q: FloatArray, pose: FloatArray, p_obj: FloatArray) -> None:
+        """Raise unless the tip sphere at ``q`` touches the object at ``p_obj``."""
+        _, c, _ = self.tip_frame(finger, q)
+        R, x = _pose(pose)
+        gap = abs(float(np.linalg.norm(x + R @ p_obj - c)) - self.radius)
+        d = float(self.obj.signed_distance(R.T @ (c - x))) - self.radius
+        if gap > 1e-3 or abs(d) > 1e-3:
+            raise InvalidInputError(
+                f"finger {finger}'s tip does not touch the object at the stated contact "
+                f"(gap {max(gap, abs(d)) * 1e3:.3g} mm)"
+            )
+
+    def _substep(
+        self, finger: int, q: FloatArray, pose_a: FloatArray, pose_b: FloatArray, p_obj: FloatArray
+    ) -> tuple[FloatArray, float]:
+        """One substep: the joints that move the tip's material point with the object's.
+
+        Returns ``(q, slip)``: the new joints, and how far (m) the least-squares
+        step misses the object point's displacement.
+        """
+        idx = self.hand.finger_q_index[finger]
+        R_a, x_a = _pose(pose_a)
+        R_b, x_b = _pose(pose_b)
+        p_a, p_b = x_a + R_a @ p_obj, x_b + R_b @ p_obj  # the object's material point
+        _, c, J6 = self.tip_frame(finger, q)
+        J = point_jacobian(J6, p_a, c)
+        dq = _solve(J, p_b - p_a, self.settings.damping)
+        q = q.copy()
+        q[idx] += dq
+        slip = float(np.linalg.norm(J @ dq - (p_b - p_a)))
+        for _ in range(self.settings.normal_iterations):
+            q = self._onto_surface(finger, q, pose_b)
+        return q, slip
+
+    def _onto_surface(self, finger: int, q: FloatArray, pose: FloatArray) -> FloatArray:
+        """Move the tip's centre along the object's normal until the sphere is tangent."""
+        idx = self.hand.finger_q_index[finger]
+        _, c, J6 = self.tip_frame(finger, q)
+        R, x = _pose(pose)
+        d, grad = self.obj.signed_distance_and_gradient(R.T @ (c - x))
+        step = (self.radius - float(d)) * (R @ np.asarray(grad))
+        q = q.copy()
+        q[idx] += _solve(J6[:3], step, self.settings.damping)
+        return q
+
+    def _contact_on_object(
+        self, finger: int, q: FloatArray, pose: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Where the tip sphere meets the object: ``(p_obj, normal_out)``, object frame."""
+        _, c, _ = self.tip_frame(finger, q)
+        R, x = _pose(pose)
+        p, n = self.obj.closest_point(R.T @ (c - x))
+        return np.asarray(p, dtype=float), np.asarray(n, dtype=float)
+
+
+def _pose(pose: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(R (3, 3), x (3,))`` of a ``(7,)`` XYZW pose."""
+    pose = np.asarray(pose, dtype=float)
+    return quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7])), pose[:3]
+
+
+def _solve(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
+    """Least-norm (damped) solution of ``J x = rhs`` for any shape of ``J``."""
+    m = J.shape[1]
+    if J.shape[0] <= m:
+        x = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
+    else:
+        x = np.linalg.solve(J.T @ J + damping * np.eye(m), J.T @ rhs)
+    return np.asarray(x, dtype=np.float64)

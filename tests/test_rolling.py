@@ -1,0 +1,145 @@
+"""Rolling contact kinematics (dexplan.model.grasp.rolling): no slip, tangency, both contacts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dexplan.core.errors import InvalidInputError
+from dexplan.core.pose import quat_to_matrix
+from dexplan.model.grasp.rolling import FingertipRolling, RollSettings, point_jacobian
+from dexplan.model.scenario.scenario import load_scenario
+from dexplan.planning.context import build_context
+from dexplan.planning.gsn.space import POSE_DIM
+from dexplan.planning.local.grasps import grasp_from_state
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+def _grasp(name: str, seed: int = 3):
+    """A valid sampled grasp at the scenario's start: (roll model, q, pose, contacts (n, 3))."""
+    ctx = build_context(load_scenario(SCENARIOS / f"{name}.toml"), seed)
+    pose = ctx.scenario.start.object_pose_xyzquat
+    x = ctx.sampler.sample_at_pose(pose)
+    assert x is not None
+    q = x[POSE_DIM:]
+    contacts = grasp_from_state(ctx.transitions, pose, q).points
+    return FingertipRolling(ctx.hand, ctx.obj), q, np.asarray(pose, dtype=float), contacts
+
+
+def _turned(pose: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``pose`` turned by ``angle`` (rad) about a world axis through its centre."""
+    R = pin.exp3(axis / np.linalg.norm(axis) * angle) @ quat_to_matrix(pose[3:])
+    q = pin.Quaternion(R)
+    return np.concatenate([pose[:3], [q.x, q.y, q.z, q.w]])
+
+
+@pytest.fixture(scope="module")
+def paper_grasp():
+    return _grasp("paper_sphere")
+
+
+def test_point_jacobian_matches_finite_differences(paper_grasp) -> None:
+    roll, q, _, _ = paper_grasp
+    hand = roll.hand
+    rng = np.random.default_rng(0)
+    for f in range(hand.n_fingers):
+        R_t, c, J6 = roll.tip_frame(f, q)
+        s_tip = rng.normal(size=3) * 0.01  # a point fixed on the tip link, tip frame
+        J = point_jacobian(J6, c + R_t @ s_tip, c)
+        idx = hand.finger_q_index[f]
+        h = 1e-6
+        for k, j in enumerate(idx):
+            qp, qm = q.copy(), q.copy()
+            qp[j] += h
+            qm[j] -= h
+            Rp, cp, _ = roll.tip_frame(f, qp)
+            Rm, cm, _ = roll.tip_frame(f, qm)
+            fd = ((cp + Rp @ s_tip) - (cm + Rm @ s_tip)) / (2 * h)
+            np.testing.assert_allclose(J[:, k], fd, atol=1e-6)
+
+
+def test_material_points_in_contact_move_together(paper_grasp) -> None:
+    """No slip, judged by forward kinematics alone: over a small turn the tip's material
+    point at the contact moves with the object's (to second order in the step)."""
+    roll, q, pose, contacts = paper_grasp
+    step = np.radians(0.2)
+    b = _turned(pose, np.array([0.0, 0.0, 1.0]), step)
+    R_a, R_b = quat_to_matrix(pose[3:]), quat_to_matrix(b[3:])
+    for f in range(roll.hand.n_fingers):
+        s_tip = roll.tip_point(f, q, pose, contacts[f])  # the tip's material point, tip frame
+        r = roll.roll(f, q, pose, b, contacts[f])
+        R_t, c, _ = roll.tip_frame(f, r.q)
+        moved_tip = c + R_t @ s_tip
+        moved_obj = b[:3] + R_b @ contacts[f]
+        d_obj = np.linalg.norm(moved_obj - (pose[:3] + R_a @ contacts[f]))
+        assert d_obj > 1e-5  # the contact point really moves
+        assert np.linalg.norm(moved_tip - moved_obj) < 0.02 * d_obj
+
+
+@pytest.mark.parametrize("axis", [(0.0, 0.0, 1.0), (1.0, 0.0, 0.0)])
+def test_a_rolled_tip_stays_tangent_and_rolls_equal_arcs(paper_grasp, axis) -> None:
+    roll, q, pose, contacts = paper_grasp
+    b = _turned(pose, np.array(axis), np.radians(4.0))
+    R_b = quat_to_matrix(b[3:])
+    for f in range(roll.hand.n_fingers):
+        r = roll.roll(f, q, pose, b, contacts[f])
+        _, c, _ = roll.tip_frame(f, r.q)
+        gap = roll.obj.signed_distance(R_b.T @ (c - b[:3])) - roll.radius
+        assert abs(gap) < 1e-9
+        # the two contacts are the same world point, on the object and on the tip sphere
+        R_t, _, _ = roll.tip_frame(f, r.q)
+        np.testing.assert_allclose(b[:3] + R_b @ r.p_obj, c + R_t @ r.p_tip, atol=1e-9)
+        assert abs(np.linalg.norm(r.p_tip) - roll.radius) < 1e-9
+        assert r.slip < 1e-7  # a 3-joint finger is determined by the object's motion
+        assert r.arc_obj > 1e-4  # the contact moves: the fixed contact would slide
+        assert abs(r.arc_tip - r.arc_obj) <= 0.03 * r.arc_obj
+        # the joints are not those of the fixed contact
+        assert np.linalg.norm(r.p_obj - contacts[f]) > 1e-4
+
+
+def test_finer_substeps_converge(paper_grasp) -> None:
+    roll, q, pose, contacts = paper_grasp
+    b = _turned(pose, np.array([0.0, 0.0, 1.0]), np.radians(4.0))
+    coarse = roll.roll(1, q, pose, b, contacts[1])
+    fine = FingertipRolling(roll.hand, roll.obj, RollSettings(max_substep_rad=5e-4)).roll(
+        1, q, pose, b, contacts[1]
+    )
+    assert abs(fine.arc_tip - fine.arc_obj) < abs(coarse.arc_tip - coarse.arc_obj) + 1e-9
+    assert np.linalg.norm(fine.p_obj - coarse.p_obj) < 1e-4
+
+
+def test_a_redundant_finger_rolls_with_the_least_joint_motion() -> None:
+    roll, q, pose, contacts = _grasp("allegro_sphere", seed=2)
+    b = _turned(pose, np.array([0.0, 0.0, 1.0]), np.radians(2.0))
+    r = roll.roll(0, q, pose, b, contacts[0])
+    assert len(roll.hand.finger_q_index[0]) == 4
+    assert r.slip < 1e-7
+    assert abs(r.arc_tip - r.arc_obj) <= 0.03 * r.arc_obj
+
+
+def test_rolling_on_a_mesh_reads_the_contact_on_the_surface() -> None:
+    roll, q, pose, contacts = _grasp("allegro_mesh", seed=1)
+    b = _turned(pose, np.array([0.0, 0.0, 1.0]), np.radians(2.0))
+    R_b = quat_to_matrix(b[3:])
+    for f in range(roll.hand.n_fingers):
+        r = roll.roll(f, q, pose, b, contacts[f])
+        assert abs(roll.obj.signed_distance(r.p_obj)) < 1e-6
+        _, c, _ = roll.tip_frame(f, r.q)
+        assert abs(roll.obj.signed_distance(R_b.T @ (c - b[:3])) - roll.radius) < 1e-6
+
+
+def test_bad_inputs_raise_clear_errors(paper_grasp) -> None:
+    roll, q, pose, contacts = paper_grasp
+    n = contacts[0] / np.linalg.norm(contacts[0])  # the ball is centred on its frame
+    t = np.cross(n, [0.0, 0.0, 1.0])
+    off = contacts[0] + 0.008 * t / np.linalg.norm(t)  # 8 mm along the surface
+    with pytest.raises(InvalidInputError, match="does not touch"):
+        roll.roll(0, q, pose, pose, off)
+    with pytest.raises(InvalidInputError, match="finger must be"):
+        roll.roll(7, q, pose, pose, contacts[0])
+    with pytest.raises(InvalidInputError, match="max_substep_rad"):
+        RollSettings(max_substep_rad=0.0)
