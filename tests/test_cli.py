@@ -33,7 +33,7 @@ def planned(tmp_path_factory) -> Path:
 
 def test_plan_writes_a_verified_plan(planned: Path) -> None:
     doc = json.loads((planned / "p.json").read_text())
-    assert doc["format"] == "dexplan-plan/1"
+    assert doc["format"] == "dexplan-plan/2"
     assert (planned / "rm.npz").is_file()
     res = run("verify", "p.json", cwd=planned)
     assert res.returncode == 0 and res.stdout.startswith("OK"), res.stdout

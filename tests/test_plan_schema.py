@@ -343,7 +343,11 @@ def test_cut_plan_misses_the_goal(capfd, tmp_path: Path, plan: dict) -> None:
         (lambda d: d["obstacles"][0].pop("pose_xyzquat"), ["obstacles[0].pose_xyzquat"]),
         (lambda d: d["obstacles"][0].update(size=[0.3, 0.3]), ["obstacles[0].size"]),
         (lambda d: d["object"].update(radius="big"), ["object.radius"]),
-        (lambda d: d.update(format="dexplan-plan/2"), ["format must be 'dexplan-plan/1'"]),
+        (
+            lambda d: d.update(format="dexplan-plan/3"),
+            ["format must be 'dexplan-plan/1' or 'dexplan-plan/2'"],
+        ),
+        (lambda d: d.update(contact_motion="rolling"), ["contact_motion needs format"]),
         (lambda d: d.update(mu=10**400), ["mu must be a finite number"]),
         (
             lambda d: d["segments"][1]["waypoints"][0].update(object_pose_xyzquat=[0] * 7),

@@ -1,4 +1,4 @@
-"""Plan files (format ``dexplan-plan/1``): build, write and read documents.
+"""Plan files (format ``dexplan-plan/2``; ``/1`` is read too): build, write and read documents.
 
 A plan file is one self-contained JSON document: the hand (URDF text, joint
 names, fingertip frames and radius), the object, friction, obstacles, start,
@@ -31,6 +31,7 @@ from dexplan.core.errors import InvalidInputError, PlanFileError, one_line
 from dexplan.core.files import atomic_output, file_sha256
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
+from dexplan.model.grasp.rolling import ContactMotion, tip_side_contacts
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario
 from dexplan.planfile import schema as plan_schema
@@ -193,7 +194,7 @@ def _object_table(scenario: Any, base: Path, out_dir: Path) -> dict[str, Any]:
 def build_plan_document(
     scenario: Scenario, hand: Hand, result: PlannedPath, out_dir: str | Path = "."
 ) -> dict[str, Any]:
-    """The ``dexplan-plan/1`` document of a planner's result.
+    """The ``dexplan-plan/2`` document of a planner's result.
 
     Args:
         scenario: the scenario planned.
@@ -224,13 +225,22 @@ def build_plan_document(
             "position_tol": g.position_tol,
             "angle_tol": g.angle_tol,
         },
-        "segments": [segment_to_dict(s) for s in result.segments],
+        "contact_motion": str(getattr(scenario, "contact_motion", ContactMotion.FIXED)),
+        "segments": [_with_tip_contacts(hand, segment_to_dict(s)) for s in result.segments],
         "stats": _jsonable(result.stats.as_dict()),
     }
     gravity = getattr(scenario, "gravity", None)
     if gravity is not None:  # [world] gravity, for executing the plan
         doc["world"] = {"gravity": [float(v) for v in gravity]}
     return doc
+
+
+def _with_tip_contacts(hand: Hand, seg: dict[str, Any]) -> dict[str, Any]:
+    """``seg`` (JSON form) with each waypoint's ``tip_contacts`` (contacts in tip frames)."""
+    for w in seg["waypoints"]:
+        tips = tip_side_contacts(hand, w["q"], np.asarray(w["object_pose_xyzquat"]), w["contacts"])
+        w["tip_contacts"] = [None if t is None else [float(v) for v in t] for t in tips]
+    return seg
 
 
 def _jsonable(value: Any) -> Any:

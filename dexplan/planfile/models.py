@@ -1,6 +1,6 @@
 """The models a plan file describes: hand, object, obstacles and collision world.
 
-A ``dexplan-plan/1`` document carries everything needed to rebuild its models
+A plan document carries everything needed to rebuild its models
 (the hand's URDF text and fingertips, the object and obstacle shapes, friction):
 :func:`models_from_document` rebuilds them from the document alone, for the
 verifier, the viewer, the trajectory export and the replay. :func:`hand_table`
@@ -19,6 +19,7 @@ from dexplan.model.collision import CollisionWorld, Obstacle
 from dexplan.model.grasp import ContactModel
 from dexplan.model.grasp.grip_forces import DEFAULT_GRAVITY, DEFAULT_MASS, ForceSettings
 from dexplan.model.grasp.holds import DEFAULT_HOLD_SHIFT
+from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape, shape_from_dict
 
@@ -91,6 +92,7 @@ class PlanModels:
         contact_model: ``point`` or ``soft``. torsion: soft-finger torsion (m).
         hold_shift: how far each contact is moved when a hold is checked (m).
         forces: the object's mass and gravity (the file's, else the defaults).
+        contact_motion: how transfers move the contacts (``fixed`` for ``/1`` files).
     """
 
     hand: Hand
@@ -103,6 +105,7 @@ class PlanModels:
     torsion: float
     hold_shift: float = DEFAULT_HOLD_SHIFT
     forces: ForceSettings = field(default_factory=ForceSettings)
+    contact_motion: ContactMotion = ContactMotion.FIXED
 
 
 def shape_of(table: Mapping[str, Any], base_dir: Path, field: str) -> Shape:
@@ -124,7 +127,7 @@ def models_from_document(
     trajectory export and the replay all use it.
 
     Args:
-        doc: a ``dexplan-plan/1`` document (see :func:`~dexplan.planfile.document.read_plan`).
+        doc: a plan document (see :func:`~dexplan.planfile.document.read_plan`).
         base_dir: folder relative mesh paths resolve against.
         hand: the hand if already rebuilt (:func:`hand_from_plan`).
         package_dirs: folders ``package://`` mesh URIs of the URDF resolve against.
@@ -154,6 +157,7 @@ def models_from_document(
         contact_model=cast("ContactModel", str(doc.get("contact_model", "point"))),
         torsion=float(doc.get("torsion", 0.0)),
         hold_shift=float(doc.get("hold_shift", DEFAULT_HOLD_SHIFT)),
+        contact_motion=ContactMotion(doc.get("contact_motion", ContactMotion.FIXED)),
         forces=plan_force_settings(doc),
     )
 

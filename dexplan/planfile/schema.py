@@ -1,4 +1,4 @@
-"""The structure of plan files (format ``dexplan-plan/1``), checked in one place.
+"""The structure of plan files (``dexplan-plan/2``, and ``/1``), checked in one place.
 
 :func:`validate_plan` is the one gate every plan document passes before it is
 used: :func:`dexplan.planfile.document.read_plan` calls it (so ``dexplan verify``, ``dexplan
@@ -8,16 +8,22 @@ show`` and the benchmark all get it), and :func:`dexplan.planfile.verify.verify_
 A document that passes is *well formed*: every table holds only known fields,
 every required field is there, every value has its type, every number is
 finite and within :data:`MAX_ABS_VALUE`, every list has its length (a pose 7
-numbers, ``q`` one per ``hand.joint_names`` entry, ``contacts`` one per
-``hand.fingertip_frames`` entry) and every size is within the limits below, so
-a hostile file cannot make a reader hang or crash. Whether a well-formed plan
-obeys the rules (force closure, steps, contacts, goal) is the verifier's
-business (:func:`dexplan.planfile.verify.verify_plan`); whether the URDF text builds a
+numbers, ``q`` one per ``hand.joint_names`` entry, ``contacts`` and
+``tip_contacts`` one per ``hand.fingertip_frames`` entry, null together) and
+every size is within the limits below, so a hostile file cannot make a reader
+hang or crash. Whether a well-formed plan obeys the rules (force closure, steps,
+contacts, goal) is the verifier's business
+(:func:`dexplan.planfile.verify.verify_plan`); whether the URDF text builds a
 hand is settled when the hand is built.
 
 Errors are :class:`~dexplan.core.errors.PlanFileError` naming the field path
 (``segments[0].waypoints[3].object_pose_xyzquat``) and the offending value,
 shortened (:func:`~dexplan.core.errors.shorten`).
+
+Format ``/2`` adds ``contact_motion`` (``fixed`` or ``rolling``) and, on
+every waypoint, ``tip_contacts`` (the fingertip side of each contact, in its
+tip link's frame). A ``/1`` document has neither: its transfers keep their
+contacts fixed.
 """
 
 from __future__ import annotations
@@ -32,11 +38,13 @@ from dexplan.core.errors import DexplanError, PlanFileError, shorten, unknown_fi
 from dexplan.core.segments import SegmentKind
 from dexplan.model.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION, MIN_FRICTION_EDGES
 from dexplan.model.grasp.holds import MAX_HOLD_SHIFT
+from dexplan.model.grasp.rolling import CONTACT_MOTIONS
 from dexplan.model.objects import shape_from_dict
 
 __all__ = [
     "CONTACT_MODELS",
     "FORMAT",
+    "FORMATS",
     "MAX_ABS_VALUE",
     "MAX_FINGERS",
     "MAX_JOINTS",
@@ -48,8 +56,10 @@ __all__ = [
     "validate_plan",
 ]
 
-#: The format tag of a plan file.
-FORMAT = "dexplan-plan/1"
+#: The format tag of the plan files dexplan writes.
+FORMAT = "dexplan-plan/2"
+#: The format tags it reads (``/1``: contacts fixed during transfers, no tip side).
+FORMATS = ("dexplan-plan/1", FORMAT)
 
 # ------------------------------------------------------------------ limits
 #: Largest plan file read (bytes).
@@ -94,6 +104,7 @@ _TOP: _Fields = (
         "contact_model",
         "torsion",
         "hold_shift",
+        "contact_motion",
         "obstacles",
         "world",
         "stats",
@@ -107,6 +118,7 @@ _START: _Fields = ({"object_pose_xyzquat"}, {"q"})
 _GOAL: _Fields = ({"object_pose_xyzquat"}, {"position_tol", "angle_tol"})
 _SEGMENT: _Fields = ({"kind", "finger", "waypoints"}, set())
 _WAYPOINT: _Fields = ({"object_pose_xyzquat", "q", "contacts"}, set())
+_WAYPOINT_2: _Fields = ({"object_pose_xyzquat", "q", "contacts", "tip_contacts"}, set())
 _OBSTACLE_EXTRA = ("pose_xyzquat", "name")
 _OBJECT_EXTRA = ("mass",)  # a property of the object, not of its shape
 _WORLD: _Fields = (set(), {"gravity"})
@@ -280,7 +292,15 @@ def _contacts(value: Any, path: str, n_fingers: int) -> None:
             _vector(c, f"{path}[{i}]", 3, "null or 3 numbers [x, y, z]")
 
 
-def _segments(items: Any, n_joints: int, n_fingers: int) -> None:
+def _tip_contacts(value: Any, contacts: Sequence[Any], path: str) -> None:
+    """``tip_contacts``: like ``contacts``, null exactly where a contact is."""
+    _contacts(value, path, len(contacts))
+    for i, (t, c) in enumerate(zip(value, contacts, strict=True)):
+        if (t is None) != (c is None):
+            _fail(f"{path}[{i}]", "must be null exactly where contacts is", t)
+
+
+def _segments(items: Any, n_joints: int, n_fingers: int, version: int) -> None:
     items = _list(items, "segments", 0, MAX_SEGMENTS, "segment tables")
     total = 0
     for si, seg in enumerate(items):
@@ -300,14 +320,16 @@ def _segments(items: Any, n_joints: int, n_fingers: int) -> None:
             _fail(f"{path}.waypoints", f"bring the plan over {MAX_WAYPOINTS} waypoints", total)
         for wi, w in enumerate(wps):
             wpath = f"{path}.waypoints[{wi}]"
-            w = _table(w, wpath, _WAYPOINT)
+            w = _table(w, wpath, _WAYPOINT_2 if version == 2 else _WAYPOINT)
             _pose(w["object_pose_xyzquat"], f"{wpath}.object_pose_xyzquat")
             _q(w["q"], f"{wpath}.q", n_joints)
             _contacts(w["contacts"], f"{wpath}.contacts", n_fingers)
+            if version == 2:
+                _tip_contacts(w["tip_contacts"], w["contacts"], f"{wpath}.tip_contacts")
 
 
 def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
-    """Check that ``doc`` is a well-formed ``dexplan-plan/1`` document.
+    """Check that ``doc`` is a well-formed ``dexplan-plan/2`` (or ``/1``) document.
 
     Args:
         doc: the parsed JSON document (or one built in memory).
@@ -323,9 +345,15 @@ def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
     base = None if base_dir is None else Path(base_dir)
     if not isinstance(doc, Mapping):
         _fail("the plan", "must be a JSON object", doc)
-    if doc.get("format") != FORMAT:
-        _fail("format", f"must be {FORMAT!r}", doc.get("format"))
+    if doc.get("format") not in FORMATS:
+        _fail("format", f"must be {' or '.join(map(repr, FORMATS))}", doc.get("format"))
+    version = FORMATS.index(doc["format"]) + 1
     _table(doc, "", _TOP, "a JSON object")
+    motion = doc.get("contact_motion", "fixed")
+    if version == 1 and "contact_motion" in doc:
+        _fail("contact_motion", f"needs format {FORMAT!r} (transfers of /1 are fixed)", motion)
+    if not isinstance(motion, str) or motion not in CONTACT_MOTIONS:
+        _fail("contact_motion", f"must be {' or '.join(map(repr, CONTACT_MOTIONS))}", motion)
     if "scenario" in doc and not isinstance(doc["scenario"], str):
         _fail("scenario", "must be a string", doc["scenario"])
     n_joints, n_fingers = _hand(doc["hand"])
@@ -367,6 +395,6 @@ def validate_plan(doc: Any, base_dir: str | Path | None = None) -> None:
         if key in goal:
             _number(goal[key], f"goal.{key}", lo=0.0, lo_open=True)
 
-    _segments(doc["segments"], n_joints, n_fingers)
+    _segments(doc["segments"], n_joints, n_fingers, version)
     if "stats" in doc and not isinstance(doc["stats"], Mapping):
         _fail("stats", "must be a table", doc["stats"])

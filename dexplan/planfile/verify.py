@@ -1,12 +1,12 @@
-"""The verifier of plan files: every rule of a ``dexplan-plan/1`` document.
+"""The verifier of plan files: every rule of a ``dexplan-plan/2`` (or ``/1``) document.
 
 :func:`verify_plan` re-checks a plan from the file alone. It rebuilds the
 models (Pinocchio hand, object, coal world, force closure) but shares no code
 path with the planner, so a planner bug cannot hide itself: every rule is
 checked again and each violation names the segment, the waypoint and the rule.
 
-The rules are named once, in :data:`RULES` (the table of
-``docs/plan_format.md``); the checker has one method per rule family (waypoint
+The rules are named once, in :data:`~dexplan.planfile.rules.RULES` (the
+table of ``docs/plan_format.md``); the checker has one method per rule family (waypoint
 pose and joints, fingertip contacts, collisions, force closure, steps,
 transfer, regrasp, continuity, start and goal) and records a violation only
 under a name of that table.
@@ -33,11 +33,26 @@ from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp import exact_force_closure, force_closure_quality, min_subgrasp_quality
 from dexplan.model.grasp.holds import HoldChecker
+from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.planfile.document import segments_from_dicts
 from dexplan.planfile.models import PlanModels, hand_from_plan, models_from_document
+from dexplan.planfile.rules import (
+    CONTACT_DRIFT_TOL,
+    FC_PASS,
+    GOAL_ANGLE_TOL,
+    GOAL_POSITION_TOL,
+    MAX_STEP_M,
+    MAX_STEP_RAD,
+    NO_SLIP_ABS,
+    NO_SLIP_REL,
+    PENETRATION_TOL,
+    RULES,
+    STILL_TOL,
+)
 from dexplan.planfile.schema import validate_plan
+from dexplan.planfile.tip_contacts import contact_path_lengths, tip_sides
 
 __all__ = [
     "RULES",
@@ -47,78 +62,6 @@ __all__ = [
     "fingertip_contact",
     "verify_plan",
 ]
-
-#: Verification tolerances.
-PENETRATION_TOL = 1e-3  # (m)
-MAX_STEP_M = 0.01  # object translation between waypoints (m)
-MAX_STEP_RAD = 0.05  # object rotation and joint change between waypoints (rad)
-CONTACT_DRIFT_TOL = 1e-3  # transfer contact drift (m)
-STILL_TOL = 1e-9  # "does not move" (m, rad)
-FC_MIN = 0.0  # force-closure quality must exceed this
-#: Verdicts of :func:`dexplan.model.grasp.exact_force_closure` that pass.
-FC_PASS = ("fc_linear", "fc_dense")
-GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
-GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
-
-#: Every rule the verifier checks, by family, name -> what it requires (one
-#: line each: the rule table of docs/plan_format.md, checked by a test).
-RULES: dict[str, str] = {
-    # waypoint geometry
-    "object_pose": "unit quaternion (within 1e-6; sizes and finite numbers are structure, above)",
-    "joint_limits": "every joint within its URDF limits",
-    # fingertip contacts
-    "fingertip_distance": (
-        "every contact finger's fingertip sphere is within 1 mm of touching the surface"
-    ),
-    "contact_on_surface": "every stated contact lies within 1 mm of the surface",
-    "contact_matches_fingertip": (
-        "the stated contact is the surface point closest to the fingertip centre "
-        "(within 1 mm): where the sphere touches; force closure uses it with the normal "
-        "there (at a box edge, the direction from the edge to the centre)"
-    ),
-    # collisions and penetration
-    "collision": (
-        "no link-link (non-adjacent, not excluded), hand-object (except contact "
-        "fingertips), hand-obstacle or object-obstacle contact"
-    ),
-    "penetration": "no contact fingertip sinks more than 1 mm into the object",
-    # force closure
-    "force_closure": (
-        "at least two fingers hold the object and are force closure at every waypoint, "
-        "under the plan's `contact_model` (below)"
-    ),
-    "subgrasp_force_closure": "on transfer waypoints, every (n-1)-finger subgrasp too",
-    # holds
-    "holds": (
-        "at every waypoint the holding contacts (all on a transfer, the n-1 holding fingers "
-        "during a regrasp) balance the object's weight within the joints' effort limits, "
-        "also with each contact moved `hold_shift` along the surface (torque ratio <= 1)"
-    ),
-    # segments and steps
-    "segments": "the plan has at least one segment",
-    "step": (
-        "consecutive waypoints differ by at most 1 cm and 0.05 rad (object) "
-        "and 0.05 rad (every joint)"
-    ),
-    # transfer
-    "transfer_contacts": "during a transfer the set of contact fingers does not change",
-    "transfer_contact_drift": (
-        "during a transfer every contact stays put in the object frame (within 1 mm)"
-    ),
-    # regrasp
-    "regrasp_object_still": "during a regrasp the object does not move",
-    "regrasp_one_finger": (
-        "during a regrasp the joints and contacts of every other finger do not move"
-    ),
-    "regrasp_interior": "a regrasp has at least one interior waypoint",
-    "regrasp_free_finger": "the regrasping finger is free (contact `null`) at interior waypoints",
-    "regrasp_clearance": "the free finger is clear of the object at interior waypoints",
-    "regrasp_endpoints": "the regrasping finger is in contact at both ends of the regrasp",
-    # continuity, start and goal
-    "continuity": "each segment starts where the previous one ended",
-    "start": "the first waypoint is the start object pose (and `start.q` when given)",
-    "goal": "the last object pose is within the goal's `position_tol` and `angle_tol`",
-}
 
 
 # ---------------------------------------------------------------- reports
@@ -175,6 +118,7 @@ class _Checker:
         self.hand, self.obj, self.world = m.hand, m.obj, m.world
         self.mu, self.edges = m.mu, m.friction_edges
         self.contact_model, self.torsion = m.contact_model, m.torsion
+        self.rolling = m.contact_motion == ContactMotion.ROLLING
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
         self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
@@ -439,12 +383,17 @@ class _Checker:
                 self.add(si, wi, "step", f"a joint moves {dq:.4f} rad from the previous waypoint")
 
     def transfer(self, si: int, seg: Segment) -> None:
-        """``transfer_contacts`` and ``transfer_contact_drift``."""
+        """``transfer_contacts``, and ``transfer_contact_drift`` or ``transfer_no_slip``."""
         first = seg.waypoints[0]
+        if any(w.contact_mask() != first.contact_mask() for w in seg.waypoints):
+            for wi, w in enumerate(seg.waypoints):
+                if w.contact_mask() != first.contact_mask():
+                    self.add(si, wi, "transfer_contacts", "the set of contact fingers changes")
+            return
+        if self.rolling:
+            self.no_slip(si, seg)
+            return
         for wi, w in enumerate(seg.waypoints):
-            if w.contact_mask() != first.contact_mask():
-                self.add(si, wi, "transfer_contacts", "the set of contact fingers changes")
-                continue
             for i, (c, c0) in enumerate(zip(w.contacts, first.contacts, strict=True)):
                 if c is None:
                     continue
@@ -452,6 +401,33 @@ class _Checker:
                 if drift > CONTACT_DRIFT_TOL:
                     msg = f"finger {i}: contact drifts {drift * 1e3:.2f} mm in the object frame"
                     self.add(si, wi, "transfer_contact_drift", msg)
+
+    def no_slip(self, si: int, seg: Segment) -> None:
+        """``transfer_no_slip``: per finger, equal path lengths on the tip and on the object."""
+        for i, on_tip, on_obj in contact_path_lengths(self.hand, seg):
+            if abs(on_tip - on_obj) > NO_SLIP_REL * on_obj + NO_SLIP_ABS:
+                msg = (
+                    f"finger {i}: the contact travels {on_tip * 1e3:.2f} mm on the fingertip "
+                    f"but {on_obj * 1e3:.2f} mm on the object (it slips)"
+                )
+                self.add(si, len(seg.waypoints) - 1, "transfer_no_slip", msg)
+
+    def tip_contact(self, si: int, seg: Segment, stated: Sequence[Sequence[Any]]) -> None:
+        """``tip_contact``: the file's ``tip_contacts`` of a segment against the pose's."""
+        r = self.hand.fingertip_radius
+        for wi, (w, row) in enumerate(zip(seg.waypoints, stated, strict=True)):
+            for i, (t, t_pose) in enumerate(zip(row, tip_sides(self.hand, w), strict=True)):
+                if t is None:
+                    continue
+                t = np.asarray(t, dtype=float)
+                gap = float(np.linalg.norm(t - t_pose))
+                off = abs(float(np.linalg.norm(t)) - r)
+                if gap > TIP_DISTANCE_TOL or off > TIP_DISTANCE_TOL:
+                    msg = (
+                        f"finger {i}: tip contact is {gap * 1e3:.2f} mm from the contact's "
+                        f"place on the tip and {off * 1e3:.2f} mm off the tip sphere"
+                    )
+                    self.add(si, wi, "tip_contact", msg)
 
     def regrasp(self, si: int, seg: Segment) -> None:
         """The ``regrasp_*`` rules of a regrasp of finger ``seg.finger``."""
@@ -560,7 +536,7 @@ def _plan_hand(table: Mapping[str, Any]) -> Hand:
 
 
 def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
-    """Check every rule of a ``dexplan-plan/1`` document.
+    """Check every rule of a ``dexplan-plan/2`` (or ``/1``) document.
 
     Args:
         doc: the parsed plan (see :func:`dexplan.planfile.document.read_plan`).
@@ -587,6 +563,8 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
         chk.add(-1, -1, "segments", "the plan has no segments")
     for si, seg in enumerate(segments):
         chk.segment(si, seg, segments[si - 1] if si > 0 else None)
+        if doc["format"] != "dexplan-plan/1":
+            chk.tip_contact(si, seg, [w["tip_contacts"] for w in doc["segments"][si]["waypoints"]])
     if segments:
         chk.start(doc["start"], segments)
         chk.goal(doc["goal"], segments)

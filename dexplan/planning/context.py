@@ -203,7 +203,7 @@ def build_context(
         obj,
         world,
         vset,
-        transition_settings or TransitionSettings(),
+        transition_settings or TransitionSettings(contact_motion=scenario.contact_motion),
         rng_local,
         deadline,
         hold_checker(scenario, hand, obj, vset),

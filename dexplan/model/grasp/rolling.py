@@ -40,7 +40,9 @@ object poses are given as ``(x, y, z, qx, qy, qz, qw)``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -50,7 +52,33 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import interpolate_pose, quat_angle, quat_to_matrix
 from dexplan.core.typing import FloatArray
 
-__all__ = ["FingertipRolling", "RollSettings", "RolledContact", "point_jacobian"]
+__all__ = [
+    "CONTACT_MOTIONS",
+    "ContactMotion",
+    "FingertipRolling",
+    "RollSettings",
+    "RolledContact",
+    "point_jacobian",
+    "tip_side_contacts",
+]
+
+
+class ContactMotion(StrEnum):
+    """How the contacts move during a transfer (``[contact] motion``).
+
+    Attributes:
+        FIXED: the paper's transfer: each contact stays put on the object and
+            the fingertip slides over it as its link turns.
+        ROLLING: each fingertip rolls on the object without slipping; the
+            contacts move on both surfaces.
+    """
+
+    FIXED = "fixed"
+    ROLLING = "rolling"
+
+
+CONTACT_MOTIONS: tuple[str, ...] = tuple(ContactMotion)
+"""The names :class:`ContactMotion` accepts."""
 
 
 @dataclass(frozen=True)
@@ -261,6 +289,34 @@ class FingertipRolling:
         R, x = _pose(pose)
         p, n = self.obj.closest_point(R.T @ (c - x))
         return np.asarray(p, dtype=float), np.asarray(n, dtype=float)
+
+
+def tip_side_contacts(
+    hand: Any, q: FloatArray, object_pose: FloatArray, contacts: Sequence[FloatArray | None]
+) -> list[FloatArray | None]:
+    """The fingertip side of each contact: the point in its tip link's frame, ``(3,)``.
+
+    Args:
+        hand: the hand (its Pinocchio model and tip frames).
+        q: (nq,) joints.
+        object_pose: (7,) object pose, world frame, XYZW.
+        contacts: per finger, its contact ``(3,)`` in the object frame, or None.
+
+    Returns:
+        Per finger, ``R_tip^T (p_world - c_tip)`` (on the tip sphere when the
+        tip touches the contact), or None for a free finger.
+    """
+    data = hand.model.createData()
+    pin.forwardKinematics(hand.model, data, np.asarray(q, dtype=float))
+    R, x = _pose(object_pose)
+    out: list[FloatArray | None] = []
+    for c, fid in zip(contacts, hand.tip_frame_ids, strict=True):
+        if c is None:
+            out.append(None)
+            continue
+        M = pin.updateFramePlacement(hand.model, data, fid)
+        out.append(M.rotation.T @ (x + R @ np.asarray(c, dtype=float) - M.translation))
+    return out
 
 
 def _pose(pose: FloatArray) -> tuple[FloatArray, FloatArray]:

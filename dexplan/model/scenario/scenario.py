@@ -30,6 +30,7 @@ from dexplan.model.grasp import (
     MIN_FRICTION_EDGES,
     ContactModel,
 )
+from dexplan.model.grasp.rolling import CONTACT_MOTIONS, ContactMotion
 from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, field_key, shape_from_dict
 from dexplan.model.scenario.fields import (
     as_float,
@@ -323,6 +324,16 @@ def _hold_shift(doc: Mapping[str, Any]) -> float:
     return number(c, "hold_shift", "contact", 0.002, lo=0.0, hi=MAX_HOLD_SHIFT)
 
 
+def _contact_motion(doc: Mapping[str, Any]) -> ContactMotion:
+    """``[contact] motion``: how transfers move the contacts (``fixed`` or ``rolling``)."""
+    c = table(doc, "contact", required=False)
+    motion = c.get("motion", ContactMotion.FIXED.value)
+    if not isinstance(motion, str) or motion not in CONTACT_MOTIONS:
+        choices = " or ".join(f'"{m}"' for m in CONTACT_MOTIONS)
+        fail(f"contact.motion must be {choices}, got {shorten(motion)}")
+    return ContactMotion(motion)
+
+
 def _obstacles(doc: Mapping[str, Any], base_dir: Path) -> tuple[dict[str, Any], ...]:
     """``[[obstacles]]``: shape fields plus ``pose_xyzquat`` and ``name`` each."""
     obstacles_raw = doc.get("obstacles", [])
@@ -422,6 +433,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     gravity = _world(doc)
     mu, edges, fc_margin, model, torsion = _contact(doc)
     hold_shift = _hold_shift(doc)
+    motion = _contact_motion(doc)
     obstacles = _obstacles(doc, base_dir)
     start, goal = _start(doc), _goal(doc)
     planner = _planner(doc)
@@ -444,6 +456,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         object_mass=mass,
         gravity=gravity,
         hold_shift=hold_shift,
+        contact_motion=motion,
     )
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.cones import ContactModel
+from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.objects.factory import ALL_SHAPE_FIELDS
 
 DEFAULT_SCENARIO = "paper_sphere"
@@ -94,7 +95,9 @@ SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
     ),
     "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS,  # builtin, or urdf and its fields
     "object": ALL_SHAPE_FIELDS | OBJECT_OWN_FIELDS,  # its shape kind's (SHAPE_FIELDS), mass
-    "contact": frozenset({"mu", "friction_edges", "fc_margin", "model", "torsion", "hold_shift"}),
+    "contact": frozenset(
+        {"mu", "friction_edges", "fc_margin", "model", "torsion", "hold_shift", "motion"}
+    ),
     "obstacles": ALL_SHAPE_FIELDS | OBSTACLE_OWN_FIELDS,
     "start": frozenset({"object_pose_xyzquat", "q"}),
     "goal": frozenset({"object_pose_xyzquat", "position_tol", "angle_tol"}),
@@ -176,6 +179,9 @@ class Scenario:
         hold_shift: ``[contact] hold_shift`` (m): a hold counts only if it
             still holds with each contact moved this far along the surface
             (:mod:`dexplan.model.grasp.holds`).
+        contact_motion: ``[contact] motion``: during transfers the contacts
+            stay ``fixed`` on the object (the paper's; the fingertips slide)
+            or the fingertips are ``rolling`` (:mod:`dexplan.model.grasp.rolling`).
     """
 
     name: str
@@ -195,3 +201,4 @@ class Scenario:
     object_mass: float | None = None
     gravity: tuple[float, float, float] | None = None
     hold_shift: float = 0.002
+    contact_motion: ContactMotion = ContactMotion.FIXED

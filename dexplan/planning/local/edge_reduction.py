@@ -197,7 +197,7 @@ class EdgeReducer:
             )
         elif len(tr.waypoints) > 1:
             self.segments.append(Segment(SegmentKind.TRANSFER, None, tr.waypoints))
-        self.q, self.grasp = tr.waypoints[-1].q, grasp
+        self.q, self.grasp = tr.waypoints[-1].q, tr.grasp
         return True
 
     def _resync(self, pose: FloatArray, target: GraspContacts) -> None:

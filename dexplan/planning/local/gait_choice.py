@@ -128,7 +128,7 @@ def look_ahead(
     tr = trans.transfers.transfer(poses[:end], idx, seg.end.q, grasp)
     blocking = tr.blocking if tr.reason is not None else None
     releases = blocking is None or trans.can_release(
-        blocking, poses[tr.reached], tr.waypoints[-1].q, grasp
+        blocking, poses[tr.reached], tr.waypoints[-1].q, tr.grasp
     )
     return RegraspOption(
         seg,

@@ -349,7 +349,7 @@ class _GaitState:
         if moved:
             self.segments.append(Segment(SegmentKind.TRANSFER, None, tr.waypoints))
             self.stall = self.blind = 0
-        self.idx, self.q = tr.reached, tr.waypoints[-1].q
+        self.idx, self.q, self.grasp = tr.reached, tr.waypoints[-1].q, tr.grasp
         if moved:
             self.checkpoints.append((len(self.segments), self.idx, self.q.copy(), self.grasp))
         return tr

@@ -18,6 +18,7 @@ from dexplan.core.typing import FloatArray, IntArray
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.grasp import min_subgrasp_quality
 from dexplan.model.grasp.holds import HoldChecker
+from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
 from dexplan.planning.deadline import Deadline
@@ -28,6 +29,7 @@ from dexplan.planning.local.transitions.counts import LocalCounts, new_counts
 from dexplan.planning.local.transitions.following import FingerFollower
 from dexplan.planning.local.transitions.landings import LandingPool, Landings
 from dexplan.planning.local.transitions.regrasp import RegraspPlanner
+from dexplan.planning.local.transitions.rolling_transfer import RollingTransferPlanner
 from dexplan.planning.local.transitions.settings import TransitionSettings
 from dexplan.planning.local.transitions.transfer import TransferPlanner, TransferResult
 
@@ -90,7 +92,13 @@ class Transitions:
             self.deadline,
             self.stats,
         )
-        self.transfers = TransferPlanner(hand, settings, self.checks, self.stats)
+        self.transfers: TransferPlanner | RollingTransferPlanner = TransferPlanner(
+            hand, settings, self.checks, self.stats
+        )
+        if settings.contact_motion == ContactMotion.ROLLING:
+            self.transfers = RollingTransferPlanner(
+                hand, obj, settings, self.checks, self.stats, self.grasp_quality, validity.fc_margin
+            )
         self.regrasps = RegraspPlanner(
             hand,
             settings,
@@ -150,7 +158,10 @@ class Transitions:
     def transfer(
         self, poses: FloatArray, start: int, q_start: FloatArray, grasp: GraspContacts
     ) -> TransferResult:
-        """:meth:`TransferPlanner.transfer`: follow ``poses[start:]`` with a fixed grasp."""
+        """Follow ``poses[start:]`` on a grasp, contacts fixed or rolling (``contact_motion``).
+
+        :meth:`TransferPlanner.transfer` or :meth:`RollingTransferPlanner.transfer`.
+        """
         return self.transfers.transfer(poses, start, q_start, grasp)
 
     # ------------------------------------------------------------------ regrasp

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from dexplan.model.grasp.rolling import ContactMotion
+
 
 @dataclass(frozen=True)
 class TransitionSettings:
@@ -48,6 +50,9 @@ class TransitionSettings:
             fingers (one posture per IK branch): their IK-only score already
             follows the finger's own motion and misses only link collisions,
             so fewer are tracked (each costs a force-closure check and a track).
+        contact_motion: how transfers move the contacts: fixed on the object
+            (the paper's; the fingertips slide) or rolling
+            (:mod:`.rolling_transfer`).
     """
 
     max_step_m: float = 0.008
@@ -68,3 +73,4 @@ class TransitionSettings:
     tracked_landings: int = 16
     landing_reachable: int = 96
     tracked_landings_simple: int = 8
+    contact_motion: ContactMotion = ContactMotion.FIXED

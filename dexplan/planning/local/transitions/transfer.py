@@ -1,6 +1,7 @@
-"""The transfer local planner (paper, section IV).
+"""The transfer local planner (paper, section IV), contacts fixed on the object.
 
-Contacts fixed in the object frame; the object follows a given pose sequence
+Contacts fixed in the object frame (:attr:`ContactMotion.FIXED`; rolling
+fingertips are :mod:`.rolling_transfer`); the object follows a given pose sequence
 (straight line in position, slerp in orientation between samples); every
 finger follows by IK. A transfer moves the grasp rigidly, so force closure and
 fingertip spacing are constant along it and are checked where the grasp is
@@ -40,6 +41,8 @@ class TransferStop(enum.StrEnum):
         JOINT_LIMIT: a finger's solution is within the joint margin of a limit.
         JOINT_JUMP: a finger's joints jump (another IK branch) however small the step.
         COLLISION: a link collision.
+        FORCE_CLOSURE: the grasp (rolled: its contacts moved) lost force
+            closure or an (n-1)-finger subgrasp did.
     """
 
     OBJECT_COLLISION = "object_collision"
@@ -47,6 +50,7 @@ class TransferStop(enum.StrEnum):
     JOINT_LIMIT = "joint_limit"
     JOINT_JUMP = "joint_jump"
     COLLISION = "collision"
+    FORCE_CLOSURE = "force_closure"
 
 
 def densify_poses(poses: FloatArray, max_step_m: float, max_step_rad: float) -> FloatArray:
@@ -89,12 +93,15 @@ class TransferResult:
         blocking: finger that stopped the transfer (IK, joint limit or link
             collision), or None when the end was reached or the object collided.
         reason: why it stopped, or None when it reached the end.
+        grasp: the contacts at the last waypoint (the grasp the transfer
+            started with, unless the fingertips rolled).
     """
 
     waypoints: tuple[Waypoint, ...]
     reached: int
     blocking: int | None
     reason: TransferStop | None
+    grasp: GraspContacts
 
 
 class TransferPlanner:
@@ -142,14 +149,14 @@ class TransferPlanner:
         q = q_start
         for j in range(start + 1, len(poses)):
             if self.checks.world.object_collides(poses[j]):
-                return TransferResult(tuple(wps), j - 1, None, TransferStop.OBJECT_COLLISION)
+                return TransferResult(tuple(wps), j - 1, None, TransferStop.OBJECT_COLLISION, grasp)
             steps = self._advance(poses[j - 1], poses[j], q, grasp, depth=0)
             if isinstance(steps, tuple):
-                return TransferResult(tuple(wps), j - 1, steps[0], steps[1])
+                return TransferResult(tuple(wps), j - 1, steps[0], steps[1], grasp)
             for pose_k, q_k in steps:
                 wps.append(Waypoint(pose_k, q_k, contacts))
             q = steps[-1][1]
-        return TransferResult(tuple(wps), len(poses) - 1, None, None)
+        return TransferResult(tuple(wps), len(poses) - 1, None, None, grasp)
 
     def _advance(
         self, pa: FloatArray, pb: FloatArray, q_a: FloatArray, grasp: GraspContacts, depth: int

@@ -1,0 +1,198 @@
+"""Transfers with rolling fingertips: the contacts move on both surfaces as the object turns.
+
+The fixed-contact transfer (:mod:`.transfer`, the paper's) keeps each contact
+put on the object while the tip sphere turns with its link: the fingertip
+slides. Here each holding fingertip rolls on the object without slipping
+(:class:`~dexplan.model.grasp.rolling.FingertipRolling`): given the object's
+motion, a 3-joint finger's motion is determined, a redundant finger takes the
+least-norm joint step. The contacts then move on the object and on the
+fingertips, so the grasp changes along the transfer and everything is
+checked at every waypoint:
+
+- joint limits (kept :attr:`TransitionSettings.joint_margin` away);
+- link collisions (palm, object, obstacles, other fingers);
+- force closure of the rolled grasp and of every (n-1)-finger subgrasp
+  (:attr:`ValiditySettings.fc_margin`).
+
+The transfer ends where the rolled grasp stops being valid; the finger
+blamed is the one that failed (limits, collisions), or for force closure
+the one whose contact rolled farthest. Each waypoint records the contacts on
+the object (object frame); the fingertip side of each is where the tip
+sphere touches it (the plan file writes it in the tip link's frame).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from dexplan.core.pose import interpolate_pose
+from dexplan.core.segments import Waypoint
+from dexplan.core.typing import FloatArray
+from dexplan.model.grasp.rolling import FingertipRolling
+from dexplan.model.hand.hand import Hand
+from dexplan.model.objects import Shape
+from dexplan.planning.local.transitions.checks import FingerChecks
+from dexplan.planning.local.transitions.contacts import GraspContacts
+from dexplan.planning.local.transitions.counts import LocalCounts
+from dexplan.planning.local.transitions.settings import TransitionSettings
+from dexplan.planning.local.transitions.transfer import TransferResult, TransferStop
+
+#: Times a rolling step whose joints change too much is halved before it gives up.
+_MAX_HALVINGS = 4
+
+
+class RollingTransferPlanner:
+    """Transfers of a rolling grasp along object poses.
+
+    Args:
+        hand: the hand.
+        obj: the object.
+        settings: the local planners' settings (step sizes, joint margin).
+        checks: the per-finger collision checks and joint bounds.
+        stats: the local planners' counters (``transfers`` counted here).
+        quality: the least force-closure quality of a grasp and its (n-1)
+            subgrasps (:meth:`Transitions.grasp_quality`).
+        fc_margin: the rolled grasp must keep a quality above this.
+    """
+
+    def __init__(
+        self,
+        hand: Hand,
+        obj: Shape,
+        settings: TransitionSettings,
+        checks: FingerChecks,
+        stats: LocalCounts,
+        quality: Callable[[GraspContacts], float],
+        fc_margin: float,
+    ) -> None:
+        self.hand = hand
+        self.settings = settings
+        self.checks = checks
+        self.stats = stats
+        self.quality = quality
+        self.fc_margin = fc_margin
+        self.rolling = FingertipRolling(hand, obj)
+
+    def transfer(
+        self, poses: FloatArray, start: int, q_start: FloatArray, grasp: GraspContacts
+    ) -> TransferResult:
+        """Follow ``poses[start:]`` rolling the fingertips, for as long as the grasp stays valid.
+
+        Args:
+            poses: (P, 7) dense object trajectory.
+            start: index of the current pose in ``poses``.
+            q_start: (nq,) hand configuration at ``poses[start]``, touching ``grasp``.
+            grasp: the contacts at ``poses[start]``, object frame.
+
+        Returns:
+            A :class:`TransferResult` whose ``grasp`` is the rolled grasp at the
+            last waypoint.
+        """
+        self.stats["transfers"] += 1
+        state = _Rolled(q_start.copy(), grasp.points.copy(), grasp.normals_out.copy())
+        wps = [state.waypoint(poses[start])]
+        for j in range(start + 1, len(poses)):
+            if self.checks.world.object_collides(poses[j]):
+                return self._result(wps, state, j - 1, None, TransferStop.OBJECT_COLLISION)
+            # a step is taken whole or not at all: the reduction regrasps at poses[j - 1]
+            trial, steps = _Rolled(state.q, state.points, state.normals), []
+            stop = self._advance(poses[j - 1], poses[j], trial, steps, depth=0)
+            if stop is not None:
+                return self._result(wps, state, j - 1, *stop)
+            state.take(trial)
+            wps.extend(steps)
+        return self._result(wps, state, len(poses) - 1, None, None)
+
+    def _result(
+        self,
+        wps: list[Waypoint],
+        state: _Rolled,
+        reached: int,
+        blocking: int | None,
+        reason: TransferStop | None,
+    ) -> TransferResult:
+        """The result at the last valid waypoint (``state`` is there)."""
+        return TransferResult(
+            tuple(wps), reached, blocking, reason, GraspContacts(state.points, state.normals)
+        )
+
+    def _advance(
+        self, pa: FloatArray, pb: FloatArray, state: _Rolled, wps: list[Waypoint], depth: int
+    ) -> tuple[int | None, TransferStop] | None:
+        """Roll from ``pa`` to ``pb``, appending waypoints; a stop ``(finger, reason)`` or None.
+
+        A step whose joints change by more than ``max_step_rad`` is halved.
+        ``state`` and ``wps`` are left at the last valid waypoint (the caller
+        drops them when the whole step fails).
+        """
+        rolled = self._roll_all(pa, pb, state)
+        if np.max(np.abs(rolled.q - state.q)) > self.settings.max_step_rad:
+            if depth >= _MAX_HALVINGS:
+                jump = int(np.argmax(np.abs(rolled.q - state.q)))
+                finger = next(f for f, idx in enumerate(self.hand.finger_q_index) if jump in idx)
+                return finger, TransferStop.JOINT_JUMP
+            mid = interpolate_pose(pa, pb, 0.5)
+            return self._advance(pa, mid, state, wps, depth + 1) or self._advance(
+                mid, pb, state, wps, depth + 1
+            )
+        stop = self._invalid(pb, rolled, state)
+        if stop is not None:
+            return stop
+        state.take(rolled)
+        wps.append(state.waypoint(pb))
+        return None
+
+    def _roll_all(self, pa: FloatArray, pb: FloatArray, state: _Rolled) -> _Rolled:
+        """Every finger rolled from ``pa`` to ``pb`` (fingers are independent chains)."""
+        q = state.q.copy()
+        out = _Rolled(q, state.points.copy(), state.normals.copy())
+        for f in range(self.hand.n_fingers):
+            r = self.rolling.roll(f, state.q, pa, pb, state.points[f])
+            idx = self.hand.finger_q_index[f]
+            q[idx] = r.q[idx]
+            out.points[f], out.normals[f] = r.p_obj, r.normal_obj
+        return out
+
+    def _invalid(
+        self, pose: FloatArray, rolled: _Rolled, before: _Rolled
+    ) -> tuple[int | None, TransferStop] | None:
+        """Why the rolled grasp at ``pose`` is not valid (``(finger, reason)``), or None."""
+        lo, hi = self.checks.lo, self.checks.hi
+        for f, idx in enumerate(self.hand.finger_q_index):
+            if np.any(rolled.q[idx] < lo[idx]) or np.any(rolled.q[idx] > hi[idx]):
+                return f, TransferStop.JOINT_LIMIT
+        rep = self.checks.world.check(rolled.q, pose, self.checks.all_contact)
+        if not rep.free:
+            names = rep.pair or ()
+            fingers = [self.checks.world.finger_of(name) for name in names]
+            fingers = [f for f in fingers if f is not None]
+            return (fingers[0] if fingers else None), TransferStop.COLLISION
+        if self.quality(GraspContacts(rolled.points, rolled.normals)) <= self.fc_margin:
+            moved = np.linalg.norm(rolled.points - before.points, axis=1)
+            return int(np.argmax(moved)), TransferStop.FORCE_CLOSURE
+        return None
+
+
+class _Rolled:
+    """The hand's joints and the contacts on the object, as a transfer rolls on.
+
+    Attributes:
+        q: (nq,) joints.
+        points: (n, 3) contacts on the object, object frame.
+        normals: (n, 3) outward normals there, object frame.
+    """
+
+    def __init__(self, q: FloatArray, points: FloatArray, normals: FloatArray) -> None:
+        self.q, self.points, self.normals = q, points, normals
+
+    def take(self, other: _Rolled) -> None:
+        """Move to ``other``'s state."""
+        self.q, self.points = other.q.copy(), other.points.copy()
+        self.normals = other.normals.copy()
+
+    def waypoint(self, pose: FloatArray) -> Waypoint:
+        """The waypoint of this state at object pose ``pose: (7,)``."""
+        contacts = tuple(self.points[i].copy() for i in range(len(self.points)))
+        return Waypoint(pose.copy(), self.q.copy(), contacts)
