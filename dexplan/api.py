@@ -43,13 +43,14 @@ from dexplan.planfile import (
     write_plan,
 )
 from dexplan.planning.context import build_hand, learning_context
+from dexplan.planning.path_plan import plan_path as _plan_path
 from dexplan.planning.planner import PlanResult
 from dexplan.planning.planner import plan as _plan
 from dexplan.planning.progress import PlanStatus, Progress
 from dexplan.planning.roadmap.graph import Roadmap, scenario_key
 from dexplan.planning.roadmap.learning import BuildSettings, BuildStats, build_roadmap
 
-__all__ = ["Plan", "RoadmapPlanner", "load_scenario", "plan", "verify"]
+__all__ = ["Plan", "RoadmapPlanner", "load_scenario", "plan", "plan_path", "verify"]
 
 
 @dataclass(frozen=True)
@@ -163,15 +164,7 @@ def plan(
         spec = dataclasses.replace(scen.planner, params=dict(params))
         scen = dataclasses.replace(scen, planner=spec)
     hand = hand or build_hand(scen)
-
-    checked: list[tuple[dict[str, Any], VerifyReport]] = []  # the last plan verified
-
-    def check(result: PlanResult) -> list[str]:
-        doc = build_plan_document(scen, hand, result, scen.base_dir)
-        report = verify_plan(doc, scen.base_dir)
-        checked[:] = [(doc, report)]
-        return [str(v) for v in report.violations]
-
+    checker = _Checker(scen, hand)
     result = _plan(
         scen,
         planner=planner,
@@ -180,17 +173,76 @@ def plan(
         roadmap=roadmap,
         progress=progress,
         reduction=reduction,
-        verify=check,
+        verify=checker,
         hand=hand,
     )
-    if level == QualityLevel.NONE or not result.solved or not checked:
-        return Plan(result, scen, hand)
-    t0 = time.perf_counter()
-    doc, report = checked[-1]  # the solved plan's document and the verifier's report on it
-    figures = plan_quality(
-        doc, scen.base_dir, hand=hand, report=report, execution=level == QualityLevel.FULL
+    return checker.plan(result, level)
+
+
+class _Checker:
+    """The plan-file verifier as the planner's ``verify``, and the quality of what it passed."""
+
+    def __init__(self, scenario: Scenario, hand: Hand) -> None:
+        self.scenario, self.hand = scenario, hand
+        self.checked: list[tuple[dict[str, Any], VerifyReport]] = []  # the last plan verified
+
+    def __call__(self, result: PlanResult) -> list[str]:
+        scen = self.scenario
+        doc = build_plan_document(scen, self.hand, result, scen.base_dir)
+        report = verify_plan(doc, scen.base_dir)
+        self.checked[:] = [(doc, report)]
+        return [str(v) for v in report.violations]
+
+    def plan(self, result: PlanResult, level: QualityLevel) -> Plan:
+        """The :class:`Plan` of ``result``, with the quality figures ``level`` asks for."""
+        scen, hand = self.scenario, self.hand
+        if level == QualityLevel.NONE or not result.solved or not self.checked:
+            return Plan(result, scen, hand)
+        t0 = time.perf_counter()
+        doc, report = self.checked[-1]  # the solved plan's document and the verifier's report
+        figures = plan_quality(
+            doc, scen.base_dir, hand=hand, report=report, execution=level == QualityLevel.FULL
+        )
+        return Plan(result, scen, hand, figures, time.perf_counter() - t0)
+
+
+def plan_path(
+    scenario: Scenario | str | Path | None,
+    path: object,
+    *,
+    planner: str = "user",
+    seed: int | None = None,
+    time_limit: float | None = None,
+    reduction: str = "auto",
+    progress: Progress | None = None,
+    hand: Hand | None = None,
+    quality: QualityLevel | str = QualityLevel.FULL,
+) -> Plan:
+    """A verified plan from your own GSn path: module 2, the reduction, the check.
+
+    What :func:`plan` does after module 1, on a path your planner found (see
+    :func:`dexplan.planning.path_plan.plan_path` for what ``path`` must be:
+    ``(K, 7 + nq)`` grasps in scenario units from the start pose).
+
+    Raises:
+        DexplanError: bad input (scenario, a malformed or invalid path, ...).
+    """
+    level = _quality_level(quality)
+    scen = _scenario(scenario)
+    hand = hand or build_hand(scen)
+    checker = _Checker(scen, hand)
+    result = _plan_path(
+        scen,
+        path,
+        planner=planner,
+        seed=seed,
+        time_limit=time_limit,
+        reduction=reduction,
+        progress=progress,
+        verify=checker,
+        hand=hand,
     )
-    return Plan(result, scen, hand, figures, time.perf_counter() - t0)
+    return checker.plan(result, level)
 
 
 def _quality_level(quality: QualityLevel | str) -> QualityLevel:

@@ -6,7 +6,8 @@ lowest first; a module may import its own folder and the layers below it:
 0. ``core``: errors, array types, files, poses, path segments
 1. ``model``: hands, objects, grasps and force closure, collisions, scenarios
 2. ``planfile`` | ``planning``: the plan file, and the planner (with ``ompl``)
-3. ``execution`` | ``viz`` | ``api``: timing, forces, export, replay; Rerun; the front door
+3. ``execution`` | ``viz`` | ``api`` | ``ompl``: timing, forces, export, replay; Rerun; the
+   front door; the public OMPL surface (re-exports, never imports ``ompl`` itself)
 4. ``bench``: benchmark sweeps
 5. ``cli``: the command line
 
@@ -35,7 +36,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("core",),
     ("model",),
     ("planfile", "planning"),
-    ("execution", "viz", "api"),
+    ("execution", "viz", "api", "ompl"),
     ("bench",),
     ("cli",),
 )

@@ -95,6 +95,21 @@ def unknown_field(prefix: str, key: str, value: object, allowed: Iterable[str]) 
     return msg + f" (allowed: {', '.join(allowed)})"
 
 
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """A ``"; did you mean 'X'?"`` hint for a misspelt name, or ``""``.
+
+    Case never matters (``rrtconnect`` finds ``RRTConnect``): an exact match
+    ignoring case wins, then the closest name by :mod:`difflib`.
+    """
+    names = sorted(choices)
+    folded = {n.lower(): n for n in names}
+    close = folded.get(str(word).lower())
+    if close is None:
+        near = difflib.get_close_matches(str(word).lower(), list(folded), n=1, cutoff=0.6)
+        close = folded[near[0]] if near else None
+    return f"; did you mean {close!r}?" if close is not None else ""
+
+
 _REPR = reprlib.Repr()
 _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 8
 _REPR.maxlevel = 3

@@ -15,9 +15,11 @@ re-entrant lock; a nested capture in the same thread gets the inner text only.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import ctypes
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 
 _LOCK = threading.RLock()
 _STDERR_FD = 2
+_EXIT_FILTER = [False]  # installed once per process
 
 _LIBC_FFLUSH: Callable[[ctypes.c_void_p | None], int] | None
 try:  # flushes C stdio buffers (stderr is unbuffered by default, but be safe)
@@ -112,3 +115,67 @@ def captured_stderr() -> Iterator[CapturedText]:
                     out.text = buf.read().decode("utf-8", errors="replace")
         finally:
             os.close(saved)
+
+
+LEAK_REPORT = re.compile(
+    rb"^(nanobind: |\s*- leaked |\s*- \.\.\. skipped remainder|"
+    rb"See https://nanobind\.readthedocs\.io/en/latest/refleaks\.html)"
+)
+"""The lines of nanobind's "leaked instances" report (:func:`hide_leak_report_at_exit`)."""
+
+
+def hide_leak_report_at_exit() -> None:
+    """Keep nanobind's "leaked instances" report off the terminal when Python exits.
+
+    nanobind (the ompl binding) lists the binding objects still alive when
+    the interpreter shuts down: states, planners and spaces a script held,
+    Python planners that subclass ``ob.Planner`` above all. It is noise to a
+    user (the process is ending; nothing leaks), dozens of lines after every
+    script, and it is printed after Python's exit handlers, where Python can
+    no longer catch it. So at exit (an :mod:`atexit` handler) fd 2 becomes a
+    pipe to a forked filter process that passes every line on to the real
+    stderr except the report's. Set ``DEXPLAN_SHOW_LEAKS=1`` to see it
+    (debugging a binding). Installed once; a no-op without ``os.fork``.
+    """
+    if _EXIT_FILTER[0] or os.environ.get("DEXPLAN_SHOW_LEAKS") or not hasattr(os, "fork"):
+        return
+    _EXIT_FILTER[0] = True
+    atexit.register(_filter_stderr_from_now)
+
+
+def _filter_stderr_from_now() -> None:
+    """Route fd 2 through a forked filter that drops :data:`LEAK_REPORT` lines."""
+    _flush_all()
+    try:
+        read_end, write_end = os.pipe()
+        pid = os.fork()
+    except OSError:
+        return
+    if pid == 0:  # the filter: it ends when the exiting process closes the pipe
+        os.close(write_end)
+        for fd in (0, 1):  # hold nobody's pipes open longer than needed
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        try:
+            _pass_lines(read_end)
+        finally:
+            os._exit(0)
+    os.close(read_end)
+    os.dup2(write_end, _STDERR_FD)
+    os.close(write_end)
+
+
+def _pass_lines(read_end: int) -> None:
+    """Copy lines from ``read_end`` to fd 2, except nanobind's leak report."""
+    pending = b""
+    while True:
+        chunk = os.read(read_end, 65536)
+        if not chunk:
+            break
+        pending += chunk
+        *lines, pending = pending.split(b"\n")
+        out = b"".join(line + b"\n" for line in lines if not LEAK_REPORT.match(line))
+        if out:
+            os.write(_STDERR_FD, out)
+    if pending and not LEAK_REPORT.match(pending):
+        os.write(_STDERR_FD, pending)

@@ -194,7 +194,7 @@ def plan(
     planner = planner or spec.name
     if roadmap is None:
         check_planner(planner, spec.params)  # bad names fail before any work
-    query = _Query(
+    query = QueryRun(
         scenario,
         planner,
         spec.seed if seed is None else seed,
@@ -235,7 +235,7 @@ def plan(
     return query.finish(query.smooth(red), gsn.path, verify)
 
 
-class _Query:
+class QueryRun:
     """One query's state, stage by stage: models, deadline, statistics, progress.
 
     :func:`plan` runs the stages in order; each returns what the next needs,
@@ -325,19 +325,7 @@ class _Query:
         """
         ctx, scenario = self.ctx, self.scenario
         draws = [0, 0]  # calls, valid states: tells "no goal grasp" from "no path"
-
-        def goal_sampler() -> FloatArray | None:
-            x = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
-            draws[0] += 1
-            draws[1] += x is not None
-            return x
-
-        query = GsnQuery(
-            start=x_start,
-            goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
-            goal_sampler=goal_sampler,
-            goal_pose=scenario.goal.object_pose_xyzquat,
-        )
+        query = self.gsn_query(x_start, draws)
         self.say(Stage.MODULE1, f"module 1: exploring GSn with {self.planner}")
         spec = scenario.planner
         if self.roadmap_given is None:
@@ -362,6 +350,23 @@ class _Query:
             msg = f"no valid grasp found at the goal pose ({draws[0]} sampler calls)"
             return None, self.result(PlanStatus.NO_GOAL_GRASP, msg)
         return None, self.result(PlanStatus.NO_GSN_PATH, gsn.message)
+
+    def gsn_query(self, x_start: FloatArray, draws: list[int]) -> GsnQuery:
+        """The query's GSn query from ``x_start``; ``draws`` counts goal sampler calls, states."""
+        ctx, scenario = self.ctx, self.scenario
+
+        def goal_sampler() -> FloatArray | None:
+            x = ctx.sampler.sample_at_pose(scenario.goal.object_pose_xyzquat)
+            draws[0] += 1
+            draws[1] += x is not None
+            return x
+
+        return GsnQuery(
+            start=x_start,
+            goal_test=lambda x: goal_reached(scenario, x[:POSE_DIM]),
+            goal_sampler=goal_sampler,
+            goal_pose=scenario.goal.object_pose_xyzquat,
+        )
 
     def on_round(self, stage: Stage, counts: Mapping[str, int]) -> None:
         """Progress of modules 1 and 2 while they run (see :func:`explore_gsn`)."""

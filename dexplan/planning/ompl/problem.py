@@ -278,7 +278,7 @@ class PlanningProblem:
         """Build a fresh ProblemDefinition; return a status name if impossible."""
         pdef = ob.ProblemDefinition(self._si)
         for x in self._starts:
-            pdef.addStartState(self._space.alloc(self._frame.to_y(x), anchor=True))
+            self._space.add_start(pdef, self._frame.to_y(x))
         goal, status = query_goal(
             self._si,
             self._space.alloc,

@@ -13,6 +13,7 @@ the problem re-raises them after each call.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -218,6 +219,23 @@ class ProblemSpace:
         if anchor and self._spec.space != "projected":
             self.css.anchorChart(state)
         return state
+
+    def add_start(self, pdef: Any, y: FloatArray) -> None:
+        """Add a start state at planning coordinates ``y`` to the ``ob.ProblemDefinition``.
+
+        The binding hands ``pdef.getStartState(i)`` to Python as an owned
+        object: the first handle to it that Python frees deletes the
+        problem's start state, and the next ``getStartState`` (a Python
+        planner's) or the problem's own destructor crashes the process. One
+        handle is taken here and given a reference that is never released
+        (a Python list would release it when the interpreter clears modules
+        at exit, and crash there); nanobind returns that same handle for
+        every later ``getStartState`` of the state, so Python never frees
+        the state.
+        """
+        pdef.addStartState(self.alloc(y, anchor=True))
+        handle = pdef.getStartState(pdef.getStartStateCount() - 1)
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(handle))
 
     def geodesic(self, a: Any, b: Any) -> list[FloatArray]:
         """Planning-coordinate states of the motion a -> b (a and b included).

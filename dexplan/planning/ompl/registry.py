@@ -15,13 +15,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from dexplan.core.errors import PlannerError
+from dexplan.core.errors import PlannerError, did_you_mean
 from dexplan.planning.ompl.spaces import real_vector_space
 
 __all__ = [
@@ -33,6 +34,7 @@ __all__ = [
     "PLANNER_TRAITS",
     "RESTARTED_PLANNERS",
     "UNSUPPORTED_PLANNERS",
+    "PlannerFamily",
     "PlannerTraits",
     "available_planners",
     "check_planner",
@@ -40,6 +42,7 @@ __all__ = [
     "declared_params",
     "planner_traits",
     "planners_with",
+    "register_planner",
     "set_planner_param",
     "settable_params",
 ]
@@ -57,11 +60,25 @@ def _factory(name: str) -> Callable[[Any], Any]:
     return make
 
 
+class PlannerFamily(StrEnum):
+    """How a planner explores: what ``dexplan planners`` groups them by."""
+
+    ROADMAP = "roadmap"
+    """A graph of sampled states kept across queries (PRM family)."""
+    TREE = "tree"
+    """Trees grown from the start (and goal) until they meet."""
+    INFORMED = "informed"
+    """Optimizing trees whose samples are drawn in the informed set of a solution."""
+    BATCH = "batch"
+    """A batch of samples drawn up front, searched as a graph (FMT family)."""
+
+
 @dataclass(frozen=True)
 class PlannerTraits:
     """What dexplan must know of one OMPL planner to run it well.
 
     Attributes:
+        family: how it explores (:class:`PlannerFamily`).
         multi_query: its roadmap survives a new start and goal (``clearQuery``);
             it runs a solution-checking thread, so its goal is always one C++
             goal state.
@@ -106,6 +123,7 @@ class PlannerTraits:
         note: caveats (informational).
     """
 
+    family: PlannerFamily = PlannerFamily.TREE
     multi_query: bool = False
     needs_projection: bool = False
     first_solution: bool = False
@@ -129,21 +147,33 @@ PLANNER_TRAITS: dict[str, PlannerTraits] = {
         "(ompl 2.0.1 wheel)"
     ),
     "BFMT": PlannerTraits(
+        family=PlannerFamily.BATCH,
         restarted=True,
         capped=True,
         waypoints=True,
         note="batch of num_samples states; timed out on the tangent-bundle space",
     ),
-    "BITstar": PlannerTraits(first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED),
+    "BITstar": PlannerTraits(
+        family=PlannerFamily.INFORMED,
+        first_solution=True,
+        r_n_sampler=True,
+        capped=True,
+        note=_INFORMED,
+    ),
     "BKPIECE1": PlannerTraits(needs_projection=True),
     "FMT": PlannerTraits(
+        family=PlannerFamily.BATCH,
         restarted=True,
         capped=True,
         note="batch of num_samples states drawn uniformly up front; timed out on the "
         "tangent-bundle space",
     ),
     "InformedRRTstar": PlannerTraits(
-        first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED
+        family=PlannerFamily.INFORMED,
+        first_solution=True,
+        r_n_sampler=True,
+        capped=True,
+        note=_INFORMED,
     ),
     "KPIECE1": PlannerTraits(needs_projection=True),
     "LBKPIECE1": PlannerTraits(
@@ -153,15 +183,25 @@ PLANNER_TRAITS: dict[str, PlannerTraits] = {
         "path_invalid",
     ),
     "PRM": PlannerTraits(
-        multi_query=True, note="multi-query roadmap; uses the custom valid state sampler"
+        family=PlannerFamily.ROADMAP,
+        multi_query=True,
+        note="multi-query roadmap; uses the custom valid state sampler",
     ),
     "PRMstar": PlannerTraits(
-        multi_query=True, note="optimizing: uses the whole time limit; multi-query roadmap"
+        family=PlannerFamily.ROADMAP,
+        multi_query=True,
+        note="optimizing: uses the whole time limit; multi-query roadmap",
     ),
     "RRT": PlannerTraits(),
     "RRTConnect": PlannerTraits(),
     "RRTstar": PlannerTraits(first_solution=True, note="optimizing, stopped at its first solution"),
-    "SORRTstar": PlannerTraits(first_solution=True, r_n_sampler=True, capped=True, note=_INFORMED),
+    "SORRTstar": PlannerTraits(
+        family=PlannerFamily.INFORMED,
+        first_solution=True,
+        r_n_sampler=True,
+        capped=True,
+        note=_INFORMED,
+    ),
 }
 """The planners of the wheel dexplan knows, with their traits.
 
@@ -231,19 +271,90 @@ def check_planner_name(name: str) -> None:
 
     Raises:
         PlannerError: unsupported (the message says why) or unknown planner; the
-            message lists the valid ones.
+            message lists the valid ones, with a case-insensitive "did you
+            mean" hint (``rrtconnect``: ``RRTConnect``).
 
     """
     if name in PLANNERS:
         return
+    valid = ", ".join(available_planners())
     if name in UNSUPPORTED_PLANNERS:
         raise PlannerError(
             f"planner {name!r} is not supported: {UNSUPPORTED_PLANNERS[name]}; "
-            f"valid planners: {', '.join(available_planners())}"
+            f"valid planners: {valid}"
         )
-    raise PlannerError(
-        f"unknown planner {name!r}; valid planners: {', '.join(available_planners())}"
-    )
+    hint = did_you_mean(str(name), PLANNERS)
+    raise PlannerError(f"unknown planner {name!r}{hint} (valid planners: {valid})")
+
+
+def register_planner(
+    name: str,
+    factory: Callable[[Any], Any],
+    params: Mapping[str, object] | None = None,
+    *,
+    traits: PlannerTraits | None = None,
+    replace: bool = False,
+) -> None:
+    """Make a planner available by name wherever dexplan takes one.
+
+    Once registered, ``name`` works in :func:`dexplan.plan`, a scenario's
+    ``[planner] name``, :class:`~dexplan.planning.ompl.problem.PlanningProblem`
+    and the benchmarks of this process (not in ``bench --jobs`` worker
+    processes, nor on the command line: they start without it).
+
+    Args:
+        name: the planner's name (a Python identifier).
+        factory: ``factory(si) -> ob.Planner`` on an ``ob.SpaceInformation``;
+            an OMPL planner (``og.RRT``) or a Python subclass of ``ob.Planner``.
+        params: parameters by OMPL ParamSet name set on every planner the
+            factory makes (checked now, like ``--param``). A Python planner
+            declares none: give it its settings in the factory instead.
+        traits: what dexplan must know to run it (:class:`PlannerTraits`);
+            default: a single-query tree planner without special needs.
+        replace: allow replacing a planner registered under ``name``.
+
+    Raises:
+        PlannerError: a bad name, a name taken, a factory that raises or does
+            not return an ``ob.Planner``, or a bad parameter.
+    """
+    if not isinstance(name, str) or not name.isidentifier():
+        raise PlannerError(f"planner name must be a Python identifier, got {name!r}")
+    if name in UNSUPPORTED_PLANNERS or (name in PLANNERS and not replace):
+        raise PlannerError(
+            f"planner {name!r} is already registered (pass replace=True to replace it)"
+        )
+    if not callable(factory):
+        raise PlannerError(f"factory of planner {name!r} must be callable, got {factory!r}")
+    traits = traits if traits is not None else PlannerTraits(note="registered by the user")
+    if not isinstance(traits, PlannerTraits) or traits.unsupported:
+        raise PlannerError(f"traits of planner {name!r} must be PlannerTraits without unsupported")
+    defaults = dict(params or {})
+
+    def make(si: Any) -> Any:
+        planner = factory(si)
+        if not isinstance(planner, ob.Planner):
+            raise PlannerError(
+                f"factory of planner {name!r} returned {type(planner).__name__}, "
+                "not an ompl.base.Planner"
+            )
+        for key, value in defaults.items():
+            set_planner_param(planner, name, str(key), value)
+        return planner
+
+    make.__name__ = f"make_{name}"
+    space = real_vector_space(-np.ones(2), np.ones(2))
+    try:
+        make(ob.SpaceInformation(space))  # fails now, not in the middle of a query
+    except PlannerError:
+        raise
+    except Exception as exc:  # a user's factory: any failure is reported as bad input
+        raise PlannerError(
+            f"factory of planner {name!r} raised {type(exc).__name__}: {exc}"
+        ) from exc
+    PLANNERS[name] = make
+    PLANNER_TRAITS[name] = traits
+    if traits.note:
+        PLANNER_NOTES[name] = traits.note
 
 
 # ------------------------------------------------------------------- parameters
@@ -363,9 +474,10 @@ def set_planner_param(planner: Any, planner_name: str, name: str, value: object)
     """
     declared = declared_params(planner)
     if name not in declared:
+        hint = did_you_mean(name, declared)
         raise PlannerError(
-            f"unknown parameter {name!r} for planner {planner_name}; valid parameters: "
-            f"{', '.join(settable_params(planner)) or '(none)'}"
+            f"unknown parameter {name!r} for planner {planner_name}{hint} (valid parameters: "
+            f"{', '.join(settable_params(planner)) or 'none'})"
         )
     access = _accessors(planner, name)
     if access is None:

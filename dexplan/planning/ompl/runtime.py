@@ -16,6 +16,7 @@ import numpy as np
 from ompl import util as ou
 
 from dexplan.core.errors import InvalidInputError
+from dexplan.core.native_output import hide_leak_report_at_exit
 
 __all__ = ["derived_seed", "get_log_level", "reseed_ompl", "set_log_level"]
 
@@ -57,6 +58,9 @@ def get_log_level() -> str:
 
 
 set_log_level("none")
+# nanobind's exit report of binding objects still alive is noise to library
+# users (dozens of lines after a script that held OMPL objects): dropped
+hide_leak_report_at_exit()
 
 
 def derived_seed(seed: int, stream: int) -> int:
