@@ -66,7 +66,9 @@ __all__ = [
 
 
 class SimpleSetup(GsnSetup):
-    """A scenario's GSn problem (:class:`~dexplan.planning.gsn_setup.GsnSetup`) with :meth:`to_plan`.
+    """The GSn problem of a scenario as OMPL objects, and :meth:`to_plan`.
+
+    See :class:`~dexplan.planning.gsn_setup.GsnSetup` for what it holds.
 
     Args:
         scenario: a :class:`~dexplan.model.scenario.scenario.Scenario`, a
@@ -103,7 +105,7 @@ class SimpleSetup(GsnSetup):
         progress: Progress | None = None,
         quality: str = "full",
     ) -> Plan:
-        """Your GSn path ``(K, 7 + nq)`` from :attr:`start_state` as a verified :class:`~dexplan.api.Plan`.
+        """Your GSn path ``(K, 7 + nq)`` from :attr:`start_state` as a verified plan.
 
         Module 2 joins what the path leaves unjoined (segments that are not
         valid GSn motions, an end short of the goal region), the reduction

@@ -11,12 +11,14 @@ planners and time limits.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from dexplan.bench.database import BenchDatabase, code_fingerprint
 from dexplan.bench.extras import require_matplotlib, require_ray
@@ -52,7 +54,7 @@ from dexplan.bench.tasks import (
     scenario_planners,
     validate_sweep,
 )
-from dexplan.core.errors import InvalidInputError
+from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.model.scenario import Scenario
 from dexplan.planning.ompl import check_planner
 
@@ -117,6 +119,7 @@ def run_benchmark(
     start_method: StartMethod | str = StartMethod.FORKSERVER,
     run_timeout: float | None = None,
     progress: ProgressCallback | None = None,
+    params: Mapping[str, Any] | None = None,
 ) -> BenchResult:
     """Run (or resume) a benchmark sweep and write database, CSV, plots and summary.
 
@@ -139,6 +142,8 @@ def run_benchmark(
         run_timeout: hard wall-clock seconds per run before it is killed
             (None: :func:`default_run_timeout`).
         progress: called after each finished run (and once at the start).
+        params: OMPL planner parameters over each scenario's ``[planner]
+            params``, for every planner of the sweep (each must declare them).
 
     Returns:
         A :class:`BenchResult`.
@@ -160,6 +165,7 @@ def run_benchmark(
         plots=plots,
         ray_address=ray_address,
         run_timeout=run_timeout,
+        params=params or {},
     )
     out, plan_dir = _output_folder(out_dir, save_plans)
     tasks = make_tasks(unique, names, range(first_seed, first_seed + seeds), time_limit, plan_dir)
@@ -205,6 +211,7 @@ def _check_sweep(
     plots: bool,
     ray_address: str | None,
     run_timeout: float | None,
+    params: Mapping[str, Any],
 ) -> tuple[list[str], list[Scenario]]:
     """Check a sweep's arguments and load its scenarios, before any work.
 
@@ -217,21 +224,38 @@ def _check_sweep(
             :func:`run_benchmark`.
     """
     names = parse_planners(planners)
-    if baseline is not None and baseline not in names:
+    added = baseline is not None and baseline not in names
+    if baseline is not None and added:
         names.insert(0, baseline)
     validate_sweep(names, seeds, time_limit, first_seed=first_seed, jobs=jobs, baseline=baseline)
     if run_timeout is not None and not (math.isfinite(run_timeout) and run_timeout > 0):
         raise InvalidInputError(f"run timeout must be > 0, got {run_timeout!r}")
-    unique = _load_scenarios(scenarios)
+    unique = [_with_params(s, params) for s in _load_scenarios(scenarios)]
     for s in unique:  # planner parameters of the scenario must suit every planner
         for name in scenario_planners(s, names):
-            check_planner(name, s.planner.params)
+            try:
+                check_planner(name, s.planner.params)
+            except PlannerError as exc:
+                if not (added and name == baseline):
+                    raise
+                raise PlannerError(
+                    f"{exc} [{name} is the baseline, added to the sweep: --baseline none "
+                    "leaves it out]"
+                ) from exc
     if plots:
         require_matplotlib()
     if ray_address is not None:
         require_ray()
         check_ray_address(ray_address)
     return names, unique
+
+
+def _with_params(scenario: Scenario, params: Mapping[str, Any]) -> Scenario:
+    """``scenario`` with ``params`` over its ``[planner] params``."""
+    if not params:
+        return scenario
+    spec = dataclasses.replace(scenario.planner, params={**scenario.planner.params, **params})
+    return dataclasses.replace(scenario, planner=spec)
 
 
 def _load_scenarios(scenarios: Sequence[str | Path | Scenario]) -> list[Scenario]:

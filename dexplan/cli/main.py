@@ -34,6 +34,7 @@ from dexplan.cli.options import (  # noqa: E402
     ExportOptions,
     GoalKind,
     InfoOptions,
+    PlannersOptions,
     PlanOptions,
     Reduction,
     ReplayOptions,
@@ -122,6 +123,28 @@ def _add_info(sub: Subparsers) -> None:
     p_info.set_defaults(dispatch=Command("info", InfoOptions.from_args))
 
 
+def _add_param_option(parser: argparse.ArgumentParser, which: str) -> None:
+    """The repeatable ``--param NAME=VALUE`` option of ``plan`` and ``bench``."""
+    parser.add_argument(
+        "--param",
+        action="append",
+        metavar="NAME=VALUE",
+        help=f"an OMPL planner parameter, repeatable, {which} (names and ranges: "
+        "dexplan planners NAME)",
+    )
+
+
+def _add_planners(sub: Subparsers) -> None:
+    """The ``planners`` subcommand."""
+    p_pl = _command(
+        sub,
+        "planners",
+        "list the OMPL planners: family, what they search, parameters with defaults and ranges",
+    )
+    p_pl.add_argument("names", nargs="*", metavar="NAME", help="planners to show (default: all)")
+    p_pl.set_defaults(dispatch=Command("planners", PlannersOptions.from_args))
+
+
 def _add_plan(sub: Subparsers) -> None:
     """The ``plan`` subcommand."""
     p_plan = _command(
@@ -129,6 +152,7 @@ def _add_plan(sub: Subparsers) -> None:
     )
     p_plan.add_argument("scenario", nargs="?", help="scenario TOML (default: paper_sphere)")
     p_plan.add_argument("--planner", help="OMPL planner name (default: the scenario's)")
+    _add_param_option(p_plan, "over the scenario's [planner] params")
     p_plan.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
     p_plan.add_argument("--time-limit", type=float, help="seconds (default: the scenario's)")
     p_plan.add_argument(
@@ -248,6 +272,7 @@ def _add_bench(sub: Subparsers) -> None:
         help="comma-separated OMPL planner names; 'all': every registered planner; "
         "'default': each scenario's own (default: PRM,RRTConnect,KPIECE1)",
     )
+    _add_param_option(p_bench, "for every planner of the sweep, the baseline included")
     p_bench.add_argument("--seeds", type=int, default=10, help="seeds per planner (10)")
     p_bench.add_argument("--first-seed", type=int, default=1, help="first seed (1)")
     p_bench.add_argument(
@@ -367,6 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_roadmap(sub)
     _add_verify(sub)
     _add_bench(sub)
+    _add_planners(sub)
     _add_show(sub)
     _add_export(sub)
     _add_replay(sub)

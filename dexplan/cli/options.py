@@ -9,8 +9,14 @@ This module imports nothing heavy: ``dexplan --help`` reads the choices below.
 from __future__ import annotations
 
 import argparse
+import math
+import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import Any
+
+from dexplan.core.errors import InvalidInputError
 
 __all__ = [
     "BenchOptions",
@@ -18,6 +24,7 @@ __all__ = [
     "GoalKind",
     "InfoOptions",
     "PlanOptions",
+    "PlannersOptions",
     "Reduction",
     "ReplayOptions",
     "RoadmapBuildOptions",
@@ -25,6 +32,7 @@ __all__ = [
     "ShowOptions",
     "StartMethod",
     "VerifyOptions",
+    "parse_params",
 ]
 
 
@@ -65,6 +73,46 @@ class StartMethod(StrEnum):
     SPAWN = "spawn"
 
 
+def parse_params(items: Sequence[str] | None) -> tuple[tuple[str, Any], ...]:
+    """``--param NAME=VALUE`` options as ``(name, value)`` pairs, values read as TOML scalars.
+
+    ``range=0.1`` gives 0.1, ``intermediate_states=true`` True, ``num_samples=500``
+    500; a value TOML does not read as a number or boolean stays text (OMPL's
+    parameter check then says what it must be). A later NAME replaces an earlier one.
+
+    Raises:
+        InvalidInputError: an item without ``=`` or without a name.
+    """
+    out: dict[str, Any] = {}
+    for item in items or ():
+        name, sep, text = item.partition("=")
+        name, text = name.strip(), text.strip()
+        if not sep or not name or not text:
+            raise InvalidInputError(f"--param must be NAME=VALUE, got {item!r}")
+        try:
+            value: Any = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InvalidInputError(f"--param {name} must be finite, got {text!r}")
+        if not isinstance(value, bool | int | float | str):
+            value = text  # an array or table: OMPL parameters are scalars
+        out[name] = value
+    return tuple(out.items())
+
+
+@dataclass(frozen=True)
+class PlannersOptions:
+    """``dexplan planners``: all registered planners, or the named ones."""
+
+    names: tuple[str, ...]
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> PlannersOptions:
+        """The options of a parsed ``planners`` command line."""
+        return cls(names=tuple(args.names))
+
+
 @dataclass(frozen=True)
 class InfoOptions:
     """``dexplan info``: the builtin hand to describe."""
@@ -91,6 +139,7 @@ class PlanOptions:
         quiet: no progress on stderr.
         goals: a TOML file of goals; random_goals: how many to draw instead.
         goal_kind: what random goals vary.
+        params: ``--param`` planner parameters, over the scenario's ``[planner] params``.
     """
 
     scenario: str | None
@@ -107,6 +156,7 @@ class PlanOptions:
     goals: str | None
     random_goals: int | None
     goal_kind: GoalKind
+    params: tuple[tuple[str, Any], ...] = ()
 
     @property
     def many_goals(self) -> bool:
@@ -131,6 +181,7 @@ class PlanOptions:
             goals=args.goals,
             random_goals=args.random_goals,
             goal_kind=GoalKind(args.goal_kind),
+            params=parse_params(args.param),
         )
 
 
@@ -217,6 +268,7 @@ class BenchOptions:
         start_method: how local worker processes start.
         run_timeout: hard wall-clock seconds per run (None: the default).
         quiet: no progress on stderr.
+        params: ``--param`` planner parameters, for every planner of the sweep.
     """
 
     scenarios: tuple[str, ...]
@@ -233,6 +285,7 @@ class BenchOptions:
     start_method: StartMethod
     run_timeout: float | None
     quiet: bool
+    params: tuple[tuple[str, Any], ...] = ()
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> BenchOptions:
@@ -252,6 +305,7 @@ class BenchOptions:
             start_method=StartMethod(args.start_method),
             run_timeout=args.run_timeout,
             quiet=args.quiet,
+            params=parse_params(args.param),
         )
 
 

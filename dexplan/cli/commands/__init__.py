@@ -12,6 +12,7 @@ __all__ = [
     "goals",
     "info",
     "plan",
+    "planners",
     "replay",
     "roadmap",
     "show",

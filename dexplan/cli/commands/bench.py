@@ -8,6 +8,7 @@ from typing import Any
 from dexplan import bench
 from dexplan.bench import BenchProgress, BenchResult
 from dexplan.bench.schema import StartMethod
+from dexplan.bench.tasks import parse_planners
 from dexplan.cli.console import ExitCode, err
 from dexplan.cli.options import BenchOptions
 
@@ -68,12 +69,17 @@ def _sweep(opts: BenchOptions, view: BenchProgressView) -> BenchResult:
         start_method=StartMethod(opts.start_method.value),
         run_timeout=opts.run_timeout,
         progress=view,
+        params=dict(opts.params),
     )
 
 
 def run(opts: BenchOptions) -> int:
     """Run (or resume) the sweep; print the summary and where everything is."""
     view = BenchProgressView(opts.quiet)
+    base = opts.baseline
+    names = parse_planners(opts.planners)
+    if base is not None and base not in names and "default" not in names:
+        err(f"adding the baseline planner {base} to the sweep (--baseline none leaves it out)")
     try:
         result = _sweep(opts, view)
     finally:

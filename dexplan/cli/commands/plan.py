@@ -7,10 +7,12 @@ built, before any planning work, so that bad input is one line and exit 2.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from dexplan.api import Plan, plan
 from dexplan.cli import interrupt
@@ -35,7 +37,7 @@ from dexplan.planning.roadmap.graph import Roadmap, scenario_key
 from dexplan.planning.stats import PlanStats
 from dexplan.viz import record_plan, record_rejections, require_rerun
 
-__all__ = ["check_options", "run"]
+__all__ = ["check_options", "run", "with_params"]
 
 
 def _check_numbers(opts: PlanOptions) -> None:
@@ -87,9 +89,18 @@ def _load_roadmap(opts: PlanOptions, context: Callable[[], PlanningContext]) -> 
     return Roadmap.load(opts.load_roadmap, scenario_key(ctx), ambient_dim=ctx.gsn.ambient_dim)
 
 
+def with_params(scenario: Scenario, params: Sequence[tuple[str, Any]]) -> Scenario:
+    """``scenario`` with ``--param`` values over its ``[planner] params`` (checked later)."""
+    if not params:
+        return scenario
+    spec = dataclasses.replace(scenario.planner, params={**scenario.planner.params, **dict(params)})
+    return dataclasses.replace(scenario, planner=spec)
+
+
 def run(opts: PlanOptions) -> int:
     """Plan a scenario (or many goals); write the plan and what else was asked for."""
     scenario = default_scenario() if opts.scenario is None else load_scenario(opts.scenario)
+    scenario = with_params(scenario, opts.params)
     hand = check_options(opts, scenario)
     # built at most once, and only if needed: random goals and a loaded roadmap share it
     context = functools.cache(lambda: build_context(scenario, hand=hand))

@@ -216,8 +216,9 @@ class ProblemSetup:
     def set_planner(self, planner: Any, params: Mapping[str, object] | None = None) -> None:
         """Use ``planner``: an ``ob.Planner`` built on :attr:`space_information`, or a name.
 
-        A name is looked up in the registry (:func:`~dexplan.planning.ompl.registry.register_planner`
-        adds to it); ``params`` are set on it by OMPL ParamSet name.
+        A name is looked up in the registry (which
+        :func:`~dexplan.planning.ompl.registry.register_planner` adds to);
+        ``params`` are set on the planner by OMPL ParamSet name.
 
         Raises:
             PlannerError: unknown name, not an ``ob.Planner``, or a bad parameter.

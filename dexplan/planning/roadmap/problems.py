@@ -43,6 +43,7 @@ __all__ = [
     "orientation_projection",
     "rlg_states",
     "search_problem",
+    "searched_space",
 ]
 
 
@@ -167,6 +168,32 @@ def search_problem(
     problem.set_start(query.start)
     problem.set_goal(GoalSpec(distance=distance, threshold=1.0, sample=query.goal_sampler))
     return problem
+
+
+def searched_space(planner: str) -> tuple[str, str]:
+    """What module 1 gives ``planner`` to search, and why: ``(space, reason)``.
+
+    As :func:`search_problem` decides: the PRM family searches GSn itself,
+    every other planner GSn's contact chart when it represents the start.
+    """
+    traits = planner_traits(planner)
+    if traits.multi_query:
+        return (
+            "GSn",
+            "it draws dexplan's RLG-style grasp sampler, and the ompl binding takes a "
+            "Python sampler only from planners that ask for valid states (the PRM family)",
+        )
+    how = "the contact chart"
+    if traits.r_n_sampler:
+        how += " without unit-sphere rows (its informed sampler treats the space as R^n)"
+    if traits.capped:
+        how += ", each finger's direction within a 75 degree cap"
+    return (
+        how,
+        "it draws OMPL's own uniform samples, which rarely project onto a valid grasp in "
+        "GSn's ambient space and always are one on the chart; GSn itself when the chart "
+        "cannot represent the start (an object not star-shaped from its origin)",
+    )
 
 
 def chart_problem(
