@@ -26,15 +26,22 @@ import time
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.segments import Segment
+from dexplan.core.typing import FloatArray
 from dexplan.execution.quality import PlanQuality, QualityLevel, plan_quality
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario import GoalSpec, Scenario, default_scenario, load_scenario
+from dexplan.model.scenario import (
+    GoalSpec,
+    Scenario,
+    checked_scenario,
+    default_scenario,
+    load_scenario,
+)
 from dexplan.planfile import (
     VerifyReport,
     build_plan_document,
@@ -114,7 +121,8 @@ def _scenario(scenario: Scenario | str | Path | None) -> Scenario:
     if scenario is None:
         return default_scenario()
     if isinstance(scenario, Scenario):
-        return scenario
+        # made or changed in Python: lists and tuples welcome, checked as a file's fields
+        return checked_scenario(scenario)
     return load_scenario(scenario)
 
 
@@ -343,7 +351,9 @@ class RoadmapPlanner:
         A bare pose ``(7,)`` (XYZW) takes the scenario goal's tolerances.
         """
         if not isinstance(goal, GoalSpec):
-            pose = np.asarray(list(goal), dtype=float)
+            # a list, tuple or array: plan() checks it as a scenario file's goal pose
+            # (and makes it the FloatArray the field's type promises)
+            pose = cast(FloatArray, goal)
             goal = dataclasses.replace(self.scenario.goal, object_pose_xyzquat=pose)
         scen = dataclasses.replace(self.scenario, goal=goal)
         return plan(

@@ -23,7 +23,7 @@ import numpy as np
 from dexplan.core.errors import PlannerError
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario import Scenario
+from dexplan.model.scenario import Scenario, checked_scenario
 from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import GoalSpec
@@ -73,6 +73,7 @@ class GsnSetup(ProblemSetup):
         hand: Hand | None = None,
         space: str | None = None,
     ) -> None:
+        scenario = checked_scenario(scenario)
         self.scenario = scenario
         self.seed = scenario.planner.seed if seed is None else int(seed)
         self.context: PlanningContext = build_context(scenario, self.seed, hand=hand)

@@ -17,7 +17,7 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario import Scenario
+from dexplan.model.scenario import Scenario, checked_scenario
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.planner import REDUCTIONS, PlanResult, QueryRun, Verifier
 from dexplan.planning.progress import PlanStatus, Progress
@@ -73,6 +73,7 @@ def plan_path(
         raise InvalidInputError(
             f"reduction must be one of {', '.join(REDUCTIONS)}, got {reduction!r}"
         )
+    scenario = checked_scenario(scenario)
     spec = scenario.planner
     seed = spec.seed if seed is None else seed
     run = QueryRun(

@@ -31,7 +31,7 @@ from dexplan.core.pose import quat_angle
 from dexplan.core.segments import Segment, count_kinds, joint_travel, object_path_length
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.scenario import Scenario
+from dexplan.model.scenario import Scenario, checked_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
@@ -185,11 +185,14 @@ def plan(
 
     Raises:
         InvalidInputError: unknown ``reduction`` or planner name.
+        ScenarioError: a start or goal the scenario parser would refuse
+            (:func:`~dexplan.model.scenario.scenario.checked_scenario`).
     """
     if reduction not in REDUCTIONS:
         raise InvalidInputError(
             f"reduction must be one of {', '.join(REDUCTIONS)}, got {reduction!r}"
         )
+    scenario = checked_scenario(scenario)  # poses built in Python: checked as the parser does
     spec = scenario.planner
     planner = planner or spec.name
     if roadmap is None:

@@ -9,6 +9,7 @@ file parser), :mod:`.identity` (what a scenario plans, and its hash),
 from dexplan.model.scenario.identity import COSMETIC_FIELDS, scenario_description, scenario_hash
 from dexplan.model.scenario.scenario import (
     builtin_scenario_path,
+    checked_scenario,
     default_scenario,
     load_scenario,
     parse_scenario,
@@ -49,6 +50,7 @@ __all__ = [
     "Scenario",
     "StartSpec",
     "builtin_scenario_path",
+    "checked_scenario",
     "default_scenario",
     "load_scenario",
     "parse_scenario",

@@ -11,6 +11,7 @@ The paper's experiment is embedded: :func:`default_scenario`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import tomllib
@@ -413,6 +414,46 @@ def _workspace(doc: Mapping[str, Any]) -> FloatArray:
                 f"got {shorten(w['half_extent'])}"
             )
     return half
+
+
+def _plain(value: object) -> object:
+    """An array, tuple or NumPy scalar as the list or number a TOML document would hold."""
+    if isinstance(value, np.ndarray | tuple | list):
+        return [_plain(v) for v in (value.tolist() if isinstance(value, np.ndarray) else value)]
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def checked_scenario(scenario: Scenario) -> Scenario:
+    """``scenario`` with its start, goal and workspace checked as a scenario file's are.
+
+    For scenarios made or changed in Python, such as
+    ``dataclasses.replace(goal, object_pose_xyzquat=[0, 0, 0.1, 0, 0, 1, 0])``:
+    lists, tuples and NumPy arrays all become arrays, and what the parser
+    refuses (a quaternion that is not unit, a wrong length, a non-finite
+    number, a tolerance out of range) is refused with the parser's
+    one-line message, before any planning.
+
+    Raises:
+        ScenarioError: a start, goal or workspace field the parser would refuse.
+        InvalidInputError: not a :class:`Scenario`.
+    """
+    if not isinstance(scenario, Scenario):
+        raise InvalidInputError(f"scenario must be a Scenario, got {shorten(scenario)}")
+    start, goal = scenario.start, scenario.goal
+    doc: dict[str, Any] = {
+        "start": {"object_pose_xyzquat": _plain(start.object_pose_xyzquat)},
+        "goal": {
+            "object_pose_xyzquat": _plain(goal.object_pose_xyzquat),
+            "position_tol": _plain(goal.position_tol),
+            "angle_tol": _plain(goal.angle_tol),
+        },
+        "workspace": {"half_extent": _plain(scenario.workspace_half_extent)},
+    }
+    if start.q is not None:
+        doc["start"]["q"] = _plain(start.q)
+    return dataclasses.replace(
+        scenario, start=_start(doc), goal=_goal(doc), workspace_half_extent=_workspace(doc)
+    )
 
 
 def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario") -> Scenario:
