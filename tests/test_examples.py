@@ -35,6 +35,8 @@ def test_every_example_is_short_and_documented() -> None:
         "plan_and_inspect.py",
         "compare_planners.py",
         "multi_query.py",
+        "python_planner.py",
+        "own_gsn_path.py",
     }
     for path in scripts:
         text = path.read_text()
@@ -71,3 +73,22 @@ def test_compare_planners(tmp_path: Path) -> None:
     # the table's shape only: how many seeds finish within 20 s is the machine's business
     rows = re.findall(r"^(PRM|RRTConnect|KPIECE1) +([0-3]) / 3 +(\S+) +(\S+)$", out, re.M)
     assert [row[0] for row in rows] == ["PRM", "RRTConnect", "KPIECE1"]
+
+
+def test_python_planner(tmp_path: Path) -> None:
+    """A planner written in Python, in no registry, solves GSn; its plan is verified."""
+    out = run_example("python_planner.py", tmp_path).stdout
+    assert re.search(r"^GraspTree: exact$", out, re.M)
+    path = re.search(r"^GSn path: (\d+) states of dimension 19$", out, re.M)
+    assert path is not None and int(path[1]) >= 2
+    plan = re.search(r"^plan: solved, (\d+) regrasps, (\d+) transfers$", out, re.M)
+    assert plan is not None and int(plan[2]) >= 1
+
+
+def test_own_gsn_path(tmp_path: Path) -> None:
+    """to_plan on a two-grasp path: module 2 links the grasps, the plan file verifies."""
+    out = run_example("own_gsn_path.py", tmp_path).stdout
+    assert re.search(r"^path: 2 states, goal pose ", out, re.M)
+    links = re.search(r"^plan: solved, (\d+) module-2 links, \d+ regrasps$", out, re.M)
+    assert links is not None and int(links[1]) >= 1  # the two grasps were joined by module 2
+    assert re.search(r"^verify: OK$", out, re.M)

@@ -159,13 +159,13 @@ def run_benchmark(
         planners,
         seeds,
         time_limit,
+        params or {},
         first_seed=first_seed,
         jobs=jobs,
         baseline=baseline,
         plots=plots,
         ray_address=ray_address,
         run_timeout=run_timeout,
-        params=params or {},
     )
     out, plan_dir = _output_folder(out_dir, save_plans)
     tasks = make_tasks(unique, names, range(first_seed, first_seed + seeds), time_limit, plan_dir)
@@ -177,11 +177,9 @@ def run_benchmark(
         start_method=start_method,
         run_timeout=run_timeout,
     )
-    with BenchDatabase(out / DB_NAME) as db:
-        done, skipped = _run_new(db, tasks, seeds, backend, execute, progress)
-        names = list(dict.fromkeys(t.planner for t in tasks))  # "default" resolved
-        records = _sweep_records(db, tasks, unique, names)
-        counts = db.counts()
+    done, skipped, names, records, counts = _run_and_read(
+        out / DB_NAME, tasks, unique, seeds, backend, execute, progress
+    )
     rows = summarize(records, baseline)
     return BenchResult(
         out_dir=out,
@@ -199,11 +197,28 @@ def run_benchmark(
     )
 
 
+def _run_and_read(
+    db_path: Path,
+    tasks: list[RunTask],
+    unique: list[Scenario],
+    seeds: int,
+    backend: Backend,
+    execute: Callable[[Sequence[RunTask], OnResult], None],
+    progress: ProgressCallback | None,
+) -> tuple[int, int, list[str], list[RunRow], dict[str, int]]:
+    """Run the sweep's new tasks; ``(done, skipped, planners, records, counts)`` of its database."""
+    with BenchDatabase(db_path) as db:
+        done, skipped = _run_new(db, tasks, seeds, backend, execute, progress)
+        names = list(dict.fromkeys(t.planner for t in tasks))  # "default" resolved
+        return done, skipped, names, _sweep_records(db, tasks, unique, names), db.counts()
+
+
 def _check_sweep(
     scenarios: Sequence[str | Path | Scenario],
     planners: str | Sequence[str],
     seeds: int,
     time_limit: float | None,
+    params: Mapping[str, Any],
     *,
     first_seed: int,
     jobs: int | None,
@@ -211,7 +226,6 @@ def _check_sweep(
     plots: bool,
     ray_address: str | None,
     run_timeout: float | None,
-    params: Mapping[str, Any],
 ) -> tuple[list[str], list[Scenario]]:
     """Check a sweep's arguments and load its scenarios, before any work.
 

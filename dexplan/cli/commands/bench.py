@@ -23,8 +23,9 @@ __all__ = ["BenchProgressView", "run"]
 class BenchProgressView:
     """Renders a sweep's progress on stderr: a tqdm bar, or a line per run."""
 
-    def __init__(self, quiet: bool) -> None:
+    def __init__(self, quiet: bool, note: str = "") -> None:
         self.quiet = quiet
+        self.note = note  # said once the sweep's input is checked, before the first run
         self.bar: Any = None
 
     def __call__(self, p: BenchProgress) -> None:
@@ -32,6 +33,8 @@ class BenchProgressView:
         if self.quiet:
             return
         if p.record is None:
+            if self.note:
+                err(self.note)
             if p.skipped:
                 err(f"resuming: {p.skipped} runs already in the database, {p.total} to do")
             if tqdm is not None:
@@ -75,11 +78,11 @@ def _sweep(opts: BenchOptions, view: BenchProgressView) -> BenchResult:
 
 def run(opts: BenchOptions) -> int:
     """Run (or resume) the sweep; print the summary and where everything is."""
-    view = BenchProgressView(opts.quiet)
-    base = opts.baseline
-    names = parse_planners(opts.planners)
+    base, names = opts.baseline, parse_planners(opts.planners)
+    note = ""
     if base is not None and base not in names and "default" not in names:
-        err(f"adding the baseline planner {base} to the sweep (--baseline none leaves it out)")
+        note = f"adding the baseline planner {base} to the sweep (--baseline none leaves it out)"
+    view = BenchProgressView(opts.quiet, note)
     try:
         result = _sweep(opts, view)
     finally:
