@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import textwrap
 
 from dexplan.cli.console import ExitCode
 from dexplan.cli.options import PlannersOptions
@@ -24,11 +25,11 @@ def describe_planner(name: str) -> list[str]:
     space, why = searched_space(name)
     lines = [
         f"{name}  ({traits.family})",
-        f"  searches: {space}",
-        f"    why: {why}",
+        *_wrapped(f"  searches: {space}", "    "),
+        *_wrapped(f"    why: {why}", "      "),
     ]
     if traits.note:
-        lines.append(f"  note: {traits.note}")
+        lines += _wrapped(f"  note: {traits.note}", "    ")
     params = planner_params(name)
     if not params:
         lines.append("  parameters: none declared")
@@ -45,6 +46,11 @@ def describe_planner(name: str) -> list[str]:
     return lines
 
 
+def _wrapped(text: str, indent: str) -> list[str]:
+    """``text`` in lines of at most 100 characters, later lines indented by ``indent``."""
+    return textwrap.wrap(text, 100, subsequent_indent=indent, break_on_hyphens=False)
+
+
 def run(opts: PlannersOptions) -> int:
     """Print the registered planners (or the named ones) with their parameters."""
     names = opts.names or tuple(available_planners())
@@ -55,6 +61,6 @@ def run(opts: PlannersOptions) -> int:
     if not opts.names:
         sys.stdout.write(
             "\nranges are OMPL's own ParamSet suggestions (low:step:high; 0,1 for a flag); "
-            "'range = 0' lets the planner choose one from the space\n"
+            "a default of 0 for range or max_nearest_neighbors means OMPL chooses at setup\n"
         )
     return ExitCode.OK
