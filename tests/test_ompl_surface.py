@@ -18,7 +18,7 @@ import dexplan
 import dexplan.ompl as dompl
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
 from dexplan.model.scenario import checked_scenario
-from dexplan.planning.ompl import registry
+from dexplan.planning.ompl import PlanningProblem, registry
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "paper_sphere.toml"
@@ -119,6 +119,18 @@ def test_a_goal_without_sampler_says_what_is_missing() -> None:
     assert "GoalSpec(sample=...)" in result.message
     with pytest.raises(PlannerError, match="no solution"):
         setup.solution_path()
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("planner", ["RRTConnect", "PRM"])
+def test_planning_problem_explains_a_goal_without_sampler(planner: str) -> None:
+    problem = PlanningProblem(make_spec(), is_valid, planner=planner, seed=3)
+    problem.set_start(SOUTH)
+    problem.set_goal(north_goal(np.random.default_rng(0), with_sampler=False))
+    result = problem.solve(2.0)
+    assert result.status == "invalid_goal"
+    assert f"{planner} needs goal states" in result.message
+    assert "GoalSpec(sample=...)" in result.message
 
 
 def test_set_planner_refuses_what_is_not_a_planner() -> None:

@@ -52,6 +52,7 @@ __all__ = [
     "Accept",
     "GoalSpec",
     "draw_goal",
+    "goal_message",
     "make_goal_region",
     "make_sampler_allocator",
     "make_validity",
@@ -299,6 +300,22 @@ def make_goal_region(
     goal = _Goal(si)
     goal.setThreshold(spec.threshold)
     return goal
+
+
+def goal_message(status: str, ompl_text: str, goal: GoalSpec | None, planner: str) -> str:
+    """What a solve without a path says: OMPL's text, or why for a goal without a sampler.
+
+    OMPL answers ``invalid_goal`` when a planner that grows a tree from the
+    goal (RRTConnect, BFMT, BITstar...) or needs one goal state (the PRM
+    family) gets a goal region it cannot sample: a :class:`GoalSpec`
+    without ``sample``.
+    """
+    if status == "invalid_goal" and goal is not None and goal.sample is None:
+        return (
+            f"{planner} needs goal states, and the goal region has no sampler: "
+            "give GoalSpec(sample=...) a function returning a valid state in the region"
+        )
+    return ompl_text
 
 
 def draw_goal(

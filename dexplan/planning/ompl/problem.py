@@ -22,11 +22,7 @@ from ompl import geometric as og
 from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.ompl._checks import as_int, as_pos
-from dexplan.planning.ompl.callbacks import (
-    GoalSpec,
-    query_goal,
-    termination,
-)
+from dexplan.planning.ompl.callbacks import GoalSpec, goal_message, query_goal, termination
 from dexplan.planning.ompl.error_sink import ErrorSink
 from dexplan.planning.ompl.motions import MotionFallback
 from dexplan.planning.ompl.problem_space import ProblemSpace
@@ -448,7 +444,8 @@ class PlanningProblem:
     def _no_path(self, status: str, t0: float, message: str) -> SolveResult:
         """Return the :class:`SolveResult` of a solve started at ``t0`` without a path."""
         elapsed = time.perf_counter() - t0
-        return SolveResult.without_path(status, self._planner_name, elapsed, message)
+        why = goal_message(status, message, self._goal, self._planner_name)
+        return SolveResult.without_path(status, self._planner_name, elapsed, why)
 
     def check_path(self, waypoints: object, *, interpolate: bool = True) -> PathCheck:
         """Re-check (and densify) any path of ambient states in travel direction.

@@ -25,7 +25,7 @@ from ompl import geometric as og
 from dexplan.core.errors import InvalidInputError, PlannerError
 from dexplan.core.typing import FloatArray, as_vector
 from dexplan.planning.ompl._checks import as_int, as_pos
-from dexplan.planning.ompl.callbacks import GoalSpec, query_goal, termination
+from dexplan.planning.ompl.callbacks import GoalSpec, goal_message, query_goal, termination
 from dexplan.planning.ompl.error_sink import ErrorSink
 from dexplan.planning.ompl.problem_space import ProblemSpace
 from dexplan.planning.ompl.registry import (
@@ -38,27 +38,11 @@ from dexplan.planning.ompl.results import STATUS_NAMES, PathCheck, SolveResult
 from dexplan.planning.ompl.runtime import derived_seed, reseed_ompl
 from dexplan.planning.ompl.spaces import ConstraintSpec, ProjectionSpec
 
-__all__ = ["DEFAULT_PLANNER", "ProblemSetup", "no_path_message"]
+__all__ = ["DEFAULT_PLANNER", "ProblemSetup"]
 
 DEFAULT_PLANNER = "RRTConnect"
 """The planner :meth:`ProblemSetup.solve` runs when none was set (as ``og.SimpleSetup``
 picks one for the problem)."""
-
-
-def no_path_message(status: str, ompl_text: str, goal: GoalSpec | None, planner: str) -> str:
-    """What a solve without a path says: OMPL's text, and why for a goal without a sampler.
-
-    OMPL answers ``invalid_goal`` when a planner that grows a tree from the
-    goal (RRTConnect, BFMT, BITstar...) or needs one goal state (the PRM
-    family) gets a goal region it cannot sample: a :class:`GoalSpec`
-    without ``sample``.
-    """
-    if status == "invalid_goal" and goal is not None and goal.sample is None:
-        return (
-            f"{planner} needs goal states, and the goal region has no sampler: "
-            "give GoalSpec(sample=...) a function returning a valid state in the region"
-        )
-    return ompl_text
 
 
 class ProblemSetup:
@@ -273,7 +257,7 @@ class ProblemSetup:
         name = STATUS_NAMES.get(status.getStatus().value, "unknown")
         elapsed = time.perf_counter() - t0
         if name not in ("exact", "approximate") or not self._pdef.hasSolution():
-            why = no_path_message(name, status.asString(), self._goal, self._planner_name)
+            why = goal_message(name, status.asString(), self._goal, self._planner_name)
             return SolveResult.without_path(name, self._planner_name, elapsed, why)
         checked = self._space.post_process(
             og.PathGeometric(self._pdef.getSolutionPath()), interpolate=True, check=True
