@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dexplan.core.errors import InvalidInputError
+from dexplan.core.errors import InvalidInputError, did_you_mean
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario
 from dexplan.planning.context import PlanningContext, learning_context
@@ -108,9 +108,10 @@ class BuildSettings:
         if self.jobs is not None and not 1 <= self.jobs <= MAX_JOBS:
             raise InvalidInputError(f"--jobs must be in [1, {MAX_JOBS}], got {self.jobs}")
         if not planner_traits(self.planner).multi_query:
+            hint = did_you_mean(self.planner, MULTI_QUERY_PLANNERS)
             raise InvalidInputError(
                 f"--planner: a roadmap is built by a multi-query planner "
-                f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), got {self.planner!r}"
+                f"({', '.join(sorted(MULTI_QUERY_PLANNERS))}), got {self.planner!r}{hint}"
             )
 
 
