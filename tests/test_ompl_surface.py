@@ -63,6 +63,40 @@ def test_register_planner_refuses_bad_input(clean_registry) -> None:
     assert not {"BadRRT", "NotAPlanner", "Broken"} & set(dompl.available_planners())
 
 
+class StraightToGoal(ob.Planner):
+    """A Python planner: the start, then one goal sample, when the motion between is valid."""
+
+    def solve(self, ptc):
+        si, pdef = self.getSpaceInformation(), self.getProblemDefinition()
+        goal = si.allocState()
+        pdef.getGoal().sampleGoal(goal)
+        start = pdef.getStartState(0)
+        if not si.checkMotion(start, goal):
+            return ob.PlannerStatus(ob.PlannerStatus.TIMEOUT)
+        path = og.PathGeometric(si)
+        path.append(start)
+        path.append(goal)
+        pdef.addSolutionPath(path)
+        return ob.PlannerStatus(ob.PlannerStatus.EXACT_SOLUTION)
+
+
+@pytest.mark.timeout(300)
+def test_a_registered_python_planner_plans_by_name(clean_registry, tmp_path: Path) -> None:
+    dompl.register_planner("StraightToGoal", lambda si: StraightToGoal(si, "StraightToGoal"))
+    scen = dexplan.load_scenario(SCENARIO)
+    goal = dataclasses.replace(
+        scen.goal,
+        object_pose_xyzquat=[0, 0, 0.1, 0, 0, 0.08715574, 0.9961947],  # 10 deg yaw
+    )
+    plan = dexplan.plan(
+        dataclasses.replace(scen, goal=goal), planner="StraightToGoal", quality="none"
+    )
+    assert plan.result.stats.planner == "StraightToGoal"
+    assert plan.solved, plan.result.message
+    assert plan.result.stats.gsn_status == "exact"  # the Python planner found the GSn path
+    assert dexplan.verify(plan.save(tmp_path / "plan.json")).ok
+
+
 def test_planner_names_get_a_case_insensitive_hint() -> None:
     with pytest.raises(PlannerError, match="did you mean 'RRTConnect'"):
         registry.check_planner_name("rrtconnect")
