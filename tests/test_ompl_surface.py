@@ -60,7 +60,10 @@ def test_register_planner_refuses_bad_input(clean_registry) -> None:
         dompl.register_planner("no spaces", og.RRT)
     with pytest.raises(PlannerError, match="raised ZeroDivisionError"):
         dompl.register_planner("Broken", lambda si: 1 / 0)
-    assert not {"BadRRT", "NotAPlanner", "Broken"} & set(dompl.available_planners())
+    with pytest.raises(PlannerError, match="multi_query=True but no growRoadmapPtc"):
+        dompl.register_planner("FakePRM", og.RRT, traits=dompl.PlannerTraits(multi_query=True))
+    dompl.register_planner("MyPRM", og.PRM, traits=dompl.PlannerTraits(multi_query=True))
+    assert not {"BadRRT", "NotAPlanner", "Broken", "FakePRM"} & set(dompl.available_planners())
 
 
 class StraightToGoal(ob.Planner):

@@ -344,17 +344,36 @@ def register_planner(
     make.__name__ = f"make_{name}"
     space = real_vector_space(-np.ones(2), np.ones(2))
     try:
-        make(ob.SpaceInformation(space))  # fails now, not in the middle of a query
+        sample = make(ob.SpaceInformation(space))  # fails now, not in the middle of a query
     except PlannerError:
         raise
     except Exception as exc:  # a user's factory: any failure is reported as bad input
         raise PlannerError(
             f"factory of planner {name!r} raised {type(exc).__name__}: {exc}"
         ) from exc
+    _check_traits(name, sample, traits)
     PLANNERS[name] = make
     PLANNER_TRAITS[name] = traits
     if traits.note:
         PLANNER_NOTES[name] = traits.note
+
+
+# What module 1 calls on a planner whose traits say so (multi_query: PlanningProblem's
+# grow_roadmap and planner_data; needs_projection: the KPIECE grid).
+_TRAIT_METHODS = {
+    "multi_query": ("growRoadmapPtc", "milestoneCount", "clearQuery"),
+    "needs_projection": ("setProjectionEvaluator",),
+}
+
+
+def _check_traits(name: str, planner: Any, traits: PlannerTraits) -> None:
+    """Raise unless ``planner`` has the methods its ``traits`` make module 1 call."""
+    for trait, methods in _TRAIT_METHODS.items():
+        missing = [m for m in methods if not callable(getattr(planner, m, None))]
+        if getattr(traits, trait) and missing:
+            raise PlannerError(
+                f"planner {name!r} has traits {trait}=True but no {', '.join(missing)}"
+            )
 
 
 # ------------------------------------------------------------------- parameters
