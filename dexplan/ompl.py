@@ -125,11 +125,10 @@ class SimpleSetup(GsnSetup):
         Raises:
             DexplanError: a malformed path, or a state that is not a valid grasp.
         """
-        name = planner or (str(self.planner.getName()) if self.planner is not None else "user")
         return plan_path(
             self.scenario,
             path,
-            planner=name,
+            planner=planner or self.planner_name,
             seed=self.seed,
             time_limit=time_limit,
             reduction=reduction,

@@ -10,8 +10,8 @@ the planner's start grasp and whose goal is the scenario's goal region,
 sampled (tree planners that grow from the goal need goal states). States
 are in scenario units: ``[x, y, z, qx, qy, qz, qw, q_0 ... q_{nq-1}]``,
 metres, a quaternion XYZW, radians in the hand's planning order.
-:meth:`GsnSetup.to_plan_result` turns a GSn path of yours into a
-transfer/regrasp plan (:func:`~dexplan.planning.path_plan.plan_path`).
+:func:`~dexplan.planning.path_plan.plan_path` turns a GSn path of yours into
+a transfer/regrasp plan (``dexplan.ompl.SimpleSetup.to_plan``, verified).
 """
 
 from __future__ import annotations
@@ -28,9 +28,7 @@ from dexplan.planning.context import PlanningContext, build_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.ompl import GoalSpec
 from dexplan.planning.ompl.setup import ProblemSetup
-from dexplan.planning.path_plan import plan_path
-from dexplan.planning.planner import PlanResult, Verifier, goal_reached
-from dexplan.planning.progress import Progress
+from dexplan.planning.planner import goal_reached
 from dexplan.planning.roadmap.problems import constraint_spec, orientation_projection
 from dexplan.planning.start import start_state
 
@@ -116,30 +114,7 @@ class GsnSetup(ProblemSetup):
         """The hand joints ``(nq,)`` (radians, planning order) of a GSn state ``(7 + nq,)``."""
         return np.asarray(x, dtype=np.float64)[POSE_DIM:].copy()
 
-    def to_plan_result(
-        self,
-        path: object,
-        *,
-        planner: str | None = None,
-        time_limit: float | None = None,
-        reduction: str = "auto",
-        progress: Progress | None = None,
-        verify: Verifier | None = None,
-    ) -> PlanResult:
-        """Module 2 and the reduction on your GSn path ``(K, 7 + nq)`` from :attr:`start_state`.
-
-        See :func:`~dexplan.planning.path_plan.plan_path`; ``planner``
-        defaults to the name of the planner set.
-        """
-        name = planner or (str(self.planner.getName()) if self.planner is not None else "user")
-        return plan_path(
-            self.scenario,
-            path,
-            planner=name,
-            seed=self.seed,
-            time_limit=time_limit,
-            reduction=reduction,
-            progress=progress,
-            verify=verify,
-            hand=self.hand,
-        )
+    @property
+    def planner_name(self) -> str:
+        """The name of the planner set (its ``getName()``), or ``"user"`` before one is."""
+        return str(self.planner.getName()) if self.planner is not None else "user"
