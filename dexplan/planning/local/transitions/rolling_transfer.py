@@ -97,7 +97,7 @@ class RollingTransferPlanner:
             if self.checks.world.object_collides(poses[j]):
                 return self._result(wps, state, j - 1, None, TransferStop.OBJECT_COLLISION)
             # a step is taken whole or not at all: the reduction regrasps at poses[j - 1]
-            trial, steps = _Rolled(state.q, state.points, state.normals), []
+            trial, steps = _Rolled(state.q, state.points, state.normals), list[Waypoint]()
             stop = self._advance(poses[j - 1], poses[j], trial, steps, depth=0)
             if stop is not None:
                 return self._result(wps, state, j - 1, *stop)
