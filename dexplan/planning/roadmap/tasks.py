@@ -211,8 +211,8 @@ class RayRunner:
                 ) from exc
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = max(1, jobs or cpus)
-        actor = ray.remote(num_cpus=1)(TaskWorker)
-        self._actors = [actor.remote(scenario, space) for _ in range(self.workers)]
+        actor: Any = ray.remote(num_cpus=1)(TaskWorker)  # typed by Ray only where installed
+        self._actors: list[Any] = [actor.remote(scenario, space) for _ in range(self.workers)]
 
     def map(self, tasks: Sequence[Task]) -> list[Any]:
         """The tasks' answers, in task order (round-robin over the actors)."""
