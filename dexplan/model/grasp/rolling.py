@@ -180,11 +180,18 @@ class FingertipRolling:
         J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         return M.rotation.copy(), M.translation.copy(), J[:, self.hand.finger_q_index[finger]]
 
+    def tip_placement(self, finger: int, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The tip frame at ``q: (nq,)``: ``(R_tip (3, 3), c_world (3,))`` (no Jacobian)."""
+        model, data = self.hand.model, self._data
+        pin.forwardKinematics(model, data, q)
+        M = pin.updateFramePlacement(model, data, self.hand.tip_frame_ids[finger])
+        return M.rotation.copy(), M.translation.copy()
+
     def tip_point(
         self, finger: int, q: FloatArray, object_pose: FloatArray, p_obj: FloatArray
     ) -> FloatArray:
         """The contact ``p_obj: (3,)`` (object frame) in the tip link's frame, ``(3,)``."""
-        R_t, c, _ = self.tip_frame(finger, q)
+        R_t, c = self.tip_placement(finger, q)
         R, x = _pose(object_pose)
         return R_t.T @ (x + R @ p_obj - c)
 
@@ -224,21 +231,20 @@ class FingertipRolling:
         p_tip = self.tip_point(finger, q, pose_a, p_obj)
         normal = self.obj.closest_point(p_obj)[1]
         arc_obj = arc_tip = slip = 0.0
-        prev = pose_a
+        prev = _pose(pose_a)
         for j in range(1, k + 1):
-            pose = interpolate_pose(pose_a, pose_b, j / k)
-            q, moved_slip = self._substep(finger, q, prev, pose, p_obj)
-            p_new, normal = self._contact_on_object(finger, q, pose)
-            tip_new = self.tip_point(finger, q, pose, p_new)
+            frame = _pose(interpolate_pose(pose_a, pose_b, j / k))
+            q, moved_slip = self._substep(finger, q, prev, frame, p_obj)
+            p_new, normal, tip_new = self._contact(finger, q, frame)
             arc_obj += float(np.linalg.norm(p_new - p_obj))
             arc_tip += float(np.linalg.norm(tip_new - p_tip))
             slip += moved_slip
-            p_obj, p_tip, prev = p_new, tip_new, pose
+            p_obj, p_tip, prev = p_new, tip_new, frame
         return RolledContact(q, p_obj, normal, p_tip, arc_obj, arc_tip, slip)
 
     def _check_touch(self, finger: int, q: FloatArray, pose: FloatArray, p_obj: FloatArray) -> None:
         """Raise unless the tip sphere at ``q`` touches the object at ``p_obj``."""
-        _, c, _ = self.tip_frame(finger, q)
+        _, c = self.tip_placement(finger, q)
         R, x = _pose(pose)
         gap = abs(float(np.linalg.norm(x + R @ p_obj - c)) - self.radius)
         d = float(self.obj.signed_distance(R.T @ (c - x))) - self.radius
@@ -249,16 +255,16 @@ class FingertipRolling:
             )
 
     def _substep(
-        self, finger: int, q: FloatArray, pose_a: FloatArray, pose_b: FloatArray, p_obj: FloatArray
+        self, finger: int, q: FloatArray, frame_a: _Frame, frame_b: _Frame, p_obj: FloatArray
     ) -> tuple[FloatArray, float]:
         """One substep: the joints that move the tip's material point with the object's.
 
+        ``frame_a``, ``frame_b``: the object's ``(R, x)`` before and after.
         Returns ``(q, slip)``: the new joints, and how far (m) the least-squares
         step misses the object point's displacement.
         """
         idx = self.hand.finger_q_index[finger]
-        R_a, x_a = _pose(pose_a)
-        R_b, x_b = _pose(pose_b)
+        (R_a, x_a), (R_b, x_b) = frame_a, frame_b
         p_a, p_b = x_a + R_a @ p_obj, x_b + R_b @ p_obj  # the object's material point
         _, c, J6 = self.tip_frame(finger, q)
         J = point_jacobian(J6, p_a, c)
@@ -267,28 +273,36 @@ class FingertipRolling:
         q[idx] += dq
         slip = float(np.linalg.norm(J @ dq - (p_b - p_a)))
         for _ in range(self.settings.normal_iterations):
-            q = self._onto_surface(finger, q, pose_b)
+            q = self._onto_surface(finger, q, frame_b)
         return q, slip
 
-    def _onto_surface(self, finger: int, q: FloatArray, pose: FloatArray) -> FloatArray:
+    def _onto_surface(self, finger: int, q: FloatArray, frame: _Frame) -> FloatArray:
         """Move the tip's centre along the object's normal until the sphere is tangent."""
         idx = self.hand.finger_q_index[finger]
         _, c, J6 = self.tip_frame(finger, q)
-        R, x = _pose(pose)
+        R, x = frame
         d, grad = self.obj.signed_distance_and_gradient(R.T @ (c - x))
         step = (self.radius - float(d)) * (R @ np.asarray(grad))
         q = q.copy()
         q[idx] += _solve(J6[:3], step, self.settings.damping)
         return q
 
-    def _contact_on_object(
-        self, finger: int, q: FloatArray, pose: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
-        """Where the tip sphere meets the object: ``(p_obj, normal_out)``, object frame."""
-        _, c, _ = self.tip_frame(finger, q)
-        R, x = _pose(pose)
+    def _contact(
+        self, finger: int, q: FloatArray, frame: _Frame
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Where the tip sphere meets the object: ``(p_obj, normal_out, p_tip)``, (3,) each.
+
+        ``p_obj`` and ``normal_out`` in the object frame, ``p_tip`` in the tip link's.
+        """
+        R_t, c = self.tip_placement(finger, q)
+        R, x = frame
         p, n = self.obj.closest_point(R.T @ (c - x))
-        return np.asarray(p, dtype=float), np.asarray(n, dtype=float)
+        p = np.asarray(p, dtype=float)
+        return p, np.asarray(n, dtype=float), R_t.T @ (x + R @ p - c)
+
+
+#: An object pose as ``(R (3, 3), x (3,))``, world frame.
+_Frame = tuple[FloatArray, FloatArray]
 
 
 def tip_side_contacts(
