@@ -38,10 +38,10 @@ GOAL_POSITION_TOL = 0.005  # goal.position_tol when the file has none (m)
 GOAL_ANGLE_TOL = 0.05  # goal.angle_tol when the file has none (rad)
 #: Rolling without slipping: over a transfer, per finger, the contact's path on
 #: the fingertip and on the object have equal lengths within NO_SLIP_REL of the
-#: object's plus NO_SLIP_ABS (the planner integrates the rolling in substeps:
-#: its paths agree within about 1.5 %; a fixed contact slides 0.2-0.3 mm per
-#: degree the object turns, with no path on the object at all).
-NO_SLIP_REL = 0.05
+#: object's plus NO_SLIP_ABS (the planner integrates the rolling in substeps of
+#: second order: its paths agree within about 0.1 %; a fixed contact slides
+#: 0.2-0.3 mm per degree the object turns, with no path on the object at all).
+NO_SLIP_REL = 0.02
 NO_SLIP_ABS = 1e-4  # (m)
 
 #: Every rule the verifier checks, by family, name -> what it requires (one
@@ -93,7 +93,7 @@ RULES: dict[str, str] = {
     "transfer_no_slip": (
         "with `contact_motion` rolling, along each transfer, per finger, the path the "
         "contact travels on the fingertip (`tip_contacts`) is as long as its path on the "
-        "object (`contacts`), within 5 % + 0.1 mm"
+        "object (`contacts`), within 2 % + 0.1 mm"
     ),
     "tip_contact": (
         "(format /2) every `tip_contacts` entry is its contact seen from the tip link: "
