@@ -114,3 +114,10 @@ def test_scenario_motion_is_validated(tmp_path) -> None:
     bad.write_text(text.replace("[contact]", '[contact]\nmotion = "sliding"'))
     with pytest.raises(dexplan.DexplanError, match=r'contact\.motion must be "fixed" or "rolling"'):
         load_scenario(bad)
+
+
+def test_the_same_seed_gives_the_same_rolling_plan(rolling_doc: dict) -> None:
+    scen = load_scenario(SCENARIOS / "paper_sphere.toml")
+    scen = dataclasses.replace(scen, contact_motion=ContactMotion.ROLLING)
+    again = dexplan.plan(scen, seed=1, quality="none", time_limit=120.0).to_document(".")
+    assert again["segments"] == rolling_doc["segments"]
