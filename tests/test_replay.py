@@ -47,6 +47,8 @@ def _tampered(doc):
     other = next(i for i in range(4) if i != free)
     for w in d["segments"][0]["waypoints"][1:]:
         w["contacts"][other] = None
+        if "tip_contacts" in w:  # format /2: both sides of a contact go together
+            w["tip_contacts"][other] = None
         w["q"][3 * other : 3 * other + 3] = [0.0, -0.5, 0.0]
     return d
 
