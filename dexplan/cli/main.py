@@ -328,10 +328,16 @@ def _add_export(sub: Subparsers) -> None:
     p_exp = _command(
         sub,
         "export",
-        "time-parameterise a plan, add grip forces, write a trajectory (.json or .csv)",
+        "time-parameterise a plan, add grip forces, write a trajectory (.json, .csv) "
+        "or a ROS 2 bag (.mcap)",
     )
     p_exp.add_argument("plan", help="plan JSON file")
-    p_exp.add_argument("-o", "--output", required=True, help="trajectory file: .json or .csv")
+    p_exp.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="trajectory file: .json, .csv, or .mcap (ROS 2 bag, needs the ros extra)",
+    )
     p_exp.add_argument("--rate", type=float, default=100.0, help="samples per second (100)")
     p_exp.add_argument("--mass", type=float, help="object mass, kg (default: the plan's or 0.1)")
     p_exp.add_argument(

@@ -1,6 +1,7 @@
 """Executing a plan: timing, grip forces, trajectories, their files, replay, plan quality."""
 
 __all__ = [
+    "bag",
     "check",
     "export",
     "forces",

@@ -1,4 +1,4 @@
-"""``dexplan export``: a plan as a timed trajectory with grip forces (``dexplan-trajectory/1``)."""
+"""``dexplan export``: a plan as a timed trajectory with grip forces (JSON, CSV, ROS 2 bag)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from dexplan.cli.console import ExitCode
 from dexplan.cli.options import ExportOptions
 from dexplan.core.errors import InvalidInputError, one_line
 from dexplan.core.files import check_output_path, file_sha256
+from dexplan.execution.bag import BAG_SUFFIX, write_bag
 from dexplan.execution.check import check_trajectory
 from dexplan.execution.export import TrajectoryFormat, trajectory_document, write_trajectory
 from dexplan.execution.forces import force_settings_from_plan
@@ -34,11 +35,13 @@ def _limits(opts: ExportOptions) -> TimingLimits:
 
 
 def run(opts: ExportOptions) -> int:
-    """Time-parameterise a plan, add grip forces, write the trajectory (JSON or CSV)."""
+    """Time-parameterise a plan, add grip forces, write the trajectory (JSON, CSV or a bag)."""
     out = check_output_path(opts.output, "-o")
-    if TrajectoryFormat.of_path(out) is None:
+    is_bag = out.suffix.lower() == BAG_SUFFIX
+    if TrajectoryFormat.of_path(out) is None and not is_bag:
         raise InvalidInputError(
-            f"-o: the trajectory file must end in .json or .csv, got {str(out)!r}"
+            f"-o: the trajectory file must end in .json, .csv or .mcap (ROS 2 bag), "
+            f"got {str(out)!r}"
         )
     doc = read_plan(opts.plan)
     base = Path(opts.plan).resolve().parent
@@ -51,13 +54,19 @@ def run(opts: ExportOptions) -> int:
     interrupt.check()
     tdoc = trajectory_document(traj, doc, file_sha256(opts.plan))
     problems = check_trajectory(tdoc)
-    write_trajectory(out, tdoc)
+    interrupt.check()
+    topics = ""
+    if is_bag:
+        counts = write_bag(out, tdoc)
+        topics = "".join(f"  {t}: {n} messages\n" for t, n in counts.items())
+    else:
+        write_trajectory(out, tdoc)
     fmax = float(np.nanmax(np.linalg.norm(traj.forces, axis=2), initial=0.0))
     verdict = "OK" if not problems else f"FAILED ({len(problems)}: {problems[0]})"
     sys.stdout.write(
         f"trajectory: {out}\npoints: {traj.t.size}  segments: {len(traj.segments)}  "
         f"duration_s: {traj.duration:.3f}\nmax_grip_force_N: {fmax:.3f}  "
         f"max_joint_torque_Nm: {float(np.abs(traj.joint_torques).max(initial=0.0)):.4f}\n"
-        f"limits check: {one_line(verdict, 300)}\n"
+        f"limits check: {one_line(verdict, 300)}\n{topics}"
     )
     return ExitCode.OK if not problems else ExitCode.FAILED
