@@ -17,8 +17,8 @@ from dexplan.bench.schema import DEFAULT_BASELINE
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
 from dexplan.model.scenario import (
     Scenario,
-    builtin_scenario_path,
     load_scenario,
+    resolve_scenario_path,
     scenario_hash,
 )
 from dexplan.planning.ompl import available_planners
@@ -33,17 +33,7 @@ def resolve_scenario(arg: str | Path) -> Scenario:
     Raises:
         ScenarioError: no such file or builtin scenario, or an invalid scenario.
     """
-    path = Path(arg)
-    if path.is_file():
-        return load_scenario(path)
-    if path.suffix == "" and path.name == str(arg):
-        try:
-            return load_scenario(builtin_scenario_path(str(arg)))
-        except ScenarioError as exc:
-            raise ScenarioError(
-                f"scenario file not found: {str(arg)!r}, and it is not a builtin scenario ({exc})"
-            ) from exc
-    raise ScenarioError(f"scenario file not found: {str(arg)!r}")
+    return load_scenario(resolve_scenario_path(arg))
 
 
 @dataclass(frozen=True)

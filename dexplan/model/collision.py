@@ -352,6 +352,32 @@ class CollisionWorld:
                 return True
         return False
 
+    def object_overlaps(self, object_pose_xyzquat: FloatArray) -> list[tuple[str, bool, float]]:
+        """What the object at a pose intersects, other than the fingers.
+
+        The palm's geometries (those on no finger: they never move) and the
+        obstacles: an object there cannot be grasped, whatever the fingers do.
+
+        Returns:
+            ``(name, is_palm, depth)`` per intersected geometry: its link or
+            obstacle name, whether it is part of the palm, and the penetration
+            depth (m, > 0; 0 where coal does not measure it).
+        """
+        gd, gm = self.geom_data, self.geom_model
+        pin.updateGeometryPlacements(self.hand.model, self.hand.data, gm, gd, self.hand.neutral)
+        gd.oMg[self.object_geom] = pose_to_se3(object_pose_xyzquat)
+        on_finger = {g for geoms in self.finger_geoms for g in geoms}
+        palm = [g for g in range(self._n_hand_geoms) if g not in on_finger]
+        out = []
+        for g in [*palm, *self.obstacle_geoms]:
+            k = self._pair_of.get((min(g, self.object_geom), max(g, self.object_geom)))
+            if k is None or not pin.computeCollision(gm, gd, k):
+                continue
+            res = gd.collisionResults[k]  # contacts are on (see __init__): coal's depth
+            depth = abs(float(res.getContact(0).penetration_depth)) if res.numContacts() else 0.0
+            out.append((self.geometry_name(g), g < self._n_hand_geoms, depth))
+        return out
+
     def object_clearance(self, object_pose_xyzquat: FloatArray) -> float:
         """Distance (m) from the object at a pose to the nearest obstacle (inf without any).
 

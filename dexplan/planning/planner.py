@@ -46,6 +46,7 @@ from dexplan.planning.local.reduction import (
 from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
 from dexplan.planning.local.transitions import GraspContacts, densify_poses
 from dexplan.planning.ompl import check_planner
+from dexplan.planning.pose_check import check_query
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.planning.roadmap.module1 import explore_gsn
@@ -206,6 +207,9 @@ def plan(
         progress,
         hand,
     )
+    blocked = query.check_poses()
+    if blocked is not None:
+        return blocked
     x_start = query.start_grasp()
     if x_start is None:
         why = " within the time limit" if query.ctx.deadline.expired() else ""
@@ -301,6 +305,23 @@ class QueryRun:
             message=message,
             rejections=Rejections.from_stats(ctx.sampler.stats, ctx.validity.stats),
             **fields,
+        )
+
+    # -- stage 0: can a grasp exist at the start and goal poses? ------------
+    def check_poses(self) -> PlanResult | None:
+        """The failure of a start or goal pose where no grasp can exist (:func:`check_query`).
+
+        Seconds of sampling (and for a goal, the whole time limit) would find
+        none and could not say why; the check says what to change at once, and
+        ``--debug-rrd`` shows the verdict's states.
+        """
+        check = check_query(self.ctx)
+        if check is None:
+            return None
+        self.ctx.validity.stats.samples.extend(check.samples(self.ctx.hand.neutral))
+        status = PlanStatus.NO_START_GRASP if check.which == "start" else PlanStatus.NO_GOAL_GRASP
+        return self.result(
+            status, f"no grasp can exist at the {check.which} pose: {check.describe()}"
         )
 
     # -- stage 1: the start grasp --------------------------------------------

@@ -29,6 +29,7 @@ from dexplan.model.scenario import (
     Scenario,
     default_scenario,
     load_scenario,
+    resolve_scenario_path,
 )
 from dexplan.planfile import write_plan
 from dexplan.planning.context import PlanningContext, build_context, build_hand
@@ -99,7 +100,11 @@ def with_params(scenario: Scenario, params: Sequence[tuple[str, Any]]) -> Scenar
 
 def run(opts: PlanOptions) -> int:
     """Plan a scenario (or many goals); write the plan and what else was asked for."""
-    scenario = default_scenario() if opts.scenario is None else load_scenario(opts.scenario)
+    scenario = (
+        default_scenario()
+        if opts.scenario is None
+        else load_scenario(resolve_scenario_path(opts.scenario))
+    )
     scenario = with_params(scenario, opts.params)
     hand = check_options(opts, scenario)
     # built at most once, and only if needed: random goals and a loaded roadmap share it
@@ -151,8 +156,9 @@ def _report_no_plan(planned: Plan, out: Path) -> int:
     """Say why there is no plan; keep a plan that failed verification for inspection."""
     result = planned.result
     err(f"no plan: {result.status}: {one_line(result.message, 500)}")
-    if result.rejections is not None:
-        err(result.rejections.describe())
+    rej = result.rejections
+    if rej is not None and (rej.attempts or rej.checked):  # none: the pose check said why
+        err(rej.describe())
     if result.status == "invalid_plan" and result.segments:
         bad = out.with_name(f"{out.stem}.invalid.json")  # never under the requested name
         doc = planned.to_document(bad.resolve().parent)

@@ -12,7 +12,12 @@ from dexplan.cli.console import ExitCode, err
 from dexplan.cli.options import RoadmapBuildOptions, RoadmapInfoOptions
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.files import check_output_path
-from dexplan.model.scenario import SEED_LIMIT, default_scenario, load_scenario
+from dexplan.model.scenario import (
+    SEED_LIMIT,
+    default_scenario,
+    load_scenario,
+    resolve_scenario_path,
+)
 from dexplan.planning.context import build_hand
 from dexplan.planning.progress import ProgressEvent
 from dexplan.planning.roadmap.graph import Roadmap
@@ -72,7 +77,11 @@ def _build_report(output: str, st: BuildStats) -> str:
 
 def build(opts: RoadmapBuildOptions) -> int:
     """The learning phase: build a goal-independent roadmap and write it."""
-    scenario = default_scenario() if opts.scenario is None else load_scenario(opts.scenario)
+    scenario = (
+        default_scenario()
+        if opts.scenario is None
+        else load_scenario(resolve_scenario_path(opts.scenario))
+    )
     if not 0 <= opts.seed < SEED_LIMIT:
         raise InvalidInputError(f"--seed must be in [0, {SEED_LIMIT - 1}], got {opts.seed}")
     settings = BuildSettings(

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 from dexplan.model.objects.factory import SHAPE_KINDS, file_sha256, shape_from_dict
 from dexplan.model.objects.geodesic import MeshGeodesics, SurfacePath, surface_geodesics
-from dexplan.model.objects.mesh import BUILTIN_MESH_DIR, Mesh
+from dexplan.model.objects.mesh import BUILTIN_MESH_DIR, UNIT_SCALES, Mesh, unit_scale_hint
 from dexplan.model.objects.primitives import Box, Capsule, Cylinder, Sphere
 from dexplan.model.objects.shape import Shape, ShapeKind
 
 __all__ = [
     "BUILTIN_MESH_DIR",
     "SHAPE_KINDS",
+    "UNIT_SCALES",
     "Box",
     "Capsule",
     "Cylinder",
@@ -34,4 +35,5 @@ __all__ = [
     "file_sha256",
     "shape_from_dict",
     "surface_geodesics",
+    "unit_scale_hint",
 ]

@@ -58,6 +58,37 @@ from dexplan.model.objects.triangles import (
 #: Directory of the meshes shipped with dexplan (package data).
 BUILTIN_MESH_DIR = Path(__file__).resolve().parents[2] / "data" / "meshes"
 
+#: File units a mesh's coordinates may be in, with the scale that makes them metres.
+UNIT_SCALES: tuple[tuple[str, float], ...] = (
+    ("millimetres", 0.001),
+    ("centimetres", 0.01),
+    ("inches", 0.0254),
+)
+
+
+def unit_scale_hint(across_m: float, scale: float, max_across: float) -> str:
+    """A hint for a mesh too large to be an in-hand object: the scale of its file's units.
+
+    CAD and 3D-printing tools write millimetres; a hand-sized object read
+    as metres is a thousand times too large. The first unit (millimetres,
+    centimetres, inches) that brings it within ``max_across`` and above 1 cm
+    is suggested, with the size it would then have.
+
+    Args:
+        across_m: the mesh's size (m) at ``scale`` (e.g. its bounding sphere's diameter).
+        scale: the scale it was read with.
+        max_across: the largest size allowed (m).
+
+    Returns:
+        ``"; in millimetres? scale = 0.001 makes it 0.104 m across"``, or "".
+    """
+    for unit, factor in UNIT_SCALES:
+        size = across_m * factor
+        if 0.01 <= size <= max_across:
+            return f"; in {unit}? scale = {scale * factor:g} makes it {size:.3g} m across"
+    return ""
+
+
 #: Query points closer to the surface than this fraction of the bounding radius
 #: are on the surface: their gradient is the feature's unit pseudo-normal.
 _ON_SURFACE_REL = 1e-12

@@ -33,6 +33,7 @@ from dexplan.model.grasp import (
 )
 from dexplan.model.grasp.rolling import CONTACT_MOTIONS, ContactMotion
 from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, field_key, shape_from_dict
+from dexplan.model.objects.mesh import unit_scale_hint
 from dexplan.model.scenario.fields import (
     as_float,
     check_text_file,
@@ -124,10 +125,11 @@ def _shape_fields(
     if "size" in shape and max(shape["size"]) > max_size:
         fail(f"{prefix}.size edges must be <= {max_size:g} m, got {shorten(shape['size'])}")
     if kind == "mesh" and not 2.0 * built.bounding_radius <= max_size:
+        across, s = 2.0 * built.bounding_radius, as_float(scale) or 1.0
         fail(
-            f"{prefix}: the mesh is {2.0 * built.bounding_radius:.3g} m across (bounding "
-            f"sphere, scale {shorten(scale if scale is not None else 1.0)}), more than "
-            f"{max_size:g} m"
+            f"{prefix}: the mesh is {across:.3g} m across (bounding sphere, scale "
+            f"{shorten(scale if scale is not None else 1.0)}), more than {max_size:g} m"
+            f"{unit_scale_hint(across, s, max_size)}"
         )
     return shape
 

@@ -43,15 +43,19 @@ class Rejection(enum.StrEnum):
         JOINT_LIMITS: a joint outside its limits.
         COLLISION: a collision, or the object too near an obstacle.
         FORCE_CLOSURE: some required (sub)grasp is not force closure.
+        REACH: a fingertip cannot touch the object at that pose at all (the
+            planner's check of the start and goal poses, never the checker's).
     """
 
     BOUNDS = "bounds"
     JOINT_LIMITS = "joint_limits"
     COLLISION = "collision"
     FORCE_CLOSURE = "force_closure"
+    REACH = "reach"
 
 
-REASONS: tuple[Rejection, ...] = tuple(Rejection)
+REASONS: tuple[Rejection, ...] = tuple(r for r in Rejection if r != Rejection.REACH)
+"""The reasons the validity checker rejects states for (its counters)."""
 
 
 class QualityArgs(TypedDict):
