@@ -6,6 +6,7 @@ import importlib
 from types import ModuleType
 
 from dexplan.core.errors import DependencyError
+from dexplan.core.ray_cluster import import_ray
 
 
 def _import_extra(module: str, message: str) -> ModuleType:
@@ -34,4 +35,4 @@ def require_ray() -> ModuleType:
     Raises:
         DependencyError: Ray is not installed.
     """
-    return _import_extra("ray", "--ray needs Ray: pip install 'dexplan[ray]' (or pip install ray)")
+    return import_ray()

@@ -11,10 +11,8 @@ way a run that overruns its hard wall-clock limit is killed and recorded as
 
 from __future__ import annotations
 
-import logging
 import multiprocessing
 import os
-import socket
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -26,12 +24,12 @@ from multiprocessing.process import BaseProcess
 from types import ModuleType
 from typing import Any, Protocol, TypeVar
 
-from dexplan.bench.extras import require_ray
 from dexplan.bench.records import RunRecord, failure_record
 from dexplan.bench.schema import RunStatus, StartMethod
 from dexplan.bench.tasks import RunTask
 from dexplan.bench.worker import PRELOAD, child_main, execute_run
 from dexplan.core.errors import InvalidInputError
+from dexplan.core.ray_cluster import RayAddressKind, check_listening, join_ray, parse_ray_address
 
 
 @dataclass(frozen=True)
@@ -213,51 +211,14 @@ def run_local(
 
 
 def check_ray_address(address: str) -> None:
-    """Fail fast (instead of Ray's long retries) when ``host:port`` does not answer.
+    """Check ``--ray``'s form, and that a cluster answers at ``HOST:PORT``, before any work.
 
     Raises:
-        InvalidInputError: nothing listens at the address.
+        InvalidInputError: a form Ray does not accept, or nothing listening there.
     """
-    if address in ("local", "auto"):
-        return
-    hostport = address.split("://", 1)[-1]
-    host, sep, port = hostport.rpartition(":")
-    if not sep or not port.isdigit():
-        return  # leave other forms to Ray
-    try:
-        with socket.create_connection((host, int(port)), timeout=5.0):
-            pass
-    except OSError as exc:
-        raise InvalidInputError(f"--ray {address!r}: no Ray cluster answers there ({exc})") from exc
-
-
-def _init_ray(ray: ModuleType, address: str, jobs: int | None) -> bool:
-    """Start or join a Ray cluster unless Ray is initialised already.
-
-    Returns:
-        Whether this call initialised Ray (and so must shut it down).
-
-    Raises:
-        InvalidInputError: no cluster can be started or joined.
-    """
-    if ray.is_initialized():
-        return False
-    kwargs: dict[str, Any] = {
-        "log_to_driver": False,
-        "logging_level": logging.ERROR,
-        "configure_logging": True,
-    }
-    try:
-        if address == "local":
-            kwargs.update(num_cpus=jobs or os.cpu_count() or 1, include_dashboard=False)
-            ray.init(**kwargs)
-        else:
-            ray.init(address=address, **kwargs)
-    except Exception as exc:  # no cluster there, version mismatch, ...
-        raise InvalidInputError(
-            f"--ray {address!r}: cannot start or join a Ray cluster: {exc}"
-        ) from exc
-    return True
+    addr = parse_ray_address(address)
+    if addr.kind in (RayAddressKind.GCS, RayAddressKind.CLIENT):
+        check_listening(addr)
 
 
 class _RayTasks:
@@ -309,8 +270,7 @@ def run_ray(
         DependencyError: Ray is not installed.
         InvalidInputError: no cluster can be started or joined.
     """
-    ray = require_ray()
-    started_here = _init_ray(ray, address, jobs)
+    ray, started_here = join_ray(address, num_cpus=jobs)
     try:
         window = jobs or max(1, int(ray.cluster_resources().get("CPU", 1)))
         _drive(tasks, window, on_result, run_timeout, _RayTasks(ray))

@@ -17,6 +17,7 @@ from dexplan.bench.schema import DEFAULT_BASELINE
 from dexplan.core.errors import InvalidInputError, PlannerError, ScenarioError
 from dexplan.model.scenario import (
     Scenario,
+    builtin_scenario_folder,
     load_scenario,
     resolve_scenario_path,
     scenario_hash,
@@ -72,12 +73,17 @@ def run_key(scenario: str, digest: str, planner: str, seed: int, time_limit: flo
 def scenario_files(arg: str | Path) -> list[str | Path]:
     """A sweep's scenario argument: a folder gives its ``*.toml`` files (sorted by name).
 
+    A builtin folder's name (``suite``) names that folder.
+
     Raises:
         ScenarioError: a folder without scenario files.
     """
     path = Path(arg)
     if not path.is_dir():
-        return [arg]
+        builtin = builtin_scenario_folder(str(arg))
+        if builtin is None:
+            return [arg]
+        path = builtin
     files = sorted(path.glob("*.toml"))
     if not files:
         raise ScenarioError(f"scenario folder {str(arg)!r} holds no .toml file")

@@ -40,6 +40,7 @@ from dexplan.cli.options import (  # noqa: E402
     ReplayOptions,
     RoadmapBuildOptions,
     RoadmapInfoOptions,
+    ScenariosOptions,
     ShowOptions,
     StartMethod,
     VerifyOptions,
@@ -118,8 +119,18 @@ def _command(sub: Subparsers, name: str, help_text: str) -> _Parser:
 
 def _add_info(sub: Subparsers) -> None:
     """The ``info`` subcommand."""
-    p_info = sub.add_parser("info", help="show the builtin hand, object and dependency versions")
-    p_info.add_argument("--hand", default="paper", help="builtin hand name (default: paper)")
+    p_info = sub.add_parser(
+        "info",
+        help="show a hand (joints in planning order, limits, fingertips, reach), "
+        "the object and dependency versions",
+    )
+    p_info.add_argument(
+        "--hand",
+        default="paper",
+        metavar="HAND_OR_SCENARIO",
+        help="a builtin hand (paper, three_finger, allegro, allegro_left), a scenario "
+        "(TOML file or builtin name: its hand and object) or a URDF file (default: paper)",
+    )
     p_info.set_defaults(dispatch=Command("info", InfoOptions.from_args))
 
 
@@ -145,12 +156,25 @@ def _add_planners(sub: Subparsers) -> None:
     p_pl.set_defaults(dispatch=Command("planners", PlannersOptions.from_args))
 
 
+def _add_scenarios(sub: Subparsers) -> None:
+    """The ``scenarios`` subcommand."""
+    p_sc = sub.add_parser(
+        "scenarios",
+        help="list the builtin scenarios: every command that takes a scenario accepts their names",
+    )
+    p_sc.set_defaults(dispatch=Command("scenarios", ScenariosOptions.from_args))
+
+
 def _add_plan(sub: Subparsers) -> None:
     """The ``plan`` subcommand."""
     p_plan = _command(
         sub, "plan", "plan a scenario (default: the paper's sphere) and write plan.json"
     )
-    p_plan.add_argument("scenario", nargs="?", help="scenario TOML (default: paper_sphere)")
+    p_plan.add_argument(
+        "scenario",
+        nargs="?",
+        help="scenario TOML file or builtin scenario name (default: paper_sphere)",
+    )
     p_plan.add_argument("--planner", help="OMPL planner name (default: the scenario's)")
     _add_param_option(p_plan, "over the scenario's [planner] params")
     p_plan.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
@@ -206,7 +230,11 @@ def _add_query_options(p_plan: argparse.ArgumentParser) -> None:
 def _add_roadmap_build(rsub: Subparsers) -> None:
     """The ``roadmap build`` subcommand."""
     p_b = _command(rsub, "build", "the learning phase: a goal-independent GSn roadmap")
-    p_b.add_argument("scenario", nargs="?", help="scenario TOML (default: paper_sphere)")
+    p_b.add_argument(
+        "scenario",
+        nargs="?",
+        help="scenario TOML file or builtin scenario name (default: paper_sphere)",
+    )
     budget = p_b.add_mutually_exclusive_group(required=True)
     budget.add_argument("--time", type=float, help="seconds for the whole build")
     budget.add_argument(
@@ -394,6 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_info(sub)
+    _add_scenarios(sub)
     _add_plan(sub)
     _add_roadmap(sub)
     _add_verify(sub)

@@ -29,6 +29,7 @@ __all__ = [
     "ReplayOptions",
     "RoadmapBuildOptions",
     "RoadmapInfoOptions",
+    "ScenariosOptions",
     "ShowOptions",
     "StartMethod",
     "VerifyOptions",
@@ -115,7 +116,7 @@ class PlannersOptions:
 
 @dataclass(frozen=True)
 class InfoOptions:
-    """``dexplan info``: the builtin hand to describe."""
+    """``dexplan info``: the hand to describe (builtin name, scenario or URDF file)."""
 
     hand: str
 
@@ -123,6 +124,16 @@ class InfoOptions:
     def from_args(cls, args: argparse.Namespace) -> InfoOptions:
         """The options of a parsed ``info`` command line."""
         return cls(hand=args.hand)
+
+
+@dataclass(frozen=True)
+class ScenariosOptions:
+    """``dexplan scenarios``: no options (it lists the builtin scenarios)."""
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> ScenariosOptions:
+        """The options of a parsed ``scenarios`` command line."""
+        return cls()
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ import numpy as np
 
 from dexplan.core.pose import quat_to_matrix
 from dexplan.core.typing import FloatArray
+from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.reach import REACH_VOXEL
 from dexplan.model.objects import Shape
 from dexplan.planning.context import PlanningContext
@@ -35,10 +36,12 @@ __all__ = [
     "REACH_SLACK",
     "FingerReach",
     "PoseCheck",
+    "ReachExtent",
     "check_pose",
     "check_query",
     "finger_reach",
     "goal_tolerance",
+    "reach_extent",
 ]
 
 REACH_SLACK = 3.0 * REACH_VOXEL
@@ -260,3 +263,32 @@ def check_query(ctx: PlanningContext) -> PoseCheck | None:
         if check.blocked:
             return check
     return None
+
+
+@dataclass(frozen=True)
+class ReachExtent:
+    """Where a finger's fingertip centre can be (``dexplan info --hand``).
+
+    Attributes:
+        lower, upper: (3,) corners of the box around its reach voxels, world frame (m).
+        base_world: (3,) the finger's first joint origin, neutral configuration, world frame.
+        nearest, farthest: least and largest distance (m) of a reachable fingertip
+            centre from ``base_world``.
+    """
+
+    lower: FloatArray
+    upper: FloatArray
+    base_world: FloatArray
+    nearest: float
+    farthest: float
+
+
+def reach_extent(hand: Hand, finger: int) -> ReachExtent:
+    """The extent of ``finger``'s reach voxels (to a voxel, see :data:`REACH_SLACK`)."""
+    vox = hand.reach_voxels(finger)
+    centres = vox.origin + (np.argwhere(vox.occupied) + 0.5) * vox.size
+    base = hand.joint_origin(int(hand.finger_q_index[finger][0]), hand.neutral)
+    d = np.linalg.norm(centres - base, axis=1)
+    return ReachExtent(
+        centres.min(axis=0), centres.max(axis=0), base, float(d.min()), float(d.max())
+    )

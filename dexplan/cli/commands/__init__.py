@@ -15,6 +15,7 @@ __all__ = [
     "planners",
     "replay",
     "roadmap",
+    "scenarios",
     "show",
     "verify",
 ]

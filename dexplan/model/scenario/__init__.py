@@ -9,6 +9,7 @@ scenarios, and a scenario argument resolved: a path or a builtin name).
 
 from dexplan.model.scenario.catalog import (
     BuiltinScenario,
+    builtin_scenario_folder,
     builtin_scenarios,
     resolve_scenario_path,
 )
@@ -56,6 +57,7 @@ __all__ = [
     "PlannerSpec",
     "Scenario",
     "StartSpec",
+    "builtin_scenario_folder",
     "builtin_scenario_path",
     "builtin_scenarios",
     "checked_scenario",

@@ -17,11 +17,12 @@ from dexplan.core.errors import ScenarioError, shorten
 
 __all__ = [
     "BuiltinScenario",
+    "builtin_scenario_folder",
     "builtin_scenarios",
     "resolve_scenario_path",
 ]
 
-_SUMMARY_CHARS = 200
+_SUMMARY_CHARS = 150
 """Longest summary :func:`builtin_scenarios` gives (characters)."""
 
 
@@ -67,6 +68,12 @@ def builtin_scenarios() -> list[BuiltinScenario]:
         BuiltinScenario(p.relative_to(root).with_suffix("").as_posix(), p, _summary(p))
         for p in files
     ]
+
+
+def builtin_scenario_folder(name: str) -> Path | None:
+    """The builtin folder of scenarios called ``name`` (``suite``), or None."""
+    folder = _root() / name
+    return folder if name and "/" not in name and folder.is_dir() else None
 
 
 def resolve_scenario_path(arg: str | Path) -> Path:

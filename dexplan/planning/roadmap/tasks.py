@@ -37,6 +37,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from dexplan.core.errors import InvalidInputError
+from dexplan.core.ray_cluster import join_ray
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario
@@ -190,25 +191,8 @@ class RayRunner:
     """Tasks over Ray actors (one per CPU of the cluster, or ``jobs``)."""
 
     def __init__(self, scenario: Scenario, space: str, address: str, jobs: int | None) -> None:
-        try:
-            import ray
-        except ImportError as exc:
-            raise InvalidInputError(
-                "--ray needs the ray package: pip install 'dexplan[ray]'"
-            ) from exc
+        ray, self._own = join_ray(address, num_cpus=jobs or 2)
         self._ray = ray
-        self._own = not ray.is_initialized()
-        if self._own:
-            try:
-                if address == "local":
-                    ray.init(num_cpus=jobs or 2, include_dashboard=False, log_to_driver=False)
-                else:
-                    ray.init(address=address, log_to_driver=False)
-            except (ConnectionError, RuntimeError, ValueError) as exc:
-                msg = " ".join(str(exc).split())[:160]
-                raise InvalidInputError(
-                    f"--ray {address}: cannot join the cluster ({msg})"
-                ) from exc
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = max(1, jobs or cpus)
         actor: Any = ray.remote(num_cpus=1)(TaskWorker)  # typed by Ray only where installed
