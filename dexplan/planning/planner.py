@@ -207,15 +207,10 @@ def plan(
         progress,
         hand,
     )
-    blocked = query.check_poses()
-    if blocked is not None:
-        return blocked
-    x_start = query.start_grasp()
-    if x_start is None:
-        why = " within the time limit" if query.ctx.deadline.expired() else ""
-        return query.result(
-            PlanStatus.NO_START_GRASP, f"no valid grasp found at the start pose{why}"
-        )
+    x_start, failed = query.start()
+    if failed is not None:
+        return failed
+    assert x_start is not None  # start() returns a state or a failure
     gsn, failed = query.explore(x_start)
     if failed is not None:
         return failed
@@ -308,6 +303,22 @@ class QueryRun:
         )
 
     # -- stage 0: can a grasp exist at the start and goal poses? ------------
+    def start(self) -> tuple[FloatArray | None, PlanResult | None]:
+        """The start GSn state, or the failure that ends the query before it.
+
+        The poses are checked first (:meth:`check_poses`), then a start
+        grasp is found (:meth:`start_grasp`).
+        """
+        blocked = self.check_poses()
+        if blocked is not None:
+            return None, blocked
+        x_start = self.start_grasp()
+        if x_start is None:
+            why = " within the time limit" if self.ctx.deadline.expired() else ""
+            msg = f"no valid grasp found at the start pose{why}"
+            return None, self.result(PlanStatus.NO_START_GRASP, msg)
+        return x_start, None
+
     def check_poses(self) -> PlanResult | None:
         """The failure of a start or goal pose where no grasp can exist (:func:`check_query`).
 

@@ -12,6 +12,7 @@ from dexplan.cli.console import ExitCode, err
 from dexplan.cli.options import RoadmapBuildOptions, RoadmapInfoOptions
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.files import check_output_path
+from dexplan.core.ray_cluster import parse_ray_address
 from dexplan.model.scenario import (
     SEED_LIMIT,
     default_scenario,
@@ -94,6 +95,8 @@ def build(opts: RoadmapBuildOptions) -> int:
         ray_address=opts.ray,
     )
     check_output_path(opts.output, "-o")
+    if opts.ray is not None:  # the address's form, before the models are built
+        parse_ray_address(opts.ray)
     hand = build_hand(scenario)
     if not opts.quiet:
         budget = f"{opts.time:g} s" if opts.time is not None else f"{opts.nodes} nodes"
