@@ -104,7 +104,7 @@ def test_start_inside_an_obstacle_is_named(tmp_path) -> None:
     text = head + text[len(PAPER) :] + "\n[start]" + tail
     res = plan(load_scenario(_scenario(tmp_path, text)))
     assert res.status == PlanStatus.NO_START_GRASP
-    assert "inside an obstacle (post_1 " in res.message and "mm deep" in res.message
+    assert "inside an obstacle (post 20 mm deep)" in res.message and "mm deep" in res.message
     assert res.rejections is not None and res.rejections.attempts == 0
 
 

@@ -359,8 +359,8 @@ class CollisionWorld:
         obstacles: an object there cannot be grasped, whatever the fingers do.
 
         Returns:
-            ``(name, is_palm, depth)`` per intersected geometry: its link or
-            obstacle name, whether it is part of the palm, and the penetration
+            ``(name, is_palm, depth)`` per intersected geometry: its link name
+            or the obstacle's (as the scenario names it), whether it is part of the palm, and the penetration
             depth (m, > 0; 0 where coal does not measure it).
         """
         gd, gm = self.geom_data, self.geom_model
@@ -369,13 +369,14 @@ class CollisionWorld:
         on_finger = {g for geoms in self.finger_geoms for g in geoms}
         palm = [g for g in range(self._n_hand_geoms) if g not in on_finger]
         out = []
+        names = {g: ob.name for g, ob in zip(self.obstacle_geoms, self.obstacles, strict=True)}
         for g in [*palm, *self.obstacle_geoms]:
             k = self._pair_of.get((min(g, self.object_geom), max(g, self.object_geom)))
             if k is None or not pin.computeCollision(gm, gd, k):
                 continue
             res = gd.collisionResults[k]  # contacts are on (see __init__): coal's depth
             depth = abs(float(res.getContact(0).penetration_depth)) if res.numContacts() else 0.0
-            out.append((self.geometry_name(g), g < self._n_hand_geoms, depth))
+            out.append((names.get(g, self.geometry_name(g)), g < self._n_hand_geoms, depth))
         return out
 
     def object_clearance(self, object_pose_xyzquat: FloatArray) -> float:
