@@ -72,8 +72,10 @@ def builtin_scenarios() -> list[BuiltinScenario]:
 
 def builtin_scenario_folder(name: str) -> Path | None:
     """The builtin folder of scenarios called ``name`` (``suite``), or None."""
+    if not name or "/" in name or name not in {p.name for p in _root().iterdir()}:
+        return None
     folder = _root() / name
-    return folder if name and "/" not in name and folder.is_dir() else None
+    return folder if folder.is_dir() else None
 
 
 def resolve_scenario_path(arg: str | Path) -> Path:
@@ -86,7 +88,10 @@ def resolve_scenario_path(arg: str | Path) -> Path:
             builtin names, and where to list them).
     """
     path = Path(arg)
-    if path.is_file():
+    try:
+        if path.is_file():
+            return path
+    except (OSError, ValueError):  # a name too long, a NUL: load_scenario says so
         return path
     text = str(arg)
     names = {s.name: s.path for s in builtin_scenarios()}
