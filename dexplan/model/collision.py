@@ -360,8 +360,9 @@ class CollisionWorld:
 
         Returns:
             ``(name, is_palm, depth)`` per intersected geometry: its link name
-            or the obstacle's (as the scenario names it), whether it is part of the palm, and the penetration
-            depth (m, > 0; 0 where coal does not measure it).
+            or the obstacle's (as the scenario names it), whether it is part
+            of the palm, and the penetration depth (m, > 0; 0 where coal does
+            not measure it).
         """
         gd, gm = self.geom_data, self.geom_model
         pin.updateGeometryPlacements(self.hand.model, self.hand.data, gm, gd, self.hand.neutral)
