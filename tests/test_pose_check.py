@@ -161,3 +161,16 @@ def test_unit_scale_hint() -> None:
     assert "centimetres? scale = 0.01 " in unit_scale_hint(9.0, 1.0, 2.0)
     assert "scale = 2e-05" in unit_scale_hint(104.0, 0.02, 2.0)  # relative to the given scale
     assert unit_scale_hint(1e6, 1.0, 2.0) == ""  # no unit makes it hand-sized
+
+
+def test_edge_of_reach_is_named_when_sampling_finds_no_grasp(tmp_path) -> None:
+    """4 mm short by the reach estimate: not refused (within its error), but named."""
+    res = plan(load_scenario(_scenario(tmp_path, _with_start(0.18))))
+    assert res.status == PlanStatus.NO_START_GRASP
+    assert res.rejections is not None and res.rejections.attempts > 0  # it was sampled
+    assert res.message.startswith("no valid grasp found at the start pose; at the start pose")
+    assert "4 of 4 fingertips are at the edge of their reach" in res.message
+    assert "f0_tip 4 mm short" in res.message and "[start] object_pose_xyzquat" in res.message
+    ctx = _context(tmp_path, PAPER)
+    fine = check_pose(ctx, np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0]), "start")
+    assert fine.edge_hint() == ""  # the paper's pose: 50 mm of margin

@@ -46,7 +46,7 @@ from dexplan.planning.local.reduction import (
 from dexplan.planning.local.smoothing import drop_regrasps, merge_regrasps, shortcut_object_path
 from dexplan.planning.local.transitions import GraspContacts, densify_poses
 from dexplan.planning.ompl import check_planner
-from dexplan.planning.pose_check import check_query
+from dexplan.planning.pose_check import check_pose, check_query
 from dexplan.planning.progress import PlanStatus, Progress, ProgressEvent, Stage
 from dexplan.planning.roadmap.graph import Roadmap
 from dexplan.planning.roadmap.module1 import explore_gsn
@@ -315,7 +315,7 @@ class QueryRun:
         x_start = self.start_grasp()
         if x_start is None:
             why = " within the time limit" if self.ctx.deadline.expired() else ""
-            msg = f"no valid grasp found at the start pose{why}"
+            msg = f"no valid grasp found at the start pose{why}{self.reach_note('start')}"
             return None, self.result(PlanStatus.NO_START_GRASP, msg)
         return x_start, None
 
@@ -334,6 +334,12 @@ class QueryRun:
         return self.result(
             status, f"no grasp can exist at the {check.which} pose: {check.describe()}"
         )
+
+    def reach_note(self, which: str) -> str:
+        """After sampling found no grasp at a pose: fingertips at the edge of their reach there."""
+        sc = self.scenario
+        pose = sc.start.object_pose_xyzquat if which == "start" else sc.goal.object_pose_xyzquat
+        return check_pose(self.ctx, pose, which).edge_hint()
 
     # -- stage 1: the start grasp --------------------------------------------
     def start_grasp(self) -> FloatArray | None:
@@ -382,7 +388,10 @@ class QueryRun:
         if gsn.path is not None:
             return gsn, None
         if draws[0] and not draws[1]:
-            msg = f"no valid grasp found at the goal pose ({draws[0]} sampler calls)"
+            msg = (
+                f"no valid grasp found at the goal pose ({draws[0]} sampler calls)"
+                f"{self.reach_note('goal')}"
+            )
             return None, self.result(PlanStatus.NO_GOAL_GRASP, msg)
         return None, self.result(PlanStatus.NO_GSN_PATH, gsn.message)
 

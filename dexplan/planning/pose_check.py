@@ -33,6 +33,7 @@ from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.validity import RejectedSample, Rejection
 
 __all__ = [
+    "REACH_EDGE",
     "REACH_SLACK",
     "FingerReach",
     "PoseCheck",
@@ -43,6 +44,11 @@ __all__ = [
     "goal_tolerance",
     "reach_extent",
 ]
+
+REACH_EDGE = 0.02
+"""Margin (m) below which a fingertip is at the edge of its reach: a sampler that
+finds no grasp there is told so. The builtin scenarios' fingers reach 25-70 mm
+past the object's surface at their start and goal poses."""
 
 REACH_SLACK = 3.0 * REACH_VOXEL
 """Gap (m) beyond which a finger certainly cannot touch the object.
@@ -70,6 +76,10 @@ class FingerReach:
             (m) the deepest one is from touching.
         p_closest_world: (3,) the reachable fingertip centre nearest to touching,
             world frame.
+        margin: how far (m) past the surface the fingertip can reach
+            (negative: ``-gap`` short of it). A finger that reaches the object
+            by a few millimetres only touches it at the edge of its workspace,
+            where its links rarely leave it a grasp.
     """
 
     finger: int
@@ -77,6 +87,7 @@ class FingerReach:
     gap: float
     covered: bool
     p_closest_world: FloatArray
+    margin: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -135,6 +146,29 @@ class PoseCheck:
         return (
             f"the object at {where} is out of reach of {len(short)} of {len(self.reach)} "
             f"fingertips ({gaps}; dexplan info --hand shows their reach): {fix}"
+        )
+
+    def edge_hint(self) -> str:
+        """Why sampling may have found no grasp: fingertips at the edge of their reach.
+
+        For a pose that passed the check but where the sampler found no grasp
+        (its rejections are "inverse kinematics" or "force closure": fingertips
+        that only graze the object). "" when every fingertip reaches
+        :data:`REACH_EDGE` past the surface.
+        """
+        edge = sorted((f for f in self.reach if f.margin < REACH_EDGE), key=lambda f: f.margin)
+        if not edge:
+            return ""
+        parts = ", ".join(
+            f"{f.tip_frame} {_mm(-f.margin)} short"
+            if f.margin < 0
+            else f"{f.tip_frame} only {_mm(f.margin)} past the surface"
+            for f in edge
+        )
+        return (
+            f"; at the {self.which} pose {len(edge)} of {len(self.reach)} fingertips are at the "
+            f"edge of their reach ({parts}): move [{self.which}] object_pose_xyzquat towards "
+            "the fingers (dexplan info --hand shows their reach)"
         )
 
     def samples(self, q_neutral: FloatArray) -> list[RejectedSample]:
@@ -206,15 +240,16 @@ def finger_reach(ctx: PlanningContext, finger: int, pose: FloatArray) -> FingerR
     r = hand.fingertip_radius
     tip = hand.fingertip_frames[finger]
     lo, sd_lo = _nearest_surface(obj, p_obj, lower)
+    margin = r - sd_lo
     if sd_lo > r:  # every reachable centre too far from the object
-        return FingerReach(finger, tip, sd_lo - r, False, centres[lo])
+        return FingerReach(finger, tip, sd_lo - r, False, centres[lo], margin)
     if np.any(lower >= r):  # some reachable centre clear of the object: it can touch
-        return FingerReach(finger, tip, 0.0, False, centres[lo])
+        return FingerReach(finger, tip, 0.0, False, centres[lo], margin)
     sd = np.atleast_1d(np.asarray(obj.signed_distance(p_obj)))  # all of the reach is near
     hi = int(np.argmax(sd))
     if sd[hi] < r:  # every reachable centre too deep in it
-        return FingerReach(finger, tip, float(r - sd[hi]), True, centres[hi])
-    return FingerReach(finger, tip, 0.0, False, centres[lo])
+        return FingerReach(finger, tip, float(r - sd[hi]), True, centres[hi], margin)
+    return FingerReach(finger, tip, 0.0, False, centres[lo], margin)
 
 
 def check_pose(
