@@ -121,3 +121,18 @@ def test_no_partial_bag_on_error(exports, tmp_path, monkeypatch, capfd) -> None:
     code, _, err = run_cli(capfd, "export", plan, "-o", tmp_path / "traj.bag")
     assert_bad_input(code, err, names=[".mcap", "traj.bag"])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_rosbags_is_said_before_any_work(exports, tmp_path, monkeypatch, capfd) -> None:
+    _, _, bag = exports
+    import sys
+
+    monkeypatch.setitem(sys.modules, "rosbags", None)  # as if not installed
+    monkeypatch.setitem(sys.modules, "rosbags.rosbag2", None)
+    monkeypatch.setattr(
+        "dexplan.cli.commands.export.build_trajectory",
+        lambda *a, **k: pytest.fail("timed before the dependency check"),
+    )
+    out = tmp_path / "t.mcap"
+    code, _, err = run_cli(capfd, "export", bag.with_name("plan.json"), "-o", out)
+    assert_bad_input(code, err, names=["rosbags", "dexplan[ros]"], outputs=[out])

@@ -45,6 +45,7 @@ __all__ = [
     "BagMessage",
     "bag_topics",
     "read_bag",
+    "require_rosbags",
     "stamp_seconds",
     "write_bag",
 ]
@@ -92,6 +93,15 @@ def _rosbags(module: str) -> Any:
         return importlib.import_module(f"rosbags.{module}")
     except ImportError as exc:
         raise DependencyError(f"ROS 2 bags need rosbags: {_PIP}") from exc
+
+
+def require_rosbags() -> None:
+    """Check, before any work, that bags can be written.
+
+    Raises:
+        DependencyError: ``rosbags`` is not installed (extra ``ros``).
+    """
+    _rosbags("rosbag2")
 
 
 def _typestore() -> Any:

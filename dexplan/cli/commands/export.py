@@ -12,7 +12,7 @@ from dexplan.cli.console import ExitCode
 from dexplan.cli.options import ExportOptions
 from dexplan.core.errors import InvalidInputError, one_line
 from dexplan.core.files import check_output_path, file_sha256
-from dexplan.execution.bag import BAG_SUFFIX, write_bag
+from dexplan.execution.bag import BAG_SUFFIX, require_rosbags, write_bag
 from dexplan.execution.check import check_trajectory
 from dexplan.execution.export import TrajectoryFormat, trajectory_document, write_trajectory
 from dexplan.execution.forces import force_settings_from_plan
@@ -43,6 +43,8 @@ def run(opts: ExportOptions) -> int:
             f"-o: the trajectory file must end in .json, .csv or .mcap (ROS 2 bag), "
             f"got {str(out)!r}"
         )
+    if is_bag:
+        require_rosbags()  # before the minutes of timing, not after
     doc = read_plan(opts.plan)
     base = Path(opts.plan).resolve().parent
     limits = _limits(opts)
