@@ -107,7 +107,7 @@ def test_json_is_plain_json(plan_file) -> None:
 
 def test_bad_input(capfd, plan_file, tmp_path) -> None:
     code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "t.txt")
-    assert_bad_input(code, err, names=[".json or .csv"], outputs=[tmp_path / "t.txt"])
+    assert_bad_input(code, err, names=[".json, .csv or .mcap"], outputs=[tmp_path / "t.txt"])
     code, _, err = run_cli(capfd, "export", tmp_path / "none.json", "-o", tmp_path / "t.json")
     assert_bad_input(code, err, names=["not found"], outputs=[tmp_path / "t.json"])
     code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "no" / "t.json")
