@@ -70,6 +70,8 @@ def test_info_scenario_with_a_user_urdf(tmp_path, capfd) -> None:
     assert "hand: my_hand: 3 fingers, 9 joints, fingertip radius 0.012 m" in out
     assert len(_joint_rows(out)) == 9
     assert "finger 2: f2_tip: x [" in out
+    assert "start pose: fingertip reach past the surface (mm): f0_tip +" in out
+    assert "goal pose:" in out and "every fingertip reaches the object" in out
 
 
 def test_info_bare_urdf_lists_joints_and_tip_candidates(capfd) -> None:
@@ -113,3 +115,16 @@ def test_builtin_names_resolve_everywhere(tmp_path, capfd) -> None:
         capfd, "roadmap", "build", "nosuch", "--nodes", "5", "-o", tmp_path / "r.npz"
     )
     assert_bad_input(code, err, names=["'nosuch'"])
+
+
+def test_info_scenario_says_when_a_pose_is_out_of_reach(tmp_path, capfd) -> None:
+    text = (ROOT / "scenarios" / "paper_sphere.toml").read_text()
+    far = text.replace(
+        "object_pose_xyzquat = [0.0, 0.0, 0.1, 0.0, 0.0, 1.0, 0.0]",
+        "object_pose_xyzquat = [0.0, 0.0, 0.3, 0.0, 0.0, 1.0, 0.0]",
+    )
+    (tmp_path / "far.toml").write_text(far)
+    code, out, _ = run_cli(capfd, "info", "--hand", tmp_path / "far.toml")
+    assert code == 0
+    goal = next(ln for ln in out.splitlines() if ln.startswith("goal pose:"))
+    assert "f0_tip -11" in goal and "no grasp can exist" in goal and "out of reach" in goal

@@ -18,14 +18,20 @@ import pinocchio as pin
 
 from dexplan.cli.console import ExitCode, dist_version
 from dexplan.cli.options import InfoOptions
-from dexplan.core.errors import ModelError, ScenarioError, shorten
+from dexplan.core.errors import DexplanError, ModelError, ScenarioError, one_line, shorten
 from dexplan.core.files import read_input_file
 from dexplan.model.hand.builtin import BUILTIN_HANDS
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.urdf import build_models, parse_urdf, urdf_text
 from dexplan.model.objects import Sphere
-from dexplan.model.scenario import builtin_scenarios, load_scenario, resolve_scenario_path
-from dexplan.planning.pose_check import reach_extent
+from dexplan.model.scenario import (
+    Scenario,
+    builtin_scenarios,
+    load_scenario,
+    resolve_scenario_path,
+)
+from dexplan.planning.context import build_context
+from dexplan.planning.pose_check import check_pose, reach_extent
 
 __all__ = ["run"]
 
@@ -41,9 +47,13 @@ def run(opts: InfoOptions) -> int:
     if arg.lower().endswith(".urdf"):
         _write_urdf(buf, Path(arg))
     else:
-        hand, obj = _hand_and_object(arg)
+        hand, scenario = _hand_and_scenario(arg)
         _write_hand(buf, hand)
-        buf.write(f"object: {obj}\n")
+        if scenario is None:
+            buf.write(f"object: {Sphere(0.04).to_dict()}\n")
+        else:
+            buf.write(f"object: {dict(scenario.object)}\n")
+            _write_poses(buf, scenario, hand)
     out = sys.stdout
     out.write(f"dexplan {dist_version('dexplan')}\n{buf.getvalue()}")
     for dist in DEPENDENCIES:
@@ -51,10 +61,10 @@ def run(opts: InfoOptions) -> int:
     return ExitCode.OK
 
 
-def _hand_and_object(arg: str) -> tuple[Hand, dict[str, object]]:
-    """The hand ``--hand`` names (builtin, or a scenario's) and the object that goes with it."""
+def _hand_and_scenario(arg: str) -> tuple[Hand, Scenario | None]:
+    """The hand ``--hand`` names (builtin, or a scenario's) and the scenario, if one."""
     if arg in {str(h) for h in BUILTIN_HANDS}:
-        return Hand.builtin(arg), Sphere(0.04).to_dict()
+        return Hand.builtin(arg), None
     try:
         path = resolve_scenario_path(arg)
     except ScenarioError as exc:
@@ -67,7 +77,7 @@ def _hand_and_object(arg: str) -> tuple[Hand, dict[str, object]]:
             f"file or name, or a .urdf file ({hint}dexplan scenarios lists the scenarios)"
         ) from exc
     scenario = load_scenario(path)
-    return Hand.from_spec(scenario.hand), dict(scenario.object)
+    return Hand.from_spec(scenario.hand), scenario
 
 
 def _limit(v: float) -> str:
@@ -127,3 +137,25 @@ def _write_urdf(out: TextIO, path: Path) -> None:
         "for fingertips, radius and reach: dexplan info --hand SCENARIO.toml with "
         "[hand] urdf, fingertip_frames, fingertip_radius\n"
     )
+
+
+def _write_poses(out: TextIO, scenario: Scenario, hand: Hand) -> None:
+    """How far past the object's surface each fingertip reaches at the start and goal poses."""
+    try:
+        ctx = build_context(scenario, hand=hand)
+    except DexplanError as exc:  # e.g. a hand that can never let a finger go
+        out.write(f"start and goal poses: not checked ({one_line(exc, 200)})\n")
+        return
+    for which, pose in (
+        ("start", scenario.start.object_pose_xyzquat),
+        ("goal", scenario.goal.object_pose_xyzquat),
+    ):
+        check = check_pose(ctx, pose, which)
+        margins = ", ".join(f"{f.tip_frame} {f.margin * 1e3:+.0f}" for f in check.reach)
+        if check.blocked:
+            verdict = f"no grasp can exist: {check.describe()}"
+        elif check.edge_hint():
+            verdict = "some fingertips are at the edge of their reach: grasps may be rare"
+        else:
+            verdict = "every fingertip reaches the object"
+        out.write(f"{which} pose: fingertip reach past the surface (mm): {margins}; {verdict}\n")
