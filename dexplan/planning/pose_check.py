@@ -27,7 +27,7 @@ import numpy as np
 from dexplan.core.pose import quat_to_matrix
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
-from dexplan.model.hand.reach import REACH_VOXEL
+from dexplan.model.hand.reach import REACH_VOXEL, ReachVoxels
 from dexplan.model.objects import Shape
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.validity import RejectedSample, Rejection
@@ -59,6 +59,11 @@ voxel of one: 3 voxels (12 mm) bound the error of the voxel estimate."""
 
 _CHUNK = 256
 """Points whose signed distance :func:`_nearest_surface` asks for at once."""
+
+_CENTRES: dict[int, tuple[ReachVoxels, FloatArray]] = {}
+"""Voxel centres by ``id`` of their :class:`ReachVoxels` (kept with it: ids are reused)."""
+_CENTRES_KEPT = 32
+"""Voxel sets whose centres are kept (8 four-finger hands)."""
 
 
 @dataclass(frozen=True)
@@ -212,28 +217,45 @@ def _nearest_surface(obj: Shape, p_obj: FloatArray, lower: FloatArray) -> tuple[
     """The point of ``p_obj: (N, 3)`` with the least signed distance to ``obj``, and that distance.
 
     ``lower: (N,)`` are lower bounds of the distances (distance to the object
-    centre minus its bounding radius): points are measured in their order, in
-    chunks, until no remaining one can be nearer. A mesh's signed distance
-    costs tens of microseconds a point, and a finger's reach has thousands.
+    centre minus its bounding radius). The :data:`_CHUNK` points of least bound
+    are measured first, then only those whose bound is below the best distance
+    found: a mesh's signed distance costs tens of microseconds a point, and a
+    finger's reach has thousands (for a sphere the bound is the distance, and
+    the first chunk is all).
     """
-    order = np.argsort(lower, kind="stable")
-    best, arg = np.inf, -1
-    for lo in range(0, len(order), _CHUNK):
-        chunk = order[lo : lo + _CHUNK]
-        if lower[chunk[0]] >= best:
-            break
+    k = min(_CHUNK, len(lower))
+    first = np.argpartition(lower, k - 1)[:k]
+    sd = np.atleast_1d(np.asarray(obj.signed_distance(p_obj[first])))
+    arg = int(np.argmin(sd))
+    best, where = float(sd[arg]), int(first[arg])
+    rest = np.ones(len(lower), dtype=bool)
+    rest[first] = False
+    rest &= lower < best
+    more = np.flatnonzero(rest)
+    for lo in range(0, len(more), _CHUNK):
+        chunk = more[lo : lo + _CHUNK]
         sd = np.atleast_1d(np.asarray(obj.signed_distance(p_obj[chunk])))
-        k = int(np.argmin(sd))
-        if sd[k] < best:
-            best, arg = float(sd[k]), int(chunk[k])
-    return arg, best
+        arg = int(np.argmin(sd))
+        if sd[arg] < best:
+            best, where = float(sd[arg]), int(chunk[arg])
+    return where, best
+
+
+def _voxel_centres(vox: ReachVoxels) -> FloatArray:
+    """(K, 3) the centres of a finger's occupied reach voxels, world frame (kept per voxels)."""
+    hit = _CENTRES.get(id(vox))
+    if hit is None or hit[0] is not vox:
+        hit = (vox, vox.origin + (np.argwhere(vox.occupied) + 0.5) * vox.size)
+        if len(_CENTRES) >= _CENTRES_KEPT:  # a few hands' worth; the oldest goes
+            del _CENTRES[next(iter(_CENTRES))]
+        _CENTRES[id(vox)] = hit
+    return hit[1]
 
 
 def finger_reach(ctx: PlanningContext, finger: int, pose: FloatArray) -> FingerReach:
     """How far ``finger``'s fingertip is from touching the object at ``pose`` (see the module)."""
     hand, obj = ctx.hand, ctx.obj
-    vox = hand.reach_voxels(finger)
-    centres = vox.origin + (np.argwhere(vox.occupied) + 0.5) * vox.size  # world frame
+    centres = _voxel_centres(hand.reach_voxels(finger))  # world frame
     R = quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7]))
     p_obj = (centres - pose[:3]) @ R
     lower = np.linalg.norm(p_obj, axis=1) - obj.bounding_radius
@@ -320,8 +342,7 @@ class ReachExtent:
 
 def reach_extent(hand: Hand, finger: int) -> ReachExtent:
     """The extent of ``finger``'s reach voxels (to a voxel, see :data:`REACH_SLACK`)."""
-    vox = hand.reach_voxels(finger)
-    centres = vox.origin + (np.argwhere(vox.occupied) + 0.5) * vox.size
+    centres = _voxel_centres(hand.reach_voxels(finger))
     base = hand.joint_origin(int(hand.finger_q_index[finger][0]), hand.neutral)
     d = np.linalg.norm(centres - base, axis=1)
     return ReachExtent(
