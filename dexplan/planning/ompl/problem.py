@@ -52,6 +52,11 @@ from dexplan.planning.ompl.spaces import (
 __all__ = ["PlanningProblem"]
 
 
+def written_in_python(planner: Any) -> bool:
+    """Whether ``planner`` is an ``ob.Planner`` subclass defined in Python (not OMPL's own)."""
+    return not type(planner).__module__.startswith("ompl")
+
+
 class PlanningProblem:
     """A constrained planning problem solved by one OMPL geometric planner.
 
@@ -273,8 +278,10 @@ class PlanningProblem:
     def _build_query(self) -> str | None:
         """Build a fresh ProblemDefinition; return a status name if impossible."""
         pdef = ob.ProblemDefinition(self._si)
+        # a planner written in Python reads its start through the binding
+        readable = written_in_python(self._planner)
         for x in self._starts:
-            self._space.add_start(pdef, self._frame.to_y(x))
+            self._space.add_start(pdef, self._frame.to_y(x), readable=readable)
         goal, status = query_goal(
             self._si,
             self._space.alloc,

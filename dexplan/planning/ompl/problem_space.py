@@ -220,22 +220,27 @@ class ProblemSpace:
             self.css.anchorChart(state)
         return state
 
-    def add_start(self, pdef: Any, y: FloatArray) -> None:
+    def add_start(self, pdef: Any, y: FloatArray, *, readable: bool = False) -> None:
         """Add a start state at planning coordinates ``y`` to the ``ob.ProblemDefinition``.
 
-        The binding hands ``pdef.getStartState(i)`` to Python as an owned
-        object: the first handle to it that Python frees deletes the
-        problem's start state, and the next ``getStartState`` (a Python
-        planner's) or the problem's own destructor crashes the process. One
-        handle is taken here and given a reference that is never released
-        (a Python list would release it when the interpreter clears modules
-        at exit, and crash there); nanobind returns that same handle for
-        every later ``getStartState`` of the state, so Python never frees
-        the state.
+        The binding hands ``pdef.getStartState(i)`` to Python as an *owned*
+        object: the first handle Python frees deletes the problem's start
+        state, and the problem's own destructor then frees it again. dexplan
+        never calls it. ``readable=True`` (the public :class:`ProblemSetup`,
+        whose Python planners read their start that way) takes that handle
+        once and keeps it, and the problem definition, alive for the rest of
+        the process: nanobind returns the same handle for every later
+        ``getStartState`` of the state, so nothing is ever freed twice, and
+        no freed state's address stays registered to a live handle (a handle
+        kept past its state misleads nanobind into giving a later state at
+        the same address the wrong type). The cost is one problem definition
+        per :meth:`ProblemSetup.set_start`, never released.
         """
         pdef.addStartState(self.alloc(y, anchor=True))
-        handle = pdef.getStartState(pdef.getStartStateCount() - 1)
-        ctypes.pythonapi.Py_IncRef(ctypes.py_object(handle))
+        if readable:
+            handle = pdef.getStartState(pdef.getStartStateCount() - 1)
+            for obj in (handle, pdef):
+                ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
 
     def geodesic(self, a: Any, b: Any) -> list[FloatArray]:
         """Planning-coordinate states of the motion a -> b (a and b included).

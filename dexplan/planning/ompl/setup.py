@@ -161,7 +161,7 @@ class ProblemSetup:
         """Set the start state ``x: (n,)`` (ambient, on the manifold)."""
         xv = self._space.checked_state(x, "start")
         pdef = ob.ProblemDefinition(self._space.si)
-        self._space.add_start(pdef, self._space.frame.to_y(xv))
+        self._space.add_start(pdef, self._space.frame.to_y(xv), readable=True)
         if self._pdef.getGoal() is not None:
             pdef.setGoal(self._pdef.getGoal())
         self._use(pdef)
