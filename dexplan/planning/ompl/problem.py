@@ -25,7 +25,7 @@ from dexplan.planning.ompl._checks import as_int, as_pos
 from dexplan.planning.ompl.callbacks import GoalSpec, goal_message, query_goal, termination
 from dexplan.planning.ompl.error_sink import ErrorSink
 from dexplan.planning.ompl.motions import MotionFallback
-from dexplan.planning.ompl.problem_space import ProblemSpace
+from dexplan.planning.ompl.problem_space import ProblemSpace, written_in_python
 from dexplan.planning.ompl.registry import (
     MULTI_QUERY_PLANNERS,
     PLANNERS,
@@ -50,11 +50,6 @@ from dexplan.planning.ompl.spaces import (
 )
 
 __all__ = ["PlanningProblem"]
-
-
-def written_in_python(planner: Any) -> bool:
-    """Whether ``planner`` is an ``ob.Planner`` subclass defined in Python (not OMPL's own)."""
-    return not type(planner).__module__.startswith("ompl")
 
 
 class PlanningProblem:

@@ -40,6 +40,11 @@ from dexplan.planning.ompl.spaces import (
 __all__ = ["ProblemSpace"]
 
 
+def written_in_python(planner: Any) -> bool:
+    """Whether ``planner`` is an ``ob.Planner`` subclass defined in Python (not OMPL's own)."""
+    return not type(planner).__module__.startswith("ompl")
+
+
 class ProblemSpace:
     """A constrained state space with its checks, sampler, motions and paths.
 
