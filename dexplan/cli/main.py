@@ -37,6 +37,7 @@ from dexplan.cli.options import (  # noqa: E402
     PlannersOptions,
     PlanOptions,
     Reduction,
+    ReplayLoops,
     ReplayOptions,
     RoadmapBuildOptions,
     RoadmapInfoOptions,
@@ -386,7 +387,8 @@ def _add_replay(sub: Subparsers) -> None:
     p_rep = _command(
         sub,
         "replay",
-        "replay a plan in MuJoCo physics (needs the sim extra); exit 1 if it loses track",
+        "replay a plan in MuJoCo physics (needs the sim extra), closed and open loop; "
+        "exit 1 if it loses track",
     )
     p_rep.add_argument("plan", help="plan JSON file")
     grav = p_rep.add_mutually_exclusive_group()
@@ -399,11 +401,15 @@ def _add_replay(sub: Subparsers) -> None:
     )
     grav.add_argument("--no-gravity", dest="gravity", action="store_false", help="without gravity")
     p_rep.add_argument("--rate", type=float, default=100.0, help="trajectory samples per second")
-    p_rep.add_argument(
-        "--open-loop",
-        action="store_true",
-        help="planned joints only, no object-pose feedback (docs/trajectory_format.md)",
+    loop = p_rep.add_mutually_exclusive_group()
+    loop.add_argument(
+        "--loop",
+        choices=[v.value for v in ReplayLoops],
+        default=ReplayLoops.BOTH.value,
+        help="closed: object-pose feedback; open: the planned joints; both (default): "
+        "closed then open, exit status from closed (docs/trajectory_format.md)",
     )
+    loop.add_argument("--open-loop", action="store_true", help="the same as --loop open")
     p_rep.add_argument(
         "--rrd", help="write a Rerun recording, plan and replay (needs the viz extra)"
     )

@@ -26,6 +26,7 @@ __all__ = [
     "PlanOptions",
     "PlannersOptions",
     "Reduction",
+    "ReplayLoops",
     "ReplayOptions",
     "RoadmapBuildOptions",
     "RoadmapInfoOptions",
@@ -374,6 +375,18 @@ class ExportOptions:
         )
 
 
+class ReplayLoops(StrEnum):
+    """``replay --loop``: which loops to replay (``dexplan.execution.replay.result.Loop``).
+
+    Repeated here because importing the replay would load Pinocchio for
+    ``dexplan --help``.
+    """
+
+    BOTH = "both"
+    CLOSED = "closed"
+    OPEN = "open"
+
+
 @dataclass(frozen=True)
 class ReplayOptions:
     """``dexplan replay``: the plan, the physics settings and an optional recording."""
@@ -381,16 +394,16 @@ class ReplayOptions:
     plan: str
     gravity: bool
     rate: float
-    open_loop: bool
+    loops: ReplayLoops
     rrd: str | None
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> ReplayOptions:
-        """The options of a parsed ``replay`` command line."""
+        """The options of a parsed ``replay`` command line (``--open-loop`` is ``--loop open``)."""
         return cls(
             plan=args.plan,
             gravity=args.gravity,
             rate=args.rate,
-            open_loop=args.open_loop,
+            loops=ReplayLoops.OPEN if args.open_loop else ReplayLoops(args.loop),
             rrd=args.rrd,
         )

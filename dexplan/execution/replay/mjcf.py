@@ -7,11 +7,17 @@
   ranges), its collision geometry from the Pinocchio geometry model (boxes,
   spheres, cylinders, capsules; any other geometry by its local bounding box),
   gravity compensated on the hand's own links (``gravcomp``); hand-hand
-  contacts are off (the planner checked them). The fingertip spheres are
-  rigid: where a finger turns relative to the object, the plan's fixed
-  contact asks the sphere to slide on the object by ``r (w_object - w_link) x n``,
-  which friction resists and the plan does not model (a passive ball at the
-  tip would roll instead, but a free ball transmits normal forces only);
+  contacts are off (the planner checked them);
+- one position actuator per joint (gain :data:`KP`, critically damped) whose
+  torque, gravity compensation and grip-force feed-forward included, is
+  clamped to the joint's effort limit in the plan's URDF (``forcerange`` and
+  the joint's ``actuatorfrcrange``): the replay never squeezes harder than
+  the hand can. A joint without an effort limit gets an unlimited actuator.
+  The fingertip spheres are rigid: where a finger turns relative to the
+  object, the plan's fixed contact asks the sphere to slide on the object by
+  ``r (w_object - w_link) x n``, which friction resists and the plan does not
+  model (a passive ball at the tip would roll instead, but a free ball
+  transmits normal forces only);
 - the object: a free body with the plan's shape and mass (uniform density;
   meshes from the plan's mesh file), obstacles static;
 - friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
@@ -23,6 +29,7 @@ The text needs no MuJoCo: :mod:`dexplan.execution.replay.simulation` compiles it
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -142,12 +149,7 @@ def build_mjcf(
     obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
     assets = [a_obj, *obstacle_assets]
     start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
-    actuators = "\n".join(
-        f'    <position name="a_{n}" joint="{n}" kp="{KP:g}" dampratio="1" '
-        f'ctrlrange="{model.lowerPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g} '
-        f'{model.upperPositionLimit[model.joints[model.getJointId(n)].idx_q]:.9g}"/>'
-        for n in hand.joint_names
-    )
+    actuators = "\n".join(_actuator_xml(model, n) for n in hand.joint_names)
     palm = "\n".join("    " + g for g in geoms_of.get(0, []))
     tree = "\n".join(_body_xml(model, c, "    ", geoms_of, children) for c in children.get(0, []))
     xml = f"""<mujoco model="dexplan replay">
@@ -172,6 +174,32 @@ def build_mjcf(
 </mujoco>
 """
     return xml, tips
+
+
+def _effort(model: pin.Model, j: int) -> float | None:
+    """Joint ``j``'s effort limit (N m or N) from the plan's URDF, None where it has none."""
+    e = float(model.effortLimit[model.joints[j].idx_v])
+    return e if math.isfinite(e) and e > 0.0 else None
+
+
+def _actuator_xml(model: pin.Model, name: str) -> str:
+    """The position actuator of joint ``name``, its force within the joint's effort limit.
+
+    The grip-force feed-forward goes through the actuator as a control offset
+    (``ctrl = target + tau_ff / KP``) so that the limit bounds the total torque;
+    the control range is the joint range widened by ``effort / KP``, beyond
+    which the force is at the limit anyway.
+    """
+    j = model.getJointId(name)
+    iq = model.joints[j].idx_q
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    e = _effort(model, j)
+    if e is None:
+        return f'    <position name="a_{name}" joint="{name}" kp="{KP:g}" dampratio="1"/>'
+    return (
+        f'    <position name="a_{name}" joint="{name}" kp="{KP:g}" dampratio="1" '
+        f'ctrlrange="{lo - e / KP:.9g} {hi + e / KP:.9g}" forcerange="{-e:.9g} {e:.9g}"/>'
+    )
 
 
 def _contact_attrs(doc: Mapping[str, Any]) -> str:
@@ -246,11 +274,15 @@ def _body_xml(
     full = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
     iq = jm.idx_q
     lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    # the joint's total actuator torque, the links' gravity compensation included,
+    # is clamped to the effort limit: a real hand's motors do both
+    e = _effort(model, j)
+    limit = "" if e is None else f' actuatorgravcomp="true" actuatorfrcrange="{-e:.9g} {e:.9g}"'
     parts = [
         f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
         f'{indent}  <inertial pos="{_f(inertia.lever)}" mass="{m:.9g}" fullinertia="{_f(full)}"/>',
         f'{indent}  <joint name="{name}" type="{kind}" axis="{_f(axis)}" range="{lo:.9g} '
-        f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"/>',
+        f'{hi:.9g}" armature="{ARMATURE:g}" damping="0.01" limited="true"{limit}/>',
     ]
     parts += [indent + "  " + g for g in geoms_of.get(j, [])]
     for c in children.get(j, []):

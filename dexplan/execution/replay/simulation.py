@@ -1,20 +1,29 @@
 """Physics replay of a plan in MuJoCo (extra ``sim``): does the object follow the plan?
 
-The model is the plan's MJCF (:func:`dexplan.execution.replay.mjcf.build_mjcf`).
-:func:`replay_plan` times the plan and computes its grip forces
+The model is the plan's MJCF (:func:`dexplan.execution.replay.mjcf.build_mjcf`):
+its actuators are limited to the hand's effort limits. :func:`replay_plan`
+times the plan and computes its grip forces
 (:func:`dexplan.execution.trajectory.build_trajectory`; with ``gravity=False`` the forces
 balance no weight and only the least normal force squeezes), then drives the
-fingers with position actuators along the timed trajectory (targets
-interpolated linearly between samples) plus the grip-force feed-forward
-``J^T f`` applied as joint forces. It reports the object's position and
-orientation error against the plan over time (max over the samples and the
-waypoints, and at the goal), contact losses (a loaded finger without a
-MuJoCo contact for longer than :data:`LOSS_TIME`), slips (the contact point
-moving more than :data:`SLIP_TOL` on the object from the planned one), drops
-(the object more than :data:`DROP_TOL` from the plan) and the deepest
-penetration. ``tracked``: every waypoint within :data:`POSITION_TOL` and
-:data:`ANGLE_TOL` and no drop; ``at_goal``: the final pose within the plan's
-goal tolerances.
+fingers along the timed trajectory (targets interpolated linearly between
+samples) with the grip-force feed-forward ``J^T f``: closed loop through the
+object-pose feedback (:class:`dexplan.execution.replay.control.ObjectFeedback`),
+open loop on the planned joints. It measures the object's position and
+orientation error against the plan (max over the samples and the waypoints,
+and at the goal), contact losses (a loaded finger without a MuJoCo contact for
+longer than :data:`LOSS_TIME`), slips (the contact point moving more than
+:data:`SLIP_TOL` on the object from the planned one), the deepest penetration,
+the actuator torques against their limits, and a drop (the object more than
+:data:`~dexplan.execution.replay.result.DROP_TOL` from the plan), where the
+replay stops (:class:`~dexplan.execution.replay.result.Drop`).
+:func:`replay_loops` replays both loops (:class:`~dexplan.execution.replay.result.ReplayReport`).
+
+Determinism: a replay depends only on the plan and its arguments. Each one
+builds its own MuJoCo model and data (MuJoCo keeps no state between them,
+and runs single-threaded here), its own grip-force solver (a fresh QP per
+solve) and its own force-closure solver for the drop's hold quality; the
+same plan gives the same report twice in one process and in a fresh one
+(tests/test_replay_determinism.py).
 
 mujoco is imported only in this module, on use (it is the optional extra ``sim``).
 """
@@ -22,8 +31,7 @@ mujoco is imported only in this module, on use (it is the optional extra ``sim``
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,31 +43,35 @@ from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 from dexplan.execution.forces import force_settings_from_plan, solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
-from dexplan.execution.replay.mjcf import TIMESTEP, build_mjcf
+from dexplan.execution.replay.drops import DropScene, describe_drop
+from dexplan.execution.replay.mjcf import KP, TIMESTEP, build_mjcf
+from dexplan.execution.replay.result import (
+    ANGLE_TOL,
+    DROP_TOL,
+    POSITION_TOL,
+    Loop,
+    ReplayReport,
+    ReplayResult,
+)
 from dexplan.execution.trajectory import Trajectory, Unbalanced, build_trajectory
 from dexplan.model.grasp.grip_forces import ForceSettings
 from dexplan.model.hand.hand import Hand
-from dexplan.planfile import hand_from_plan
+from dexplan.planfile import hand_from_plan, models_from_document
 
 __all__ = [
-    "ANGLE_TOL",
-    "POSITION_TOL",
-    "ReplayResult",
+    "replay_loops",
     "replay_plan",
     "require_mujoco",
 ]
 
-#: Tracking tolerances at every waypoint (m, rad).
-POSITION_TOL = 0.005
-ANGLE_TOL = 0.1
-#: Object farther than this from the plan: dropped (m).
-DROP_TOL = 0.02
 #: A loaded finger without contact for longer than this: a contact loss (s).
 LOSS_TIME = 0.02
 #: Contact point farther than this from the planned one on the object: a slip (m).
 SLIP_TOL = 0.003
 #: Still time before the trajectory starts (s), with the start targets and forces.
 SETTLE_TIME = 0.2
+#: An actuator within this fraction of its limit counts as saturated.
+_SATURATED = 0.999
 _PIP = "pip install 'dexplan[sim]' (or: pip install mujoco)"
 
 
@@ -72,96 +84,51 @@ def require_mujoco() -> Any:
     return mujoco
 
 
-@dataclass(frozen=True)
-class ReplayResult:
-    """What the physics replay of a plan did (``m`` recorded samples).
-
-    Attributes:
-        gravity: whether gravity was on.
-        t: (m,) times of the trajectory samples (s from the trajectory's start).
-        planned_pose: (m, 7) the plan's object pose at those times, world frame.
-        sim_pose: (m, 7) the simulated object pose, world frame.
-        planned_q: (m, nq) the planned (timed) joints at those times.
-        sim_q: (m, nq) the simulated joints.
-        position_error: (m,) |p_sim - p_plan| (m).
-        angle_error: (m,) rotation angle between the two orientations (rad).
-        waypoint_position_error: max over the plan's waypoints (m).
-        waypoint_angle_error: max over the plan's waypoints (rad).
-        goal_position_error: final distance to the goal position (m).
-        goal_angle_error: final angle to the goal orientation (rad).
-        goal_tolerances: the plan's ``(position_tol, angle_tol)``.
-        contact_losses: (finger, time) of each contact loss.
-        slips: (finger, time, distance) of each slip event.
-        dropped: the object strayed more than :data:`DROP_TOL` from the plan.
-        drop_time: when it first did (s), or None.
-        max_penetration: deepest hand-object penetration (m).
-        unbalanced_samples: trajectory samples where no grip forces balance
-            the wrench (not force closure: no feed-forward there).
-    """
-
-    gravity: bool
-    t: FloatArray
-    planned_pose: FloatArray
-    sim_pose: FloatArray
-    planned_q: FloatArray
-    sim_q: FloatArray
-    position_error: FloatArray
-    angle_error: FloatArray
-    waypoint_position_error: float
-    waypoint_angle_error: float
-    goal_position_error: float
-    goal_angle_error: float
-    goal_tolerances: tuple[float, float]
-    contact_losses: tuple[tuple[int, float], ...]
-    slips: tuple[tuple[int, float, float], ...]
-    dropped: bool
-    drop_time: float | None
-    max_penetration: float
-    unbalanced_samples: int = 0
-
-    @property
-    def tracked(self) -> bool:
-        """Every waypoint within the tolerances and no drop."""
-        return (
-            self.waypoint_position_error <= POSITION_TOL
-            and self.waypoint_angle_error <= ANGLE_TOL
-            and not self.dropped
-        )
-
-    @property
-    def at_goal(self) -> bool:
-        """The final pose is within the plan's goal tolerances."""
-        return (
-            self.goal_position_error <= self.goal_tolerances[0]
-            and self.goal_angle_error <= self.goal_tolerances[1]
-        )
-
-    def summary(self) -> str:
-        """Lines for the CLI: errors, events and the verdict."""
-        lines = [
-            f"replay: {'gravity' if self.gravity else 'no gravity'}, "
-            f"{self.t[-1] if self.t.size else 0:.2f} s",
-            f"object error: max {float(self.position_error.max(initial=0)) * 1e3:.2f} mm, "
-            f"{float(self.angle_error.max(initial=0)):.4f} rad; at waypoints max "
-            f"{self.waypoint_position_error * 1e3:.2f} mm, {self.waypoint_angle_error:.4f} rad",
-            f"goal: {self.goal_position_error * 1e3:.2f} mm, {self.goal_angle_error:.4f} rad "
-            f"({'within' if self.at_goal else 'outside'} the goal tolerance)",
-            f"contact losses: {len(self.contact_losses)}  slips: {len(self.slips)}  "
-            f"dropped: {f'yes at {self.drop_time:.2f} s' if self.dropped else 'no'}  "
-            f"max penetration: {self.max_penetration * 1e3:.2f} mm  "
-            f"samples without balancing grip forces: {self.unbalanced_samples}",
-        ]
-        if self.tracked:
-            verdict = f"TRACKED within {POSITION_TOL * 1e3:g} mm and {ANGLE_TOL:g} rad"
-        elif self.dropped:
-            verdict = "DROPPED: the object fell away from the plan"
-        else:
-            verdict = f"LOST TRACK: beyond {POSITION_TOL * 1e3:g} mm or {ANGLE_TOL:g} rad"
-        lines.append(verdict)
-        return "\n".join(lines)
-
-
 # ------------------------------------------------------------------ replay
+def replay_loops(
+    doc: Mapping[str, Any],
+    loops: Sequence[Loop | str] = (Loop.CLOSED, Loop.OPEN),
+    *,
+    gravity: bool = True,
+    base_dir: str | Path = ".",
+    rate: float = 100.0,
+    mass: float | None = None,
+    gravity_vector: FloatArray | None = None,
+    hand: Hand | None = None,
+) -> ReplayReport:
+    """Replay the plan once per loop (closed: object-pose feedback; open: the planned joints).
+
+    Args:
+        doc: a validated plan (:func:`dexplan.planfile.document.read_plan`).
+        loops: the loops to replay, in order.
+        gravity: gravity on or off (as :func:`replay_plan`).
+        base_dir: the plan's folder (mesh paths).
+        rate: trajectory samples per second.
+        mass: object mass (kg), default the plan's ``object.mass`` or 0.1.
+        gravity_vector: (3,) overrides the plan's gravity (world frame).
+        hand: the plan's hand (rebuilt from the file when None).
+
+    Raises:
+        As :func:`replay_plan`.
+    """
+    if hand is None:
+        hand = hand_from_plan(doc["hand"])
+    results = tuple(
+        replay_plan(
+            doc,
+            gravity=gravity,
+            base_dir=base_dir,
+            rate=rate,
+            mass=mass,
+            gravity_vector=gravity_vector,
+            hand=hand,
+            feedback=Loop(loop) == Loop.CLOSED,
+        )
+        for loop in loops
+    )
+    return ReplayReport(results)
+
+
 def replay_plan(
     doc: Mapping[str, Any],
     *,
@@ -214,52 +181,72 @@ def replay_plan(
         feedback_ctl = ObjectFeedback(hand, traj, solver)
     run = _Replay(mujoco, m, hand, tips, traj, feedback_ctl)
     run.simulate()
-    return _replay_result(doc, gravity, traj, run)
+    loop = Loop.CLOSED if feedback else Loop.OPEN
+    return _replay_result(doc, gravity, loop, traj, run, base_dir)
 
 
 def _replay_result(
-    doc: Mapping[str, Any], gravity: bool, traj: Trajectory, run: _Replay
+    doc: Mapping[str, Any],
+    gravity: bool,
+    loop: Loop,
+    traj: Trajectory,
+    run: _Replay,
+    base_dir: str | Path,
 ) -> ReplayResult:
     """The errors of a finished simulation against the plan's trajectory and goal.
 
     Args:
         doc: the plan.
         gravity: whether gravity was on.
+        loop: the loop replayed.
         traj: the sampled trajectory (:class:`dexplan.execution.trajectory.Trajectory`).
-        run: the finished simulation.
+        run: the finished simulation (its samples end at the drop, if any).
+        base_dir: the plan's folder (mesh paths).
     """
-    sim_pose = run.sim_pose
-    pos_err = np.linalg.norm(sim_pose[:, :3] - traj.object_pose[:, :3], axis=1)
-    ang_err = np.array(
-        [quat_angle(a[3:], b[3:]) for a, b in zip(sim_pose, traj.object_pose, strict=True)]
-    )
-    wp_pos, wp_ang = _waypoint_errors(doc, traj, sim_pose)
-    goal = doc["goal"]
-    gp = np.asarray(goal["object_pose_xyzquat"], dtype=float)
+    k = run.rec_idx
+    sim_pose, planned = run.sim_pose[:k], traj.object_pose[:k]
+    pos_err = np.linalg.norm(sim_pose[:, :3] - planned[:, :3], axis=1)
+    ang_err = np.array([quat_angle(a[3:], b[3:]) for a, b in zip(sim_pose, planned, strict=True)])
+    before = k - 1 if run.drop_sample is not None else k  # the drop sample is the drop
+    wp_pos, wp_ang, reached, total = _waypoint_errors(doc, traj, sim_pose[:before])
+    drop = None
+    if run.drop_sample is not None:
+        models = models_from_document(doc, base_dir, hand=run.hand)
+        drop = describe_drop(traj, models, run.drop_scene())
+    gp = np.asarray(doc["goal"]["object_pose_xyzquat"], dtype=float)
     fin = sim_pose[-1]
     return ReplayResult(
+        loop=loop,
         gravity=gravity,
-        t=traj.t,
-        planned_pose=traj.object_pose,
+        duration=traj.duration,
+        n_segments=len(doc["segments"]),
+        t=traj.t[:k],
+        planned_pose=planned,
         sim_pose=sim_pose,
-        planned_q=traj.q,
-        sim_q=run.sim_q,
+        planned_q=traj.q[:k],
+        sim_q=run.sim_q[:k],
         position_error=pos_err,
         angle_error=ang_err,
+        max_position_error=float(pos_err[:before].max(initial=0.0)),
+        max_angle_error=float(ang_err[:before].max(initial=0.0)),
         waypoint_position_error=wp_pos,
         waypoint_angle_error=wp_ang,
-        goal_position_error=float(np.linalg.norm(fin[:3] - gp[:3])),
-        goal_angle_error=float(quat_angle(fin[3:], gp[3:])),
+        waypoints_reached=reached,
+        waypoints=total,
+        goal_position_error=None if drop else float(np.linalg.norm(fin[:3] - gp[:3])),
+        goal_angle_error=None if drop else float(quat_angle(fin[3:], gp[3:])),
         goal_tolerances=(
-            float(goal.get("position_tol", 0.005)),
-            float(goal.get("angle_tol", 0.05)),
+            float(doc["goal"].get("position_tol", 0.005)),
+            float(doc["goal"].get("angle_tol", 0.05)),
         ),
         contact_losses=tuple(run.losses),
         slips=tuple(run.slips),
-        dropped=run.drop_time is not None,
-        drop_time=run.drop_time,
+        drop=drop,
         max_penetration=run.max_pen,
         unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
+        effort_limits=tuple(float(e) for e in run.effort),
+        max_effort_ratio=run.max_effort_ratio,
+        saturated_time=run.saturated_steps * TIMESTEP,
     )
 
 
@@ -298,10 +285,16 @@ class _Replay:
     Attributes:
         sim_pose: (m, 7) the simulated object pose at each sample, world frame, XYZW.
         sim_q: (m, nq) the simulated joints at each sample.
+        touching: (m, n) which fingertips touch the object in MuJoCo at each sample.
+        rec_idx: samples recorded (all of them unless the object was dropped).
         losses: (finger, time) of each contact loss.
         slips: (finger, time, distance) of each slip event.
         max_pen: deepest hand-object penetration (m).
-        drop_time: when the object first strayed more than :data:`DROP_TOL` (s), or None.
+        drop_sample: the first sample farther than DROP_TOL from the plan, or None.
+        lost_sample: the first sample outside the tracking tolerances, or None.
+        effort: (nq,) the joints' effort limits (N m), NaN where none.
+        max_effort_ratio: the largest ``|actuator torque| / limit`` seen.
+        saturated_steps: steps with a limited actuator at its limit.
     """
 
     def __init__(
@@ -313,7 +306,7 @@ class _Replay:
         traj: Trajectory,
         feedback: ObjectFeedback | None = None,
     ) -> None:
-        self.mujoco, self.m, self.traj = mujoco, m, traj
+        self.mujoco, self.m, self.traj, self.hand = mujoco, m, traj, hand
         self.d = mujoco.MjData(m)
         self.nq = hand.nq
         self.jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
@@ -331,16 +324,27 @@ class _Replay:
         self.feedback = feedback
         self.sim_pose = np.empty((traj.t.size, 7))
         self.sim_q = np.empty((traj.t.size, self.nq))
+        self.touching = np.zeros((traj.t.size, n), dtype=bool)
         self.rec_idx = 0
         self.missing = np.zeros(n)
         self.losses: list[tuple[int, float]] = []
         self.slips: list[tuple[int, float, float]] = []
         self.slipping = np.zeros(n, dtype=bool)
         self.max_pen = 0.0
-        self.drop_time: float | None = None
+        self.drop_sample: int | None = None
+        self.lost_sample: int | None = None
+        # the limits the compiled model clamps to (NaN: an unlimited actuator)
+        jid = [m.joint(name).id for name in hand.joint_names]
+        self.effort = np.where(
+            np.asarray(m.jnt_actfrclimited)[jid].astype(bool),
+            np.asarray(m.jnt_actfrcrange)[jid, 1],
+            np.nan,
+        )
+        self.max_effort_ratio = 0.0
+        self.saturated_steps = 0
 
     def simulate(self) -> None:
-        """Settle at the start, then follow the trajectory to its end, recording every sample."""
+        """Settle at the start, then follow the trajectory to its end or the drop."""
         mujoco, m, d, traj, oq = self.mujoco, self.m, self.d, self.traj, self.oq
         d.qpos[self.jq] = traj.q[0]
         d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
@@ -361,10 +365,11 @@ class _Replay:
                     ff_now = self.feedback.feed_forward(i, q_sim, pose_now, ff)
             if self.feedback is not None:
                 ff = ff_now
-            d.ctrl[: self.nq] = target
-            d.qfrc_applied[:] = 0.0
-            d.qfrc_applied[self.jv] = ff
+            # the feed-forward rides on the position actuator (ctrl offset ff / KP)
+            # so that the actuator's force limit bounds the total joint torque
+            d.ctrl[: self.nq] = target + np.asarray(ff) / KP
             mujoco.mj_step(m, d)
+            self._count_effort()
             now = (step + 1) * TIMESTEP - SETTLE_TIME
             pose_now = np.concatenate(
                 [d.qpos[oq : oq + 3], d.qpos[oq + 4 : oq + 7], d.qpos[oq + 3 : oq + 4]]
@@ -372,11 +377,36 @@ class _Replay:
             touching = self._scan_contacts(i, now, pose_now)
             if now >= 0.0:
                 self._count_losses(i, now, touching)
-            self._record(now, pose_now)
+            self._record(now, pose_now, touching)
+            if self.drop_sample is not None:  # what a fallen object does is no test of the plan
+                return
         while self.rec_idx < traj.t.size:  # numerical end: the last state
             self.sim_pose[self.rec_idx] = self.sim_pose[self.rec_idx - 1]
             self.sim_q[self.rec_idx] = self.sim_q[self.rec_idx - 1]
+            self.touching[self.rec_idx] = self.touching[self.rec_idx - 1]
             self.rec_idx += 1
+
+    def drop_scene(self) -> DropScene:
+        """What the simulation saw at the drop (call only after a drop)."""
+        assert self.drop_sample is not None
+        lost = self.drop_sample if self.lost_sample is None else self.lost_sample
+        return DropScene(
+            drop_sample=self.drop_sample,
+            lost_sample=lost,
+            sim_pose=self.sim_pose[lost].copy(),
+            sim_q=self.sim_q[lost].copy(),
+            touching=self.touching[lost].copy(),
+        )
+
+    def _count_effort(self) -> None:
+        """The joints' total actuator torque against their effort limits, after a step."""
+        tau = np.abs(np.asarray(self.d.qfrc_actuator)[self.jv])
+        limited = np.isfinite(self.effort)
+        if not limited.any():
+            return
+        ratio = tau[limited] / self.effort[limited]
+        self.max_effort_ratio = max(self.max_effort_ratio, float(ratio.max()))
+        self.saturated_steps += int(bool((ratio >= _SATURATED).any()))
 
     def _targets(self, now: float) -> tuple[int, FloatArray, FloatArray, FloatArray]:
         """The sample before ``now``, the planned joints, feed-forward torques and object pose.
@@ -446,31 +476,40 @@ class _Replay:
             else:
                 self.missing[f] = 0.0
 
-    def _record(self, now: float, pose_now: FloatArray) -> None:
-        """Record the state at every sample reached by ``now`` (and the first drop)."""
+    def _record(self, now: float, pose_now: FloatArray, touching: np.ndarray) -> None:
+        """Record the state at every sample reached by ``now``, the track loss and the drop."""
         t, traj = self.traj.t, self.traj
         while self.rec_idx < t.size and now >= t[self.rec_idx] - 1e-9:
             k = self.rec_idx
             self.sim_pose[k] = pose_now
             self.sim_q[k] = self.d.qpos[self.jq]
-            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[k, :3]))
-            if err > DROP_TOL and self.drop_time is None:
-                self.drop_time = float(t[k])
+            self.touching[k] = touching
             self.rec_idx += 1
+            err = float(np.linalg.norm(pose_now[:3] - traj.object_pose[k, :3]))
+            ang = quat_angle(pose_now[3:], traj.object_pose[k, 3:])
+            if self.lost_sample is None and (err > POSITION_TOL or ang > ANGLE_TOL):
+                self.lost_sample = k
+            if err > DROP_TOL:
+                self.drop_sample = k
+                return
 
 
 def _waypoint_errors(
     doc: Mapping[str, Any], traj: Trajectory, sim_pose: FloatArray
-) -> tuple[float, float]:
-    """Largest position (m) and angle (rad) error at the plan's waypoints.
+) -> tuple[float, float, int, int]:
+    """Largest position (m) and angle (rad) error at the plan's waypoints reached.
 
     Each waypoint is compared with the first simulated sample at or after its
-    time in the trajectory.
+    time in the trajectory; waypoints after the last sample given are not reached.
 
     Args:
         doc: the plan (its waypoints' object poses).
         traj: its :class:`~dexplan.execution.trajectory.Trajectory`.
-        sim_pose: (m, 7) the simulated object pose at each sample.
+        sim_pose: (k, 7) the simulated object pose at the first ``k`` samples.
+
+    Returns:
+        ``(position, angle, reached, total)``: the errors (0 when none is
+        reached) and the count of waypoints reached and in the plan.
     """
     t = traj.t
     wp_t = np.concatenate(
@@ -483,9 +522,13 @@ def _waypoint_errors(
         [w["object_pose_xyzquat"] for s in doc["segments"] for w in s["waypoints"]], dtype=float
     )
     idx = np.clip(np.searchsorted(t, wp_t - 1e-9), 0, t.size - 1)
+    reached = idx < len(sim_pose)
+    if not reached.any():
+        return 0.0, 0.0, 0, len(wp_pose)
+    idx, wp_pose = idx[reached], wp_pose[reached]
     wp_pos = float(np.max(np.linalg.norm(sim_pose[idx, :3] - wp_pose[:, :3], axis=1)))
     wp_ang = float(max(quat_angle(sim_pose[k, 3:], wp_pose[j, 3:]) for j, k in enumerate(idx)))
-    return wp_pos, wp_ang
+    return wp_pos, wp_ang, int(reached.sum()), len(reached)
 
 
 def _has(m: Any, k: int) -> bool:
