@@ -13,7 +13,7 @@ from dexplan.planfile import read_plan, write_plan
 
 pytest.importorskip("mujoco")
 
-from dexplan.execution.replay.simulation import replay_loops  # noqa: E402
+from dexplan.execution.replay.simulation import replay_loops
 
 #: Run in a fresh interpreter: the report of the plan file given, and its digest.
 _FRESH = """
