@@ -194,3 +194,13 @@ def test_bad_loop_is_exit_2(planned, capfd) -> None:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
     assert "--loop" in lines[0] and "invalid choice: 'sideways'" in lines[0]
+
+
+def test_replay_rrd_records_the_closed_loop(planned, capfd) -> None:
+    pytest.importorskip("rerun")
+    folder, doc, _ = planned
+    path, rrd = folder / "short_rrd.json", folder / "replay.rrd"
+    write_plan(path, _short(doc, _first_regrasp(doc)))
+    code, out, err = run_cli(capfd, "replay", path, "--loop", "closed", "--rrd", rrd)
+    assert code == 0, out + err
+    assert rrd.stat().st_size > 0 and f"recording written to {rrd}" in err
