@@ -2,8 +2,9 @@
 
 The hold's strength is the force-closure quality (:mod:`dexplan.model.grasp.force_closure`)
 of the contacts holding the object, twice: at the plan's contacts at the drop,
-and at the contacts the simulated fingertips really had when the object lost
-track (tips roll, so these differ). Both are computed by a fresh exact
+and at the contacts the simulated fingertips really had, the last time before
+the object lost track that every finger the plan holds it with touched it
+(tips roll, so these differ). Both are computed by a fresh exact
 (``nnls``) solver: the shared default one warm-starts OSQP from whatever it
 solved before in the process, and a report must not depend on that.
 """
@@ -35,13 +36,16 @@ class DropScene:
             tolerance from the plan.
         lost_sample: index of the first sample outside the tracking tolerances
             (at or before ``drop_sample``).
-        sim_pose: (7,) the simulated object pose at ``lost_sample``, world frame.
-        sim_q: (nq,) the simulated joints at ``lost_sample``.
-        touching: (n,) which fingertips touched the object in MuJoCo at ``lost_sample``.
+        hold_sample: the sample the simulated hold is read at (at or before
+            ``lost_sample``).
+        sim_pose: (7,) the simulated object pose at ``hold_sample``, world frame.
+        sim_q: (nq,) the simulated joints at ``hold_sample``.
+        touching: (n,) which fingertips touched the object in MuJoCo at ``hold_sample``.
     """
 
     drop_sample: int
     lost_sample: int
+    hold_sample: int
     sim_pose: FloatArray
     sim_q: FloatArray
     touching: np.ndarray
@@ -66,6 +70,7 @@ def describe_drop(traj: Trajectory, models: PlanModels, scene: DropScene) -> Dro
     return Drop(
         time=float(traj.t[k]),
         lost_track_time=float(traj.t[scene.lost_sample]),
+        measured_hold_time=float(traj.t[scene.hold_sample]),
         segment=seg,
         kind=str(kind),
         finger=None if kind == "transfer" else finger,

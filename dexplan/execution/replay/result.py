@@ -57,8 +57,10 @@ class Drop:
         planned_hold_quality: force-closure quality of the contacts the plan holds
             the object with at the drop (0: no force closure).
         measured_hold_quality: force-closure quality of the contacts the fingertips
-            had in the simulation when the object lost track (0: none or no force
-            closure).
+            had in the simulation at ``measured_hold_time`` (0: no force closure).
+        measured_hold_time: the last time (s), up to the track loss, at which every
+            finger the plan holds the object with touched it in the simulation
+            (the track loss itself when there is none).
         holding_fingers: the fingers the plan holds the object with at the drop.
     """
 
@@ -69,6 +71,7 @@ class Drop:
     finger: int | None
     planned_hold_quality: float
     measured_hold_quality: float
+    measured_hold_time: float
     holding_fingers: tuple[int, ...]
 
     def describe(self, n_segments: int) -> str:
@@ -79,7 +82,7 @@ class Drop:
             f"({what}; held by fingers {', '.join(map(str, self.holding_fingers)) or 'none'}); "
             f"lost track at {self.lost_track_time:.2f} s; hold quality "
             f"{self.planned_hold_quality:.4f} planned, {self.measured_hold_quality:.4f} at the "
-            "simulated contacts"
+            f"simulated contacts at {self.measured_hold_time:.2f} s"
         )
 
 

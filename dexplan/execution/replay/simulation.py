@@ -387,15 +387,24 @@ class _Replay:
             self.rec_idx += 1
 
     def drop_scene(self) -> DropScene:
-        """What the simulation saw at the drop (call only after a drop)."""
+        """What the simulation saw before the drop (call only after a drop).
+
+        The hold is read at the last sample up to the track loss at which
+        every finger the plan held the object with touched it in MuJoCo: by
+        the loss itself the object is often already falling free.
+        """
         assert self.drop_sample is not None
         lost = self.drop_sample if self.lost_sample is None else self.lost_sample
+        planned = ~np.isnan(self.traj.contacts[: lost + 1, :, 0])
+        held = np.flatnonzero(np.all(self.touching[: lost + 1] | ~planned, axis=1))
+        k = int(held[-1]) if held.size else lost
         return DropScene(
             drop_sample=self.drop_sample,
             lost_sample=lost,
-            sim_pose=self.sim_pose[lost].copy(),
-            sim_q=self.sim_q[lost].copy(),
-            touching=self.touching[lost].copy(),
+            hold_sample=k,
+            sim_pose=self.sim_pose[k].copy(),
+            sim_q=self.sim_q[k].copy(),
+            touching=self.touching[k].copy(),
         )
 
     def _count_effort(self) -> None:
