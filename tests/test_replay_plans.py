@@ -36,11 +36,12 @@ pose_xyzquat = [0.0, 0.0, -0.04, 0.0, 0.0, 0.0, 1.0]
 MAX_DURATION = 120.0
 
 
-def _plan(scenario: Path, folder: Path, seeds=range(1, 4)) -> Path:
+def _plan(scenario: Path, folder: Path, seeds=range(1, 7)) -> Path:
     """The first seed's plan with a regrasp and an execution time within MAX_DURATION."""
     for seed in seeds:
         path = folder / f"plan_{seed}.json"
-        if cli.run(["plan", str(scenario), "--seed", str(seed), "-q", "-o", str(path)]) != 0:
+        argv = ["plan", str(scenario), "--seed", str(seed), "--time-limit", "120", "-q"]
+        if cli.run([*argv, "-o", str(path)]) != 0:
             continue
         doc = read_plan(path)
         regrasps = any(s["kind"] == "regrasp" for s in doc["segments"])
