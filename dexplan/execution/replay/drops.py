@@ -2,9 +2,9 @@
 
 The hold's strength is the force-closure quality (:mod:`dexplan.model.grasp.force_closure`)
 of the contacts holding the object, twice: at the plan's contacts at the drop,
-and at the contacts the simulated fingertips really had, the last time before
-the object lost track that every finger the plan holds it with touched it
-(tips roll, so these differ). Both are computed by a fresh exact
+and at the contacts the same fingertips really had in the simulation, the last
+time in the drop's segment before the object lost track that all of them
+touched it (tips roll, so these differ). Both are computed by a fresh exact
 (``nnls``) solver: the shared default one warm-starts OSQP from whatever it
 solved before in the process, and a report must not depend on that.
 """
@@ -24,7 +24,7 @@ from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
 from dexplan.planfile import PlanModels
 
-__all__ = ["DropScene", "describe_drop"]
+__all__ = ["DropScene", "describe_drop", "segment_of"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,8 @@ class DropScene:
             ``lost_sample``).
         sim_pose: (7,) the simulated object pose at ``hold_sample``, world frame.
         sim_q: (nq,) the simulated joints at ``hold_sample``.
-        touching: (n,) which fingertips touched the object in MuJoCo at ``hold_sample``.
+        touching: (n,) which of the fingers the plan holds the object with at the
+            drop touched it in MuJoCo at ``hold_sample``.
     """
 
     drop_sample: int
@@ -60,7 +61,7 @@ def describe_drop(traj: Trajectory, models: PlanModels, scene: DropScene) -> Dro
         scene: what the simulation saw.
     """
     k = scene.drop_sample
-    seg = _segment_of(traj, k)
+    seg = segment_of(traj, k)
     kind, finger, _, _ = traj.segments[seg]
     holding = ~np.isnan(traj.contacts[k, :, 0])
     fc = ForceClosure(solver="nnls")
@@ -80,7 +81,7 @@ def describe_drop(traj: Trajectory, models: PlanModels, scene: DropScene) -> Dro
     )
 
 
-def _segment_of(traj: Trajectory, k: int) -> int:
+def segment_of(traj: Trajectory, k: int) -> int:
     """The segment sample ``k`` lies in (the later one at a shared boundary sample)."""
     found = 0
     for s, (_, _, first, last) in enumerate(traj.segments):

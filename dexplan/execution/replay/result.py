@@ -58,9 +58,9 @@ class Drop:
             the object with at the drop (0: no force closure).
         measured_hold_quality: force-closure quality of the contacts the fingertips
             had in the simulation at ``measured_hold_time`` (0: no force closure).
-        measured_hold_time: the last time (s), up to the track loss, at which every
-            finger the plan holds the object with touched it in the simulation
-            (the track loss itself when there is none).
+        measured_hold_time: the last time (s) in the drop's segment, up to the track
+            loss, at which every finger the plan holds the object with at the drop
+            touched it in the simulation (the segment's start when there is none).
         holding_fingers: the fingers the plan holds the object with at the drop.
     """
 

@@ -43,7 +43,7 @@ from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 from dexplan.execution.forces import force_settings_from_plan, solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
-from dexplan.execution.replay.drops import DropScene, describe_drop
+from dexplan.execution.replay.drops import DropScene, describe_drop, segment_of
 from dexplan.execution.replay.mjcf import KP, TIMESTEP, build_mjcf
 from dexplan.execution.replay.result import (
     ANGLE_TOL,
@@ -389,22 +389,26 @@ class _Replay:
     def drop_scene(self) -> DropScene:
         """What the simulation saw before the drop (call only after a drop).
 
-        The hold is read at the last sample up to the track loss at which
-        every finger the plan held the object with touched it in MuJoCo: by
-        the loss itself the object is often already falling free.
+        The hold is that of the fingers the plan holds the object with at the
+        drop, read at the last sample of the drop's segment, up to the track
+        loss, at which all of them touched the object in MuJoCo (by the loss
+        itself the object is often already falling free); the segment's first
+        sample when there is none.
         """
         assert self.drop_sample is not None
         lost = self.drop_sample if self.lost_sample is None else self.lost_sample
-        planned = ~np.isnan(self.traj.contacts[: lost + 1, :, 0])
-        held = np.flatnonzero(np.all(self.touching[: lost + 1] | ~planned, axis=1))
-        k = int(held[-1]) if held.size else lost
+        holders = ~np.isnan(self.traj.contacts[self.drop_sample, :, 0])
+        first = self.traj.segments[segment_of(self.traj, self.drop_sample)][2]
+        lo = min(first, lost)
+        held = np.flatnonzero(np.all(self.touching[lo : lost + 1] | ~holders, axis=1))
+        k = lo + int(held[-1]) if held.size else lo
         return DropScene(
             drop_sample=self.drop_sample,
             lost_sample=lost,
             hold_sample=k,
             sim_pose=self.sim_pose[k].copy(),
             sim_q=self.sim_q[k].copy(),
-            touching=self.touching[k].copy(),
+            touching=self.touching[k] & holders,
         )
 
     def _count_effort(self) -> None:
