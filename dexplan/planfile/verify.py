@@ -478,8 +478,8 @@ class _Checker:
     def continuity(self, si: int, previous: Segment, seg: Segment) -> None:
         """``continuity``: segment ``si`` starts where ``previous`` ends."""
         a, b = previous.waypoints[-1], seg.waypoints[0]
-        same = np.allclose(a.q, b.q, atol=STILL_TOL) and np.allclose(
-            a.object_pose_xyzquat, b.object_pose_xyzquat, atol=STILL_TOL
+        same = np.allclose(a.q, b.q, rtol=0.0, atol=STILL_TOL) and np.allclose(
+            a.object_pose_xyzquat, b.object_pose_xyzquat, rtol=0.0, atol=STILL_TOL
         )
         if not same:
             self.add(si, 0, "continuity", "does not start where the previous segment ends")
@@ -489,11 +489,11 @@ class _Checker:
         """``start``: the first waypoint is the plan's start."""
         w0 = segments[0].waypoints[0]
         sp = np.asarray(start["object_pose_xyzquat"], dtype=float)
-        if not np.allclose(sp, w0.object_pose_xyzquat, atol=1e-9):
+        if not np.allclose(sp, w0.object_pose_xyzquat, rtol=0.0, atol=1e-9):
             self.add(0, 0, "start", "first waypoint is not the start object pose")
         if start.get("q") is not None:
             sq = np.asarray(start["q"], dtype=float)
-            if not np.allclose(sq, w0.q, atol=1e-9):
+            if not np.allclose(sq, w0.q, rtol=0.0, atol=1e-9):
                 self.add(0, 0, "start", "first waypoint is not the start configuration")
 
     def goal(self, goal: Mapping[str, Any], segments: Sequence[Segment]) -> None:
