@@ -53,7 +53,9 @@ def paper_plan(tmp_path_factory: pytest.TempPathFactory) -> Callable[[int, Path]
     def copy(seed: int, folder: Path) -> Path:
         if seed not in made:
             path = tmp_path_factory.mktemp(f"paper_plan_seed{seed}") / "plan.json"
-            assert cli.run(["plan", "--seed", str(seed), "-q", "-o", str(path)]) == 0
+            # a generous limit: the plans take a few seconds; a slow machine must not fail them
+            args = ["plan", "--seed", str(seed), "--time-limit", "300", "-q", "-o", str(path)]
+            assert cli.run(args) == 0
             made[seed] = path
         out = Path(folder) / "plan.json"
         shutil.copyfile(made[seed], out)

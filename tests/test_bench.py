@@ -494,7 +494,8 @@ def test_cli_bad_inputs_exit_2(tmp_path, args, match):
 
 # ------------------------------------------------------------------ real sweeps
 
-SWEEP_TIME_LIMIT = 30.0
+# generous: the sweep's plans take seconds; a slow or busy machine must not fail them
+SWEEP_TIME_LIMIT = 120.0
 
 
 @pytest.fixture(scope="module")
@@ -657,9 +658,10 @@ def test_sweep_killed_half_way_leaves_a_usable_database(tmp_path):
         stderr=subprocess.DEVNULL,
     )
     db_path = out / bench.DB_NAME
-    deadline = time.monotonic() + 120
     n = 0
-    while time.monotonic() < deadline and proc.poll() is None:
+    # no deadline of its own: however slow the machine, the first run commits
+    # (or the sweep ends); pytest's timeout is the net
+    while proc.poll() is None:
         if db_path.exists():
             try:
                 conn = sqlite3.connect(f"file:{db_path}?mode=ro", uri=True, timeout=5)

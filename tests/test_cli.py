@@ -24,7 +24,18 @@ def run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("cli")
-    res = run("plan", "--seed", "3", "-o", "p.json", "--save-roadmap", "rm.npz", cwd=out)
+    res = run(
+        "plan",
+        "--seed",
+        "3",
+        "--time-limit",
+        "300",
+        "-o",
+        "p.json",
+        "--save-roadmap",
+        "rm.npz",
+        cwd=out,
+    )
     assert res.returncode == 0, res.stderr
     assert "status: solved" in res.stdout
     assert "Traceback" not in res.stderr and "leaked" not in res.stderr

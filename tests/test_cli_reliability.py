@@ -20,7 +20,7 @@ from dexplan.cli import interrupt
 from dexplan.cli import main as cli
 from dexplan.model.scenario import default_scenario, load_scenario
 from dexplan.planning.context import build_context
-from dexplan.planning.deadline import Deadline
+from dexplan.planning.deadline import Deadline, budget
 from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.reduction import reduce_object_path
 from dexplan.planning.planner import plan
@@ -203,12 +203,16 @@ def test_unsolvable_query_ends_with_a_status_at_its_limit():
     """An unsolvable query returns a result (not an exception), having used its limit.
 
     The goal pose puts the sphere through the lid: the goal was sampled, no
-    valid grasp was ever found there, and the status says so.
+    valid grasp was ever found there, and the status says so. The scenario
+    gives its start grasp (``start.q``), so the whole limit goes to the
+    impossible goal stage (thousands of goal samples a second here): no
+    machine is slow enough to end it in another stage.
     """
     res = plan(load_scenario(UNSOLVABLE), time_limit=1.0)
     assert res.status == PlanStatus.NO_GOAL_GRASP and not res.solved
     assert res.stats.goal_samples == 0
-    assert res.stats.time_s >= 0.9  # it searched until the deadline; no upper bound here
+    # it searched until the deadline (DEXPLAN_SLOWDOWN shortens it); no upper bound here
+    assert res.stats.time_s >= 0.9 * budget(1.0)
 
 
 def test_run_can_be_called_many_times_in_one_process(capfd):

@@ -365,7 +365,7 @@ def test_point_contacts_three_fingers_refused_when_the_context_is_built() -> Non
 
 def test_cli_refuses_point_contacts_on_three_fingers(capfd, tmp_path: Path) -> None:
     out = tmp_path / "plan.json"
-    code, _, err = run_cli(capfd, "plan", POINT, "-o", out)
+    code, _, err = run_cli(capfd, "plan", POINT, "--time-limit", "300", "-o", out)
     assert_bad_input(
         code,
         err,
@@ -386,7 +386,7 @@ def test_cli_refuses_point_contacts_on_three_fingers(capfd, tmp_path: Path) -> N
 @pytest.fixture(scope="module")
 def soft_plan():
     scenario = load_scenario(SOFT)
-    result = plan(scenario, seed=3, time_limit=120.0)
+    result = plan(scenario, seed=3, time_limit=300.0)
     assert result.solved, (result.status, result.message)
     return scenario, build_plan_document(scenario, build_hand(scenario), result)
 

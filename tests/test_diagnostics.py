@@ -61,7 +61,7 @@ def test_plan_failing_final_verification_is_written_for_inspection(monkeypatch, 
 
     monkeypatch.setattr(api, "verify_plan", failing)
     out = tmp_path / "plan.json"
-    code, _, err = run_cli(capfd, "plan", "-o", out, "-q")
+    code, _, err = run_cli(capfd, "plan", "--time-limit", "300", "-o", out, "-q")
     assert code == 1
     assert "invalid_plan" in err and "plan.invalid.json" in err
     assert not out.exists()

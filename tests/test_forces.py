@@ -165,7 +165,12 @@ def test_forces_push_along_the_normals_the_verifier_reads_at_box_edges(tmp_path)
 
     path = tmp_path / "plan.json"
     scenario = builtin_scenario_path("suite/box_tilt90")
-    assert cli.run(["plan", str(scenario), "--seed", "6", "-q", "-o", str(path)]) == 0
+    assert (
+        cli.run(
+            ["plan", str(scenario), "--seed", "6", "--time-limit", "300", "-q", "-o", str(path)]
+        )
+        == 0
+    )
     doc = read_plan(path)
     hand = hand_from_plan(doc["hand"])
     obj = models_from_document(doc).obj

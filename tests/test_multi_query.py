@@ -178,6 +178,8 @@ def test_each_plan_from_goals_passes_verify(capfd, tmp_path: Path, roadmap_file:
         roadmap_file,
         "--goals",
         goals,
+        "--time-limit",
+        "300",
         "-o",
         out,
         "--save-roadmap",
@@ -207,7 +209,8 @@ def test_api_build_save_load_query(tmp_path: Path) -> None:
     rp = RoadmapPlanner.load(scen, path)
     assert np.array_equal(rp.roadmap.vertices, built.roadmap.vertices)
     assert rp.roadmap.build["seed"] == 2
-    plans = list(rp.query_many([np.array(_yaw(40.0)), GoalSpec(np.array(_yaw(-20.0)))]))
+    goals = [np.array(_yaw(40.0)), GoalSpec(np.array(_yaw(-20.0)))]
+    plans = list(rp.query_many(goals, time_limit=300.0))
     assert [p.solved for p in plans] == [True, True]
     for p in plans:
         assert p.result.stats.gsn_status in ("roadmap", "roadmap_grown")

@@ -44,12 +44,19 @@ def test_toy_problem_solves(planner):
 @pytest.mark.timeout(60)
 @pytest.mark.parametrize("planner", sorted(PLANNERS))
 def test_every_registered_planner_returns_cleanly(planner):
+    """Every planner solves the toy problem, its path checked; none needs a fast machine.
+
+    Each finds its first path in at most 0.2 s here (25 times within the
+    limit); PRMstar, a roadmap that grows until the limit, has its path long
+    before. LBKPIECE1 is lazy: the path it returns may be one the adapter's
+    own check rejects, which it must then say (``path_invalid``), never call solved.
+    """
     problem = PlanningProblem(make_spec(), is_valid, planner=planner, seed=5)
     problem.set_start(SOUTH)
     problem.set_goal_state(NORTH, threshold=1e-3)
-    result = problem.solve(1.0)
-    assert result.time_s < 20.0
-    assert result.status in {"exact", "approximate", "timeout", "path_invalid"}
+    result = problem.solve(5.0)
+    allowed = {"exact", "path_invalid"} if planner == "LBKPIECE1" else {"exact"}
+    assert result.status in allowed, (result.status, result.message)
     if result.solved:
         check_path(problem, result, SOUTH, NORTH, goal_tol=1e-3)
 
@@ -216,7 +223,7 @@ def test_iteration_budget_stops_the_search_deterministically():
         return result, problem.planner_data()
 
     (ra, a), (_, b) = tree(40), tree(40)
-    assert not ra.solved and ra.time_s < 30.0
+    assert not ra.solved  # the budget, not the clock, stopped it: the trees below are equal
     np.testing.assert_array_equal(a.vertices, b.vertices)
     np.testing.assert_array_equal(a.edges, b.edges)
     _, bigger = tree(400)

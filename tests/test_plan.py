@@ -17,7 +17,7 @@ from dexplan.planning.planner import plan
 @pytest.fixture(scope="module")
 def solved():
     scenario = default_scenario()
-    result = plan(scenario, time_limit=60.0)
+    result = plan(scenario, time_limit=300.0)
     assert result.solved, (result.status, result.message)
     doc = build_plan_document(scenario, build_hand(scenario), result)
     return scenario, result, doc
@@ -127,7 +127,7 @@ def test_rejects_missing_goal_and_broken_continuity(solved) -> None:
 
 def test_same_seed_same_plan(solved) -> None:
     scenario, result, doc = solved
-    again = plan(scenario, time_limit=60.0)
+    again = plan(scenario, time_limit=300.0)
     assert again.solved
     # module 1 repeats as well: PRM's roadmap grows to milestone counts, not by the clock
     np.testing.assert_array_equal(again.gsn_path, result.gsn_path)
@@ -140,8 +140,8 @@ def test_same_seed_same_plan_with_an_obstacle(planner: str) -> None:
     """On the cube the plan follows the GSn path: module 1 must repeat too."""
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
     seed = 4 if planner == "KPIECE1" else 1  # seeds both solve
-    a = plan(scenario, planner=planner, seed=seed, time_limit=60.0)
-    b = plan(scenario, planner=planner, seed=seed, time_limit=60.0)
+    a = plan(scenario, planner=planner, seed=seed, time_limit=300.0)
+    b = plan(scenario, planner=planner, seed=seed, time_limit=300.0)
     assert a.solved and b.solved, (a.message, b.message)
     np.testing.assert_array_equal(a.gsn_path, b.gsn_path)
     assert [s.kind for s in a.segments] == [s.kind for s in b.segments]
@@ -160,7 +160,7 @@ def test_roadmap_save_load_answers_a_query(solved, tmp_path: Path) -> None:
     loaded = Roadmap.load(path, key)
     np.testing.assert_array_equal(loaded.vertices, result.roadmap.vertices)
     np.testing.assert_array_equal(loaded.edges, result.roadmap.edges)
-    answer = plan(scenario, roadmap=loaded, time_limit=60.0)
+    answer = plan(scenario, roadmap=loaded, time_limit=300.0)
     assert answer.solved, (answer.status, answer.message)
     doc = build_plan_document(scenario, build_hand(scenario), answer)
     assert verify_plan(doc).ok
@@ -250,7 +250,7 @@ def test_start_q_a_little_off_the_surface_is_moved_onto_it(tmp_path) -> None:
     q_off = x0[7:] + 2e-3  # every joint 2 mrad off: fingertips ~1e-4 m off the sphere
     assert 1e-5 < ctx.gsn.residual(ctx.gsn.join(x0[:7], q_off)) < 1e-3
     start = dataclasses.replace(scenario.start, q=q_off)
-    res = plan(dataclasses.replace(scenario, start=start), seed=1)
+    res = plan(dataclasses.replace(scenario, start=start), seed=1, time_limit=300.0)
     assert res.solved, res.message
     q_first = res.segments[0].start.q
     assert ctx.gsn.residual(ctx.gsn.join(x0[:7], q_first)) < 1e-8
@@ -304,7 +304,7 @@ def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
     events = []
     # a generous limit: what is checked must not hinge on the machine's speed
-    res = plan(scenario, seed=8, time_limit=120.0, progress=events.append)
+    res = plan(scenario, seed=8, time_limit=300.0, progress=events.append)
     assert res.solved, res.message
     assert res.stats.explorations == 2
     messages = [e.message for e in events]

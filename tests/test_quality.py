@@ -159,7 +159,7 @@ def test_api_quality_levels() -> None:
 
     with pytest.raises(InvalidInputError, match="quality must be one of full, fast, none"):
         dexplan.plan(quality="most")
-    fast = dexplan.plan(seed=3, quality=QualityLevel.FAST)
+    fast = dexplan.plan(seed=3, quality=QualityLevel.FAST, time_limit=300.0)
     assert fast.solved and fast.quality is not None
     assert fast.quality.execution_time_s is None and fast.quality.max_grip_force_n is None
     assert fast.quality.weakest_hold is not None  # the verifier's report, reused

@@ -40,7 +40,7 @@ def _grasps(ctx, states):
 
 
 def test_edge_reduction_plan_passes_verify(scenario) -> None:
-    result = plan(scenario, seed=1, reduction="edges", time_limit=60.0)
+    result = plan(scenario, seed=1, reduction="edges", time_limit=300.0)
     assert result.solved, (result.status, result.message)
     assert result.stats.reduction_method == "edges"
     kinds = [s.kind for s in result.segments]
@@ -106,7 +106,7 @@ def test_short_edge_is_one_transfer(scenario, start_and_goal) -> None:
 def test_bisected_edges_reach_the_goal(scenario) -> None:
     """A coarse GSn path (every 4th state): bisection recovers the missing states."""
     ctx = build_context(scenario, seed=3)
-    res = plan(scenario, seed=3, reduction="gaits", time_limit=60.0)
+    res = plan(scenario, seed=3, reduction="gaits", time_limit=300.0)
     assert res.gsn_path.shape[0] >= 3
     states = res.gsn_path[::4]
     if not np.array_equal(states[-1], res.gsn_path[-1]):
@@ -162,7 +162,7 @@ def test_fingertips_on_box_edges_are_verified_contacts() -> None:
     ctx = build_context(scenario)
     outcomes = []
     for seed in range(1, 6):
-        result = plan(scenario, planner="KPIECE1", seed=seed, reduction="edges", time_limit=60.0)
+        result = plan(scenario, planner="KPIECE1", seed=seed, reduction="edges", time_limit=300.0)
         on_edge = _contacts_off_the_fingertip(hand, ctx, result) if result.solved else []
         outcomes.append((seed, result.status, len(on_edge)))
         if on_edge:

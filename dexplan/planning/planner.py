@@ -33,6 +33,7 @@ from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
 from dexplan.model.scenario import Scenario, checked_scenario
 from dexplan.planning.context import build_context
+from dexplan.planning.deadline import budget
 from dexplan.planning.diagnostics import Rejections
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
@@ -262,7 +263,7 @@ class QueryRun:
         self.ctx = build_context(scenario, seed, hand=hand)
         # every stage watches one deadline (the sampler, goal sampling and the
         # local planners read it too), keeping a reserve for the verification
-        self.deadline = self.t0 + (1.0 - VERIFY_RESERVE) * time_limit
+        self.deadline = self.t0 + (1.0 - VERIFY_RESERVE) * budget(time_limit)
         self.ctx.deadline.at = self.deadline
         self.stats = PlanStats(planner=planner, seed=seed, time_limit=time_limit)
         self.pose0 = scenario.start.object_pose_xyzquat
