@@ -117,8 +117,11 @@ def test_sigint_at_any_moment_stops_the_run_and_writes_nothing(tmp_path, delay):
     assert not (tmp_path / "plan.json").exists()
 
 
-def test_sigint_noted_while_a_library_swallows_it_is_acted_on(monkeypatch, capfd, tmp_path):
-    """A KeyboardInterrupt eaten by `except BaseException` still ends the run at once."""
+def test_sigint_noted_before_a_command_starts_ends_it_at_once(monkeypatch, capfd, tmp_path):
+    """A SIGINT noted during the imports (the flag set, nothing raised) ends the run at once.
+
+    A SIGINT in the middle of a run, swallowed by a library: tests/test_interrupts.py.
+    """
     monkeypatch.setattr(interrupt, "_interrupted", True)
     code, _, err = run_cli(capfd, "plan", "-o", tmp_path / "p.json")
     assert code == 130 and "interrupted" in err

@@ -449,10 +449,12 @@ def run(argv: Sequence[str] | None = None) -> int:
     """
     interrupt.install()
     interrupt.running(True)
+    interrupt.forget_outputs()
     try:
         return _run(argv)
     finally:
         interrupt.running(False)
+        interrupt.forget_outputs()
 
 
 def _dispatch(args: argparse.Namespace) -> int:
@@ -484,6 +486,7 @@ def _run(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:  # `dexplan info | head`: the reader left, nothing to say
         return EXIT_OK
     except KeyboardInterrupt:
+        interrupt.discard_outputs()
         err("interrupted")
         return EXIT_INTERRUPTED
     except Exception as exc:
@@ -499,6 +502,7 @@ def _exit_code_of(exc: Exception, *, debug: bool) -> int:
     if interrupt.is_interrupted():
         # a library that swallowed Ctrl-C (trimesh leaves an ExceptionWrapper
         # where a module should be) then fails: the interrupt is the cause
+        interrupt.discard_outputs()
         err("interrupted")
         return EXIT_INTERRUPTED
     if isinstance(exc, DexplanError | OSError):  # bad input; unreadable or unwritable files

@@ -36,7 +36,7 @@ def _limits(opts: ExportOptions) -> TimingLimits:
 
 def run(opts: ExportOptions) -> int:
     """Time-parameterise a plan, add grip forces, write the trajectory (JSON, CSV or a bag)."""
-    out = check_output_path(opts.output, "-o")
+    out = check_output_path(interrupt.output(opts.output), "-o")
     is_bag = out.suffix.lower() == BAG_SUFFIX
     if TrajectoryFormat.of_path(out) is None and not is_bag:
         raise InvalidInputError(

@@ -72,7 +72,7 @@ def check_options(opts: PlanOptions, scenario: Scenario) -> Hand:
     outputs = (("-o", single), ("--rrd", opts.rrd), ("--save-roadmap", opts.save_roadmap))
     for option, value in (*outputs, ("--debug-rrd", opts.debug_rrd)):
         if value is not None:
-            check_output_path(value, option)
+            check_output_path(interrupt.output(value), option)
     hand = build_hand(scenario)
     q0 = scenario.start.q
     if q0 is not None and q0.shape != (hand.nq,):

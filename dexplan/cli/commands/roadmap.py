@@ -94,7 +94,7 @@ def build(opts: RoadmapBuildOptions) -> int:
         jobs=opts.jobs,
         ray_address=opts.ray,
     )
-    check_output_path(opts.output, "-o")
+    check_output_path(interrupt.output(opts.output), "-o")
     if opts.ray is not None:  # the address's form, before the models are built
         parse_ray_address(opts.ray)
     hand = build_hand(scenario)
