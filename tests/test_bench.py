@@ -482,7 +482,6 @@ def _cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedPro
         (["paper_sphere", "--seeds", "0"], "--seeds"),
         (["paper_sphere", "--time-limit", "0"], "--time-limit"),
         (["nope.toml"], "not found"),
-        (["paper_sphere", "--ray", "127.0.0.1:1"], "--ray"),  # nothing listens there
     ],
 )
 def test_cli_bad_inputs_exit_2(tmp_path, args, match):
@@ -490,6 +489,25 @@ def test_cli_bad_inputs_exit_2(tmp_path, args, match):
     assert res.returncode == 2, res.stderr
     assert match in res.stderr
     assert "Traceback" not in res.stderr
+
+
+HAS_RAY = importlib.util.find_spec("ray") is not None
+
+
+@pytest.mark.skipif(not HAS_RAY, reason="ray is not installed: the cluster check is not reached")
+def test_cli_ray_address_where_nothing_listens_exits_2(tmp_path):
+    """With Ray installed, ``--ray HOST:PORT`` is checked: nothing listens on port 1."""
+    res = _cli("paper_sphere", "--ray", "127.0.0.1:1", "-o", str(tmp_path / "o"), cwd=tmp_path)
+    assert res.returncode == 2, res.stderr
+    assert "--ray '127.0.0.1:1': no Ray cluster answers there" in res.stderr
+    assert "Traceback" not in res.stderr and not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(HAS_RAY, reason="ray is installed: --ray does not need it")
+def test_cli_ray_without_ray_exits_2(tmp_path):
+    res = _cli("paper_sphere", "--ray", "127.0.0.1:1", "-o", str(tmp_path / "o"), cwd=tmp_path)
+    assert res.returncode == 2, res.stderr
+    assert "--ray needs Ray" in res.stderr and "Traceback" not in res.stderr
 
 
 # ------------------------------------------------------------------ real sweeps

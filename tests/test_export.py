@@ -147,3 +147,27 @@ def test_a_regrasps_last_sample_reads_the_landed_finger_even_a_rounding_error_ea
     # inside the regrasp the free finger carries nothing
     contacts, loaded = _sample_contacts(seg, st, nxt, ts, 3, 1, 4)
     assert contacts[3] is None and loaded == (True, True, True, False)
+
+
+def test_a_trajectory_failing_the_limits_check_exits_1(monkeypatch, capfd, plan_file, tmp_path):
+    """The check runs on what is written: a joint 10 times over its velocity limit fails it.
+
+    Trajectories from plans pass by construction, so the written document is
+    changed between its building and the check (the one place export judges it).
+    """
+    import dexplan.cli.commands.export as export_cmd
+
+    real = export_cmd.trajectory_document
+
+    def too_fast(*args, **kwargs):
+        doc = real(*args, **kwargs)
+        doc["points"][5]["velocities"][0] = 10.0 * doc["limits"]["joint_velocity"][0]
+        return doc
+
+    monkeypatch.setattr(export_cmd, "trajectory_document", too_fast)
+    out = tmp_path / "traj.json"
+    code, stdout, err = run_cli(capfd, "export", plan_file, "-o", out)
+    assert code == 1, err
+    line = next(x for x in stdout.splitlines() if x.startswith("limits check:"))
+    assert line.startswith("limits check: FAILED (1: ") and "velocity limit" in line
+    assert check_trajectory(read_trajectory(out)) != []  # kept for inspection, as checked

@@ -179,6 +179,28 @@ def _follows_all_the_way(ctx, x: np.ndarray) -> bool:
     return grasp_follow(ctx.transitions, pose, x[7:], future)[0] >= len(future)
 
 
+def _start_candidates(scenario, seed: int):
+    """A start grasp chosen from 8 candidates, and the candidates, for ``seed``.
+
+    Returns ``(ctx, ref, chosen, first, pool)``: the context the choice used,
+    a fresh one of the same seed, the chosen state, the first candidate
+    alone, and all 8 candidates.
+    """
+    from dexplan.planning.context import build_context
+    from dexplan.planning.start import start_state
+
+    pose = scenario.start.object_pose_xyzquat
+    ctx = build_context(scenario, seed=seed)
+    chosen = start_state(ctx, candidates=8, rng=np.random.default_rng([seed, 5]))
+    ref = build_context(scenario, seed=seed)
+    first = start_state(ref, candidates=1)
+    extra = ref.sampler.samples_at_pose(pose, 7, np.random.default_rng([seed, 5]))
+    assert chosen is not None and first is not None and len(extra) == 7
+    pool = [first, *extra]
+    assert any(np.array_equal(chosen, x) for x in pool)
+    return ctx, ref, chosen, first, pool
+
+
 @pytest.mark.parametrize(("name", "seed"), [("suite/box_tilt90", 2), ("paper_sphere", 2)])
 def test_sampled_start_grasp_follows_all_the_way_or_is_strong(name: str, seed: int) -> None:
     """The start grasp is one that follows the straight move to the goal all the way
@@ -193,21 +215,22 @@ def test_sampled_start_grasp_follows_all_the_way_or_is_strong(name: str, seed: i
 
     scenario = load_scenario(builtin_scenario_path(name))
     pose = scenario.start.object_pose_xyzquat
-    ctx = build_context(scenario, seed=seed)
-    chosen = start_state(ctx, candidates=8, rng=np.random.default_rng([seed, 5]))
-    ref = build_context(scenario, seed=seed)
-    first = start_state(ref, candidates=1)
-    extra = ref.sampler.samples_at_pose(pose, 7, np.random.default_rng([seed, 5]))
-    assert chosen is not None and first is not None and len(extra) == 7
-    pool = [first, *extra]
-    assert any(np.array_equal(chosen, x) for x in pool)
-    covering = [x for x in pool if _follows_all_the_way(ref, x)]
     if name != "paper_sphere":
-        # box_tilt90 seed 2: the first needs regrasps, another turns the box alone
-        assert not _follows_all_the_way(ref, first) and covering
+        # a seed where the first candidate needs regrasps and another turns the box
+        # alone: the first such within 1-12 (seed 2 today, tried first)
+        for s in (seed, *(s for s in range(1, 13) if s != seed)):
+            ctx, ref, chosen, first, pool = _start_candidates(scenario, s)
+            covering = [x for x in pool if _follows_all_the_way(ref, x)]
+            if covering and not _follows_all_the_way(ref, first):
+                break
+        else:
+            raise AssertionError("no seed within 1-12 whose first start grasp needs regrasps")
+        seed = s
         np.testing.assert_array_equal(chosen, covering[0])
     else:
-        # no grasp of the paper hand turns the sphere 180 degrees
+        # no grasp of the paper hand turns the sphere 180 degrees: true of every seed
+        ctx, ref, chosen, first, pool = _start_candidates(scenario, seed)
+        covering = [x for x in pool if _follows_all_the_way(ref, x)]
         assert not covering
         tr = ref.transitions
         st = tr.settings
@@ -294,19 +317,26 @@ def test_the_allegro_starts_from_a_grasp_every_finger_can_leave() -> None:
 def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
     """When every reduction of the GSn path fails early, module 1 explores again.
 
-    cube_obstacle seed 8 (the only such query of the suite and cube_obstacle
-    on seeds 1-20 at the sampler's current settings; seed 11 and cube_post
-    seed 20 were such under earlier ones): the slerp between two GSn states
-    clips the obstacle, so both gait reductions stop at once (the object
-    itself collides) and the edge-by-edge one hits its bisection limit; such a query used to end
-    ``reduction_failed`` after about 1 s of its time limit.
+    A query where the slerp between two GSn states clips the obstacle: both
+    gait reductions stop at once (the object itself collides) and the
+    edge-by-edge one hits its bisection limit; such a query used to end
+    ``reduction_failed`` after about 1 s of its time limit. The first seed of
+    cube_obstacle (within 1-20) that explores again is checked: seed 8 at the
+    sampler's current settings, tried first; a sampler change moves it, and
+    none within the bound fails the test.
     """
     scenario = load_scenario(builtin_scenario_path("cube_obstacle"))
-    events = []
-    # a generous limit: what is checked must not hinge on the machine's speed
-    res = plan(scenario, seed=8, time_limit=300.0, progress=events.append)
+    tried = []
+    for seed in (8, *(s for s in range(1, 21) if s != 8)):
+        events: list = []
+        # a generous limit: what is checked must not hinge on the machine's speed
+        res = plan(scenario, seed=seed, time_limit=300.0, progress=events.append)
+        tried.append((seed, res.status, res.stats.explorations))
+        if res.stats.explorations >= 2:
+            break
+    else:
+        raise AssertionError(f"no seed of cube_obstacle within 1-20 explores again: {tried}")
     assert res.solved, res.message
-    assert res.stats.explorations == 2
     messages = [e.message for e in events]
     again = next(i for i, m in enumerate(messages) if m.startswith("exploring GSn again"))
     assert any("object_collision" in m for m in messages[:again])
