@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
@@ -445,3 +446,25 @@ def test_summarize_empty_and_linkless_roadmaps(plan_doc: dict) -> None:
     rm.links = np.zeros((0, 2), np.int64)
     s = summarize_roadmap(rm)
     assert s.components == s.merged_components == 3 and s.merged == (0, 1, 2)
+
+
+def test_plan_with_rrd_writes_a_recording_of_the_plan(capfd, tmp_path) -> None:
+    """``dexplan plan -o p.json --rrd p.rrd``: the plan, and a recording that reads back."""
+    from cli_contract import run_cli
+
+    plan_file, rrd = tmp_path / "p.json", tmp_path / "p.rrd"
+    args = ["-q", "--time-limit", "300", "-o", plan_file, "--rrd", rrd]
+    code, stdout, err = run_cli(capfd, "plan", *args)
+    assert code == 0, err
+    assert stdout.startswith("status: solved")
+    chunks = read_rrd(rrd)
+    n_waypoints = sum(len(s["waypoints"]) for s in json.loads(plan_file.read_text())["segments"])
+    steps = [
+        v
+        for ch in chunks["/world/object"]
+        if "plan_step" in (rb := ch.to_record_batch()).schema.names
+        for v in rb.column("plan_step").to_pylist()
+        if v is not None
+    ]
+    assert sorted(steps) == list(range(n_waypoints))  # the object at every waypoint, once
+    assert "/world/hand/f0_tip" in chunks
