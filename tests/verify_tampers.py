@@ -542,6 +542,9 @@ TAMPERS: dict[str, Tamper] = {
         "the regrasping finger's joint moved 1e-6 rad at its regrasp's first waypoint",
         _continuity,
     ),
-    "start": Tamper("the start object pose moved 1e-6 m", _start),
+    "start": Tamper(
+        "start.q's first joint moved 1e-6 rad (without start.q, the start object pose 1e-6 m)",
+        _start,
+    ),
     "goal": Tamper("the goal moved its position tolerance + 0.1 mm", _goal),
 }
