@@ -202,6 +202,18 @@ def test_deadline_helpers():
     assert Deadline(0.0).expired() and Deadline.after(100.0).remaining() > 99.0
 
 
+@pytest.mark.parametrize(
+    ("value", "share"), [(None, 1.0), ("1", 1.0), ("4", 0.25), ("0.5", 1.0), ("x", 1.0)]
+)
+def test_slowdown_shortens_every_budget(monkeypatch, value, share):
+    """DEXPLAN_SLOWDOWN=k gives a query 1/k of its limit (k >= 1; other values are ignored)."""
+    if value is None:
+        monkeypatch.delenv("DEXPLAN_SLOWDOWN", raising=False)
+    else:
+        monkeypatch.setenv("DEXPLAN_SLOWDOWN", value)
+    assert budget(8.0) == 8.0 * share
+
+
 def test_unsolvable_query_ends_with_a_status_at_its_limit():
     """An unsolvable query returns a result (not an exception), having used its limit.
 

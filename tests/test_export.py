@@ -165,8 +165,12 @@ def test_a_trajectory_failing_the_limits_check_exits_1(monkeypatch, capfd, plan_
         return doc
 
     monkeypatch.setattr(export_cmd, "trajectory_document", too_fast)
+    short = tmp_path / "first_segment.json"  # the plan's first segment: a plan, cheaper to time
+    doc = read_plan(plan_file)
+    doc["segments"] = doc["segments"][:1]
+    short.write_text(json.dumps(doc))
     out = tmp_path / "traj.json"
-    code, stdout, err = run_cli(capfd, "export", plan_file, "-o", out)
+    code, stdout, err = run_cli(capfd, "export", short, "-o", out, "--rate", "50")
     assert code == 1, err
     line = next(x for x in stdout.splitlines() if x.startswith("limits check:"))
     assert line.startswith("limits check: FAILED (1: ") and "velocity limit" in line

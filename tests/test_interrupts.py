@@ -9,6 +9,7 @@ before the run starts.
 from __future__ import annotations
 
 import gc
+import json
 import os
 import signal
 import sys
@@ -22,6 +23,7 @@ from cli_contract import run_cli
 import dexplan.core.files as files
 from dexplan.cli import interrupt
 from dexplan.cli.main import EXIT_INTERRUPTED
+from dexplan.planfile import read_plan
 
 
 @pytest.fixture(autouse=True)
@@ -114,7 +116,10 @@ def test_interrupt_as_an_output_appears(stage, monkeypatch, capfd, tmp_path):
 
 
 def test_interrupt_as_the_trajectory_appears(paper_plan, monkeypatch, capfd, tmp_path):
-    plan_file = paper_plan(1, tmp_path)
+    doc = read_plan(paper_plan(1, tmp_path))
+    doc["segments"] = doc["segments"][:1]  # the first segment: a plan, cheaper to time
+    plan_file = tmp_path / "first_segment.json"
+    plan_file.write_text(json.dumps(doc))
     fired: list[str] = []
     _interrupt_before_replace(monkeypatch, "traj.json", fired)
     code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "traj.json")
