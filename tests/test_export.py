@@ -175,3 +175,25 @@ def test_a_trajectory_failing_the_limits_check_exits_1(monkeypatch, capfd, plan_
     line = next(x for x in stdout.splitlines() if x.startswith("limits check:"))
     assert line.startswith("limits check: FAILED (1: ") and "velocity limit" in line
     assert check_trajectory(read_trajectory(out)) != []  # kept for inspection, as checked
+
+
+@pytest.mark.parametrize(
+    "name",
+    # the Allegro's plan takes a minute and a half here: slow
+    ["three_finger_sphere", pytest.param("allegro_sphere", marks=pytest.mark.slow)],
+)
+def test_plans_of_other_hands_export_and_pass_the_limits_check(capfd, tmp_path, name) -> None:
+    from dexplan.model.scenario import builtin_scenario_path
+
+    plan_file, out = tmp_path / "p.json", tmp_path / "traj.json"
+    args = [builtin_scenario_path(name), "--seed", "1", "--time-limit", "600", "-q"]
+    code, _, err = run_cli(capfd, "plan", *args, "-o", plan_file)
+    assert code == 0, err
+    code, stdout, err = run_cli(capfd, "export", plan_file, "-o", out, "--rate", "50")
+    assert code == 0, err
+    assert "limits check: OK" in stdout
+    doc, plan = read_trajectory(out), read_plan(plan_file)
+    assert check_trajectory(doc) == []
+    assert doc["joint_names"] == plan["hand"]["joint_names"]
+    n = len(plan["hand"]["fingertip_frames"])
+    assert all(len(p["contacts"]) == len(p["grip_forces"]) == n for p in doc["points"])
