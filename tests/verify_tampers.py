@@ -30,9 +30,11 @@ from typing import Any
 import numpy as np
 
 from dexplan.core.pose import inverse_transform_points, transform_points
+from dexplan.core.segments import Waypoint
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.planfile.models import PlanModels, models_from_document
-from dexplan.planfile.verify import MAX_STEP_RAD, TIP_DISTANCE_TOL
+from dexplan.planfile.rules import MAX_STEP_RAD, TIP_DISTANCE_TOL
+from dexplan.planfile.tip_contacts import tip_sides
 
 Doc = dict[str, Any]
 Where = tuple[str, int, int]
@@ -99,6 +101,26 @@ def _move_tip(m: PlanModels, w: dict[str, Any], f: int, target_obj: np.ndarray) 
     w["q"] = q.tolist()
 
 
+def _set_contact(m: PlanModels, w: dict[str, Any], f: int, c: Any) -> None:
+    """Set finger ``f``'s contact of ``w`` (a list, or None), its tip contact with it.
+
+    A ``dexplan-plan/2`` file states each contact twice, on the object and on
+    the fingertip (``tip_contacts``): a change of one is made to both.
+    """
+    w["contacts"][f] = None if c is None else [float(v) for v in c]
+    if "tip_contacts" not in w:
+        return
+    if c is None:
+        w["tip_contacts"][f] = None
+        return
+    way = Waypoint(
+        _arr(w, "object_pose_xyzquat"),
+        _arr(w, "q"),
+        tuple(None if v is None else np.asarray(v, dtype=float) for v in w["contacts"]),
+    )
+    w["tip_contacts"][f] = tip_sides(m.hand, way)[f].tolist()
+
+
 def _outward(m: PlanModels, p_obj: np.ndarray) -> np.ndarray:
     """(3,) the outward unit normal of the object at its surface point nearest ``p_obj``."""
     _, n = m.obj.closest_point(p_obj)
@@ -135,7 +157,12 @@ def _tip_moved_at_end(doc: Doc, along: float) -> Tampered:
     tip = _tip_obj(m, w, f)
     _move_tip(m, w, f, tip + along * _outward(m, tip))
     assert _steps_ok(seg, wi), "the tampered tip moved a joint past the step rule"
-    return doc, {("fingertip_distance", si, wi)}
+    return doc, {("fingertip_distance", si, wi), *_off_the_tip(doc, si, wi)}
+
+
+def _off_the_tip(doc: Doc, si: int, wi: int) -> set[Where]:
+    """The tip-contact violation of a contact moved off the tip sphere (format /2 only)."""
+    return {("tip_contact", si, wi)} if doc["format"] != "dexplan-plan/1" else set()
 
 
 # ---------------------------------------------------------------- one per rule
@@ -185,10 +212,12 @@ def _regrasp_end_contact(
     m = _models(doc)
     si, seg = _first(doc, "regrasp")
     wi = len(seg["waypoints"]) - 1
-    contacts = seg["waypoints"][wi]["contacts"]
+    w = seg["waypoints"][wi]
     f = seg["finger"]
-    contacts[f] = move(m, np.asarray(contacts[f], dtype=float)).tolist()
-    return doc, {(RULE_OF_MOVE[move], si, wi)}
+    _set_contact(m, w, f, move(m, np.asarray(w["contacts"][f], dtype=float)))
+    rule = RULE_OF_MOVE[move]
+    # a contact moved out along the normal is as far off the fingertip sphere
+    return doc, {(rule, si, wi), *(_off_the_tip(doc, si, wi) if move is _off_surface else ())}
 
 
 def _off_surface(m: PlanModels, c: np.ndarray) -> np.ndarray:
@@ -237,12 +266,18 @@ def _penetration(doc: Doc) -> Tampered:
     doc, _ = _tip_moved_at_end(doc, -OVER)
     si = len(doc["segments"]) - 1
     wi = len(doc["segments"][si]["waypoints"]) - 1
-    return doc, {("penetration", si, wi), ("fingertip_distance", si, wi)}
+    return doc, {
+        ("penetration", si, wi),
+        ("fingertip_distance", si, wi),
+        *_off_the_tip(doc, si, wi),
+    }
 
 
 def _drop_contact(seg: dict[str, Any], f: int) -> None:
     for w in seg["waypoints"]:
         w["contacts"][f] = None
+        if "tip_contacts" in w:
+            w["tip_contacts"][f] = None
 
 
 def _force_closure(doc: Doc) -> Tampered:
@@ -319,7 +354,7 @@ def _step(doc: Doc) -> Tampered:
 def _transfer_contacts(doc: Doc) -> Tampered:
     si, seg = _first(doc, "transfer")
     wi = len(seg["waypoints"]) // 2
-    seg["waypoints"][wi]["contacts"][0] = None
+    _set_contact(_models(doc), seg["waypoints"][wi], 0, None)
     return doc, {
         ("transfer_contacts", si, wi),
         ("subgrasp_force_closure", si, wi),
@@ -339,14 +374,34 @@ def _transfer_contact_drift(doc: Doc) -> Tampered:
             for f in range(len(seg["waypoints"][wi]["contacts"])):
                 w = copy.deepcopy(seg["waypoints"][wi])
                 c = _along_surface(m, np.asarray(w["contacts"][f], dtype=float))
-                w["contacts"][f] = c.tolist()
                 _move_tip(m, w, f, c + m.hand.fingertip_radius * _outward(m, c))
+                _set_contact(m, w, f, c)
                 if _steps_ok(
                     {"waypoints": [*seg["waypoints"][:wi], w, *seg["waypoints"][wi + 1 :]]}, wi
                 ):
                     seg["waypoints"][wi] = w
                     return doc, {("transfer_contact_drift", si, wi)}
     raise AssertionError("no transfer waypoint where a slid fingertip keeps the step rule")
+
+
+def _transfer_no_slip(doc: Doc) -> Tampered:
+    """A fixed-contact plan said to roll: its fingertips slide over the object instead."""
+    assert doc["contact_motion"] == "fixed"
+    doc["contact_motion"] = "rolling"
+    return doc, {
+        ("transfer_no_slip", si, len(seg["waypoints"]) - 1)
+        for si, seg in _segments(doc, "transfer")
+    }
+
+
+def _tip_contact(doc: Doc) -> Tampered:
+    """One tip contact (the contact seen from the tip link) moved 1.5 mm."""
+    si, seg = _first(doc, "transfer")
+    wi = len(seg["waypoints"]) // 2
+    row = seg["waypoints"][wi]["tip_contacts"]
+    f = next(i for i, t in enumerate(row) if t is not None)
+    row[f] = [row[f][0] + OVER, row[f][1], row[f][2]]
+    return doc, {("tip_contact", si, wi)}
 
 
 def _regrasp_object_still(doc: Doc) -> Tampered:
@@ -394,11 +449,11 @@ def _regrasp_free_finger(doc: Doc) -> Tampered:
     w = doc["segments"][si]["waypoints"][wi]
     tip = _tip_obj(m, w, f)
     p, _ = m.obj.closest_point(tip)
-    w["contacts"][f] = np.asarray(p, dtype=float).reshape(3).tolist()
+    _set_contact(m, w, f, np.asarray(p, dtype=float).reshape(3))
     gap = float(m.obj.signed_distance(tip)) - m.hand.fingertip_radius
     out = {("regrasp_free_finger", si, wi)}
-    if gap > TIP_DISTANCE_TOL:
-        out.add(("fingertip_distance", si, wi))
+    if gap > TIP_DISTANCE_TOL:  # the contact is as far from the fingertip as the surface
+        out |= {("fingertip_distance", si, wi), *_off_the_tip(doc, si, wi)}
     return doc, out
 
 
@@ -431,7 +486,7 @@ def _regrasp_clearance(doc: Doc) -> Tampered:
 def _regrasp_endpoints(doc: Doc) -> Tampered:
     si, seg = _first(doc, "regrasp")
     wi = len(seg["waypoints"]) - 1
-    seg["waypoints"][wi]["contacts"][seg["finger"]] = None
+    _set_contact(_models(doc), seg["waypoints"][wi], seg["finger"], None)
     return doc, {("regrasp_endpoints", si, wi), ("collision", si, wi)}
 
 
@@ -469,10 +524,12 @@ TAMPERS: dict[str, Tamper] = {
     "fingertip_distance": Tamper(
         "the last waypoint's fingertip moved 1.5 mm out along the normal (joints by IK)",
         _fingertip_distance,
+        also="tip_contact (format /2): the contact is 1.5 mm off the tip sphere",
     ),
     "contact_on_surface": Tamper(
         "a regrasping finger's end contact moved 1.5 mm out along the normal",
         lambda doc: _regrasp_end_contact(doc, _off_surface),
+        also="tip_contact (format /2): the contact is 1.5 mm inside the tip sphere",
     ),
     "contact_matches_fingertip": Tamper(
         "a regrasping finger's end contact slid 1.5 mm along the surface",
@@ -485,7 +542,10 @@ TAMPERS: dict[str, Tamper] = {
     "penetration": Tamper(
         "the last waypoint's fingertip moved 1.5 mm into the object (joints by IK)",
         _penetration,
-        also="fingertip_distance: a tip 1.5 mm deep is 1.5 mm from touching",
+        also=(
+            "fingertip_distance: a tip 1.5 mm deep is 1.5 mm from touching; tip_contact "
+            "(format /2): the contact is 1.5 mm inside the tip sphere"
+        ),
     ),
     "force_closure": Tamper(
         "a holding finger of a regrasp set free all along (contact null)",
@@ -515,6 +575,11 @@ TAMPERS: dict[str, Tamper] = {
         "the last waypoint's contact of finger 0 and its fingertip slid 1.5 mm along the surface",
         _transfer_contact_drift,
     ),
+    "transfer_no_slip": Tamper(
+        "contact_motion fixed -> rolling (the fixed contacts slide on the fingertips)",
+        _transfer_no_slip,
+    ),
+    "tip_contact": Tamper("one tip_contacts entry moved 1.5 mm", _tip_contact),
     "regrasp_object_still": Tamper(
         "the object moved 1e-6 m at a regrasp's first interior waypoint", _regrasp_object_still
     ),
@@ -526,7 +591,9 @@ TAMPERS: dict[str, Tamper] = {
         "a motionless two-waypoint regrasp inserted after a transfer", _regrasp_interior
     ),
     "regrasp_free_finger": Tamper(
-        "the free finger given a contact where it is nearest the object", _regrasp_free_finger
+        "the free finger given a contact where it is nearest the object",
+        _regrasp_free_finger,
+        also="only where that is over 1 mm: fingertip_distance, tip_contact (it is that far)",
     ),
     "regrasp_clearance": Tamper(
         "the free finger's tip moved 0.1 mm into the object (joints by IK)",
