@@ -500,6 +500,7 @@ def test_cli_ray_address_where_nothing_listens_exits_2(tmp_path):
     res = _cli("paper_sphere", "--ray", "127.0.0.1:1", "-o", str(tmp_path / "o"), cwd=tmp_path)
     assert res.returncode == 2, res.stderr
     assert "--ray '127.0.0.1:1': no Ray cluster answers there" in res.stderr
+    assert "ray start --head --port 1" in res.stderr  # and how to start one
     assert "Traceback" not in res.stderr and not (tmp_path / "o").exists()
 
 

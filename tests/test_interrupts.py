@@ -56,7 +56,10 @@ def _interrupt_before_replace(monkeypatch, name: str, fired: list[str]) -> None:
 
     proxy = types.SimpleNamespace(**{k: getattr(os, k) for k in dir(os) if not k.startswith("__")})
     proxy.replace = replace
-    monkeypatch.setattr(files, "os", proxy)
+    monkeypatch.setattr(files, "os", proxy)  # every atomic output
+    bag = sys.modules.get("dexplan.execution.bag")
+    if bag is not None:  # the ROS 2 bag renames its own MCAP file
+        monkeypatch.setattr(bag, "os", proxy)
 
 
 def test_sigint_swallowed_by_a_library_mid_run_still_ends_the_run(monkeypatch, capfd, tmp_path):
@@ -115,16 +118,20 @@ def test_interrupt_as_an_output_appears(stage, monkeypatch, capfd, tmp_path):
     _assert_interrupted(code, err, tmp_path, outputs)
 
 
-def test_interrupt_as_the_trajectory_appears(paper_plan, monkeypatch, capfd, tmp_path):
+@pytest.mark.parametrize("name", ["traj.json", "traj.mcap"])
+def test_interrupt_as_the_trajectory_appears(name, paper_plan, monkeypatch, capfd, tmp_path):
+    if name.endswith(".mcap"):
+        pytest.importorskip("rosbags")
+        import dexplan.execution.bag  # noqa: F401 - loaded, so that its rename is watched
     doc = read_plan(paper_plan(1, tmp_path))
     doc["segments"] = doc["segments"][:1]  # the first segment: a plan, cheaper to time
     plan_file = tmp_path / "first_segment.json"
     plan_file.write_text(json.dumps(doc))
     fired: list[str] = []
-    _interrupt_before_replace(monkeypatch, "traj.json", fired)
-    code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / "traj.json")
-    assert fired == ["traj.json"]
-    _assert_interrupted(code, err, tmp_path, ["traj.json"])
+    _interrupt_before_replace(monkeypatch, name, fired)
+    code, _, err = run_cli(capfd, "export", plan_file, "-o", tmp_path / name)
+    assert fired == [name]
+    _assert_interrupted(code, err, tmp_path, [name])
     assert plan_file.exists()  # the input is not an output
 
 
