@@ -110,7 +110,7 @@ def test_bad_models_raise_typed_errors(hand: Hand, tmp_path) -> None:
 def test_load_from_file_with_subset_of_fingers(hand: Hand, tmp_path) -> None:
     path = tmp_path / "h.urdf"
     path.write_text(hand.urdf_xml)
-    h3 = Hand.from_urdf_file(path, ["f0_tip", "f1_tip", "f2_tip"], 0.01)
+    h3 = Hand.from_urdf_file(path, ["f0_tip", "f1_tip", "f2_tip"], 0.012)
     assert h3.n_fingers == 3
     assert h3.nq == 12
 

@@ -282,8 +282,10 @@ def test_link_without_collision_geometry_is_named(three: Hand) -> None:
     with pytest.raises(ModelError, match=r"link 'f0_distal' .*no collision geometry"):
         Hand(text, TIPS3, 0.012)
     tip = '<collision><geometry><sphere radius="0.012"/></geometry></collision>'
-    with pytest.raises(ModelError, match=r"fingertip 'f0_tip' has no collision geometry"):
-        Hand(_edit(three, tip, ""), TIPS3, 0.012)
+    # a tip frame without a sphere gets one (docs/hands.md, "Fingertips")
+    hand = Hand(_edit(three, tip, ""), TIPS3, 0.012)
+    added = hand.geom_model.geometryObjects[hand.tip_geom_ids[0]]
+    assert added.name == "f0_tip_fingertip" and added.geometry.radius == 0.012
 
 
 def _finger(f: str, y: float, *, virtual_knuckle: bool) -> str:
@@ -390,7 +392,7 @@ def test_binary_and_non_utf8_urdf(tmp_path) -> None:
         Hand(42, TIPS3, 0.012)  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize("radius", [0.0, -0.01, math.nan, math.inf, 0.5, "big", None])
+@pytest.mark.parametrize("radius", [0.0, -0.01, math.nan, math.inf, 0.5, "big"])
 def test_fingertip_radius_must_be_plausible(three: Hand, radius: object) -> None:
     with pytest.raises(
         ModelError, match=r"fingertip_radius must be a finite number in \(0, 0\.05\]"

@@ -10,9 +10,11 @@ set per query) and the obstacles. Collision pairs are fixed at construction:
 - the object against every obstacle.
 
 Per query, the fingertip-object pair of each *contact* finger is switched off:
-that contact is the GSn constraint, not a collision. Its penetration is still
-measured (signed distance of the tip centre to the object surface minus the tip
-radius) and reported as a collision beyond :data:`CONTACT_PENETRATION_TOL`.
+that contact is the GSn constraint, not a collision. The fingertip is the
+sphere at the tip frame only; the rest of the distal link is always checked.
+The contact's penetration is still measured (signed distance of the tip centre
+to the object surface minus the tip radius) and reported as a collision beyond
+:data:`CONTACT_PENETRATION_TOL`.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.errors import InvalidInputError, ModelError
+from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_vector
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
@@ -132,35 +134,27 @@ class CollisionWorld:
         return gm
 
     def _find_finger_geoms(self) -> None:
-        """Each finger's geometries (``finger_geoms``) and its fingertip's (``tip_geoms``).
+        """Each finger's geometries (``finger_geoms``) and its fingertip sphere (``tip_geoms``).
 
-        The fingertip geometry hangs from the tip frame or, when the tip frame
-        carries none, is the last geometry on the tip's parent joint.
-
-        Raises:
-            ModelError: a fingertip frame with no geometry.
+        The fingertip is the sphere at the tip frame (:attr:`Hand.tip_geom_ids`,
+        the same index here: the hand's geometries are copied first, in order).
+        Only that sphere's pair with the object is switched off for a contact
+        finger; the rest of the distal link stays checked against the object.
         """
         hand, gm, model = self.hand, self.geom_model, self.hand.model
-        self.tip_geoms: list[int] = []
+        self.tip_geoms: list[int] = list(hand.tip_geom_ids)
         self.finger_geoms: list[list[int]] = []
-        finger_joints = [
-            {model.frames[fid].parentJoint} | _ancestors(model, model.frames[fid].parentJoint)
-            for fid in hand.tip_frame_ids
-        ]
-        for i, fid in enumerate(hand.tip_frame_ids):
-            on_finger = [
-                g
-                for g in range(self._n_hand_geoms)
-                if gm.geometryObjects[g].parentJoint in finger_joints[i] - {0}
-            ]
-            tip = [g for g in on_finger if gm.geometryObjects[g].parentFrame == fid]
-            if not tip:
-                tip_joint = model.frames[fid].parentJoint
-                tip = [g for g in on_finger if gm.geometryObjects[g].parentJoint == tip_joint][-1:]
-            if not tip:
-                raise ModelError(f"fingertip frame {hand.fingertip_frames[i]!r} has no geometry")
-            self.tip_geoms.append(tip[0])
-            self.finger_geoms.append(on_finger)
+        for fid in hand.tip_frame_ids:
+            joints = {model.frames[fid].parentJoint} | _ancestors(
+                model, model.frames[fid].parentJoint
+            )
+            self.finger_geoms.append(
+                [
+                    g
+                    for g in range(self._n_hand_geoms)
+                    if gm.geometryObjects[g].parentJoint in joints - {0}
+                ]
+            )
 
     def _add_collision_pairs(self) -> None:
         """Every pair that :meth:`_skip_pair` keeps, in (a, b) order; ``_pair_of`` indexes them."""

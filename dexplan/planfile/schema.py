@@ -40,6 +40,7 @@ from dexplan.model.grasp import CONTACT_MODELS, MAX_FRICTION_EDGES, MAX_TORSION,
 from dexplan.model.grasp.holds import MAX_HOLD_SHIFT
 from dexplan.model.grasp.rolling import CONTACT_MOTIONS
 from dexplan.model.objects import shape_from_dict
+from dexplan.model.scenario.spec import MAX_FINGERTIP_RADIUS
 
 __all__ = [
     "CONTACT_MODELS",
@@ -243,7 +244,9 @@ def _hand(h: Any) -> tuple[int, int]:
     _string(h["urdf_xml"], "hand.urdf_xml", MAX_URDF_CHARS)
     joints = _names(h["joint_names"], "hand.joint_names", 1, MAX_JOINTS, "joint names")
     tips = _names(h["fingertip_frames"], "hand.fingertip_frames", 2, MAX_FINGERS, "frame names")
-    _number(h["fingertip_radius"], "hand.fingertip_radius", lo=0.0, lo_open=True)
+    r = _number(h["fingertip_radius"], "hand.fingertip_radius", lo=0.0, lo_open=True)
+    if r > MAX_FINGERTIP_RADIUS:  # the rule scenarios and Hand follow
+        _fail("hand.fingertip_radius", f"must be <= {MAX_FINGERTIP_RADIUS:g} m", r)
     excl = h.get("collision_exclude", [])
     pairs = _list(excl, "hand.collision_exclude", 0, MAX_EXCLUDE_PAIRS, "[link, link] pairs")
     for k, pair in enumerate(pairs):

@@ -6,6 +6,7 @@ each raises a :class:`~dexplan.core.errors.ModelError` naming the hand.
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Sequence
 
@@ -65,9 +66,12 @@ def fingertip_frame_id(model: pin.Model, tip: object, name: str) -> int:
     """
     frames = [f.name for f in model.frames]
     if not isinstance(tip, str) or tip not in frames:
+        close = difflib.get_close_matches(str(tip), frames, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        # the full list: a user picking a tip frame needs to see them all
         raise ModelError(
-            f"unknown fingertip frame {shorten(tip)} in hand {name!r}; "
-            f"frames are {shorten(frames, 200)}"
+            f"unknown fingertip frame {shorten(tip)} in hand {name!r}{hint} "
+            f"(frames: {', '.join(frames)})"
         )
     return int(model.getFrameId(tip))
 

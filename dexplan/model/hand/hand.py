@@ -23,6 +23,7 @@ from dexplan.core.errors import InvalidInputError, ModelError
 from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_vector
 from dexplan.model.hand.builtin import builtin_hand
+from dexplan.model.hand.fingertips import fingertip_spheres
 from dexplan.model.hand.frames import (
     finger_joint_indices,
     fingertip_frame_id,
@@ -42,7 +43,6 @@ from dexplan.model.hand.urdf import (
     build_models,
     check_collision_exclude,
     check_finger_geometry,
-    check_fingertip_radius,
     parse_urdf,
     urdf_text,
     with_effort_limits,
@@ -75,8 +75,11 @@ class Hand:
             ``<capsule radius= length=>`` elements, which dexplan parses itself
             (``length`` between the cap centres, along the local z axis).
         fingertip_frames: one frame name per finger, at the fingertip sphere centre.
-        fingertip_radius: radius of the fingertip spheres (m), in
-            ``(0, dexplan.model.hand.urdf.MAX_FINGERTIP_RADIUS]`` (0.05 m).
+        fingertip_radius: radius of the fingertip spheres (m), in ``(0, 0.05]``;
+            None reads it from the URDF's ``<sphere>`` at the tip frames. Tip
+            frames without such a sphere get one added to the collision model
+            (:mod:`dexplan.model.hand.fingertips`); a URDF sphere of another
+            radius is refused.
         collision_exclude: link-name pairs never checked against each other
             (beyond adjacent links, which are always excluded).
         name: human-readable name.
@@ -97,7 +100,7 @@ class Hand:
         self,
         urdf_xml: str,
         fingertip_frames: Sequence[str],
-        fingertip_radius: float,
+        fingertip_radius: float | None = None,
         *,
         collision_exclude: Sequence[tuple[str, str]] = (),
         name: str = "hand",
@@ -108,7 +111,6 @@ class Hand:
         self.urdf_xml = urdf_text(urdf_xml, f"URDF of hand {name!r}")
         if effort_limits is not None:  # written into the URDF text a plan carries
             self.urdf_xml = with_effort_limits(self.urdf_xml, effort_limits)
-        self.fingertip_radius = check_fingertip_radius(fingertip_radius, name)
         description = parse_urdf(self.urdf_xml, name)
         #: folders the URDF's mesh files were found in (viewers load its visual meshes there)
         self.package_dirs: tuple[str, ...] = tuple(str(d) for d in package_dirs)
@@ -131,8 +133,15 @@ class Hand:
                 raise ModelError(f"fingertip frame {tip!r} shares joints with another finger")
             used.update(chain)
             finger_q_index.append(np.array(chain, dtype=np.int64))
-            check_finger_geometry(self.model, self.geom_model, fid, self.fingertip_radius, name)
+            check_finger_geometry(self.model, self.geom_model, fid, name)
         self.finger_q_index: tuple[IntArray, ...] = tuple(finger_q_index)
+        tips = fingertip_spheres(
+            self.model, self.geom_model, self.tip_frame_ids, fingertip_radius, name
+        )
+        self.fingertip_radius: float = tips.radius
+        #: per finger, the fingertip sphere's index in ``geom_model`` (see
+        #: :mod:`dexplan.model.hand.fingertips`: the URDF's, or added by dexplan)
+        self.tip_geom_ids: tuple[int, ...] = tips.geom_ids
         self.neutral: FloatArray = np.clip(pin.neutral(self.model), self.lower, self.upper)
         self._init_ik()
 
@@ -170,7 +179,7 @@ class Hand:
         """The hand a scenario's ``[hand]`` table names: a builtin hand or a URDF file."""
         if spec.builtin is not None:
             return cls.builtin(spec.builtin, effort_limits=spec.effort_limits)
-        assert spec.urdf is not None and spec.fingertip_radius is not None
+        assert spec.urdf is not None
         return cls.from_urdf_file(
             spec.urdf,
             spec.fingertip_frames,
@@ -184,7 +193,7 @@ class Hand:
         cls,
         path: str | Path,
         fingertip_frames: Sequence[str],
-        fingertip_radius: float,
+        fingertip_radius: float | None = None,
         **kwargs: object,
     ) -> Hand:
         """Load a hand from a URDF file; mesh paths resolve relative to its folder.

@@ -26,8 +26,6 @@ from dexplan.core.native_output import captured_stderr
 
 #: Name of the fixed root link :func:`mount_urdf` adds in front of a URDF.
 MOUNT_LINK = "dexplan_world"
-#: Largest fingertip radius accepted (m): larger values are taken for a unit mistake.
-MAX_FINGERTIP_RADIUS = 0.05
 
 
 @dataclass(frozen=True)
@@ -88,21 +86,6 @@ def urdf_text(data: object, what: str) -> str:
     if nul >= 0:
         raise ModelError(f"{what} is not a UTF-8 text URDF (NUL character at offset {nul})")
     return text[1:] if text.startswith("\ufeff") else text
-
-
-def check_fingertip_radius(value: object, name: str) -> float:
-    """``value`` as a plausible fingertip radius (m), else ModelError."""
-    try:
-        # any object: float() raises on the wrong ones, reported below
-        r = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        r = math.nan
-    if not (math.isfinite(r) and 0.0 < r <= MAX_FINGERTIP_RADIUS):
-        raise ModelError(
-            f"hand {name!r}: fingertip_radius must be a finite number in "
-            f"(0, {MAX_FINGERTIP_RADIUS}] m, got {shorten(value)}"
-        )
-    return r
 
 
 def _floats(raw: str | None, n: int, what: str) -> list[float]:
@@ -362,19 +345,18 @@ def _zero_length_body(model: pin.Model, jid: int) -> bool:
 
 
 def check_finger_geometry(
-    model: pin.Model, geom: pin.GeometryModel, tip_frame: int, tip_radius: float, name: str
+    model: pin.Model, geom: pin.GeometryModel, tip_frame: int, name: str
 ) -> None:
-    """Every link of a finger carries collision geometry, and so does its fingertip.
+    """Every link of a finger carries collision geometry.
 
     Rules: the child link of every joint of the finger's chain has a collision
     element of its own, except a zero-length link (its child joints sit at its
     joint's origin, as between the two joints of a universal knuckle) that
-    does not hold the fingertip; and some collision geometry moved by the
-    fingertip's joint comes within ``tip_radius`` of the fingertip centre
-    (the fingertip sphere, or a link that covers it).
+    does not hold the fingertip. The fingertip sphere itself is
+    :mod:`dexplan.model.hand.fingertips`' business.
 
     Raises:
-        ModelError: naming the first link without geometry, or the fingertip frame.
+        ModelError: naming the first link without geometry.
     """
     frames = model.frames
     tip = frames[tip_frame].name
@@ -402,25 +384,6 @@ def check_finger_geometry(
             )
         distal = False
         jid = model.parents[jid]
-
-    tip_joint = frames[tip_frame].parentJoint
-    centre = frames[tip_frame].placement
-    probe = coal.Sphere(tip_radius)
-    probe_tf = coal.Transform3s(centre.rotation, centre.translation)
-    for go in geom.geometryObjects:
-        if go.parentJoint != tip_joint:
-            continue
-        tf = coal.Transform3s(go.placement.rotation, go.placement.translation)
-        d = coal.distance(
-            go.geometry, tf, probe, probe_tf, coal.DistanceRequest(), coal.DistanceResult()
-        )
-        if d <= 1e-9:
-            return
-    raise ModelError(
-        f"hand {name!r}: fingertip {tip!r} has no collision geometry: nothing that moves with it "
-        f"comes within fingertip_radius={tip_radius!r} m of the fingertip centre (add a "
-        "<sphere> collision element centred on the fingertip frame)"
-    )
 
 
 def check_collision_exclude(

@@ -219,9 +219,12 @@ def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
         builtin=None,
         urdf=urdf,
         fingertip_frames=tuple(frames),
+        # absent: read from the URDF's fingertip spheres when the hand is built
         fingertip_radius=number(
             h, "fingertip_radius", "hand", lo=0.0, lo_open=True, hi=MAX_FINGERTIP_RADIUS
-        ),
+        )
+        if "fingertip_radius" in h
+        else None,
         collision_exclude=tuple((a, b) for a, b in excl),
         effort_limits=_effort_limits(h),
     )

@@ -56,7 +56,9 @@ SEED_LIMIT = 2**31  # planner.seed < SEED_LIMIT (OMPL's RNG is seeded with 31-bi
 MAX_JOINTS = 256  # start.q entries
 MAX_JOINT_VALUE = 1000.0  # |start.q[i]| (rad or m; joint limits are the hand's)
 MAX_FINGERS = 32  # hand.fingertip_frames entries
-MAX_FINGERTIP_RADIUS = 0.5  # m: hand.fingertip_radius
+#: m: hand.fingertip_radius, everywhere (scenario, Hand, plan files); larger
+#: values are taken for a unit mistake
+MAX_FINGERTIP_RADIUS = 0.05
 MAX_COLLISION_EXCLUDE = 4096  # hand.collision_exclude pairs
 MAX_EFFORT_LIMIT = 1e4  # N m: hand.effort_limits (one number or each entry)
 MAX_HOLD_SHIFT = 0.05  # m: contact.hold_shift
