@@ -97,5 +97,5 @@ def test_unknown_tip_frame_did_you_mean_and_full_list() -> None:
         Hand(_urdf(), ["tip0", "tipp1"], 0.01, name="dip")
     msg = str(info.value)
     assert "did you mean 'tip1'?" in msg
-    for frame in ("palm", "distal0", "distal1", "tip0", "tip1", "j0", "tip1_fix"):
+    for frame in ("palm", "distal0", "distal1", "tip0", "tip1"):
         assert frame in msg

@@ -276,11 +276,25 @@ def _add_roadmap(sub: Subparsers) -> None:
     p_i.set_defaults(dispatch=Command("roadmap", RoadmapInfoOptions.from_args))
 
 
+def _add_package_dir(parser: _Parser) -> None:
+    """``--package-dir DIR`` (repeatable): folders ``package://`` mesh URIs resolve in."""
+    parser.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        metavar="DIR",
+        dest="package_dirs",
+        help="folder package:// mesh URIs of the plan's hand resolve in, searched before "
+        "ROS_PACKAGE_PATH and example-robot-data (repeatable)",
+    )
+
+
 def _add_verify(sub: Subparsers) -> None:
     """The ``verify`` subcommand."""
     p_ver = _command(sub, "verify", "check a plan file against every rule, from the file alone")
     p_ver.add_argument("plan", help="plan JSON file")
     p_ver.add_argument("--max-violations", type=int, default=50, help="violations to print")
+    _add_package_dir(p_ver)
     p_ver.set_defaults(dispatch=Command("verify", VerifyOptions.from_args))
 
 
@@ -349,6 +363,7 @@ def _add_show(sub: Subparsers) -> None:
     p_show.add_argument("--save", help="write the recording to this .rrd instead of opening it")
     p_show.add_argument("--roadmap", help="a roadmap .npz to show with a plan")
     p_show.add_argument("--plan", help="a plan .json giving hand and object for a roadmap")
+    _add_package_dir(p_show)
     p_show.set_defaults(dispatch=Command("show", ShowOptions.from_args))
 
 
@@ -379,6 +394,7 @@ def _add_export(sub: Subparsers) -> None:
     p_exp.add_argument("--max-object-speed", type=float, help="m/s (0.02)")
     p_exp.add_argument("--max-object-angular-speed", type=float, help="rad/s (0.5)")
     p_exp.add_argument("--max-acceleration", type=float, help="joint acceleration, rad/s^2 (5)")
+    _add_package_dir(p_exp)
     p_exp.set_defaults(dispatch=Command("export", ExportOptions.from_args))
 
 
@@ -413,6 +429,7 @@ def _add_replay(sub: Subparsers) -> None:
     p_rep.add_argument(
         "--rrd", help="write a Rerun recording, plan and replay (needs the viz extra)"
     )
+    _add_package_dir(p_rep)
     p_rep.set_defaults(dispatch=Command("replay", ReplayOptions.from_args))
 
 

@@ -257,11 +257,17 @@ class VerifyOptions:
 
     plan: str
     max_violations: int
+    #: ``--package-dir``: folders ``package://`` mesh URIs resolve in first
+    package_dirs: tuple[str, ...] = ()
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> VerifyOptions:
         """The options of a parsed ``verify`` command line."""
-        return cls(plan=args.plan, max_violations=args.max_violations)
+        return cls(
+            plan=args.plan,
+            max_violations=args.max_violations,
+            package_dirs=tuple(args.package_dirs),
+        )
 
 
 @dataclass(frozen=True)
@@ -329,11 +335,19 @@ class ShowOptions:
     save: str | None
     roadmap: str | None
     plan: str | None
+    #: ``--package-dir``: folders ``package://`` mesh URIs resolve in first
+    package_dirs: tuple[str, ...] = ()
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> ShowOptions:
         """The options of a parsed ``show`` command line."""
-        return cls(source=args.source, save=args.save, roadmap=args.roadmap, plan=args.plan)
+        return cls(
+            source=args.source,
+            save=args.save,
+            roadmap=args.roadmap,
+            plan=args.plan,
+            package_dirs=tuple(args.package_dirs),
+        )
 
 
 @dataclass(frozen=True)
@@ -348,6 +362,7 @@ class ExportOptions:
         gravity: gravity (3,), m/s^2, world frame (None: the plan's).
         max_object_speed, max_object_angular_speed, max_acceleration: timing
             limits, m/s, rad/s and rad/s^2 (None: the defaults).
+        package_dirs: ``--package-dir``: folders ``package://`` mesh URIs resolve in first.
     """
 
     plan: str
@@ -358,6 +373,7 @@ class ExportOptions:
     max_object_speed: float | None
     max_object_angular_speed: float | None
     max_acceleration: float | None
+    package_dirs: tuple[str, ...] = ()
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> ExportOptions:
@@ -372,6 +388,7 @@ class ExportOptions:
             max_object_speed=args.max_object_speed,
             max_object_angular_speed=args.max_object_angular_speed,
             max_acceleration=args.max_acceleration,
+            package_dirs=tuple(args.package_dirs),
         )
 
 
@@ -396,6 +413,8 @@ class ReplayOptions:
     rate: float
     loops: ReplayLoops
     rrd: str | None
+    #: ``--package-dir``: folders ``package://`` mesh URIs resolve in first
+    package_dirs: tuple[str, ...] = ()
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> ReplayOptions:
@@ -406,4 +425,5 @@ class ReplayOptions:
             rate=args.rate,
             loops=ReplayLoops.OPEN if args.open_loop else ReplayLoops(args.loop),
             rrd=args.rrd,
+            package_dirs=tuple(args.package_dirs),
         )

@@ -21,6 +21,7 @@ from dexplan.model.grasp.grip_forces import DEFAULT_GRAVITY, DEFAULT_MASS, Force
 from dexplan.model.grasp.holds import DEFAULT_HOLD_SHIFT
 from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.packages import mesh_mismatches
 from dexplan.model.objects import Shape, shape_from_dict
 
 __all__ = [
@@ -35,14 +36,21 @@ __all__ = [
 
 
 def hand_table(hand: Hand) -> dict[str, Any]:
-    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from."""
-    return {
+    """The plan file's ``hand`` table: everything :func:`hand_from_plan` rebuilds it from.
+
+    The URDF text keeps its mesh URIs as given (``package://...``), so the
+    file names no folder of this machine; ``mesh_sha256`` pins the meshes.
+    """
+    table: dict[str, Any] = {
         "urdf_xml": hand.urdf_xml,
         "joint_names": list(hand.joint_names),
         "fingertip_frames": list(hand.fingertip_frames),
         "fingertip_radius": hand.fingertip_radius,
         "collision_exclude": [list(p) for p in hand.collision_exclude],
     }
+    if hand.mesh_sha256:
+        table["mesh_sha256"] = dict(sorted(hand.mesh_sha256.items()))
+    return table
 
 
 def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
@@ -66,7 +74,12 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
             package_dirs=package_dirs,
         )
     except DexplanError as exc:
-        raise PlanFileError(f"hand: {one_line(str(exc), 200)}") from exc
+        # a mesh that did not resolve: say where meshes are searched
+        hint = _MESH_HINT if "package_dirs" in str(exc) else ""
+        raise PlanFileError(f"hand: {one_line(str(exc), 200)}{hint}") from exc
+    wrong = mesh_mismatches(h.get("mesh_sha256", {}), hand.mesh_sha256, hand.package_dirs)
+    if wrong:
+        raise PlanFileError(f"hand.mesh_sha256: {wrong[0]}")
     if list(hand.joint_names) != list(h["joint_names"]):
         raise PlanFileError(
             f"hand.joint_names must be the URDF's joints {shorten(list(hand.joint_names))}, "
@@ -74,6 +87,12 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
         )
     return hand
 
+
+#: Said after a hand that does not build: where its meshes are looked for.
+_MESH_HINT = (
+    " (package:// meshes are searched in the plan's folder, --package-dir, "
+    "ROS_PACKAGE_PATH and example-robot-data's share folder)"
+)
 
 #: Fields of an object or obstacle table that are not shape (mass, placement, label).
 NOT_SHAPE_FIELDS = ("mass", "pose_xyzquat", "name")

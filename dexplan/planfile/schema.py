@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -78,6 +79,9 @@ MAX_FINGERS = 16
 MAX_OBSTACLES = 1_000
 #: Most ``hand.collision_exclude`` pairs.
 MAX_EXCLUDE_PAIRS = 10_000
+#: Most entries of ``hand.mesh_sha256``; longest mesh URI (characters).
+MAX_MESHES = 4096
+MAX_PATH_CHARS = 4096
 #: Longest ``hand.urdf_xml`` (characters).
 MAX_URDF_CHARS = 16 * 2**20
 #: Longest joint, frame, link or obstacle name (characters).
@@ -113,7 +117,7 @@ _TOP: _Fields = (
 )
 _HAND: _Fields = (
     {"urdf_xml", "joint_names", "fingertip_frames", "fingertip_radius"},
-    {"collision_exclude"},
+    {"collision_exclude", "mesh_sha256"},
 )
 _START: _Fields = ({"object_pose_xyzquat"}, {"q"})
 _GOAL: _Fields = ({"object_pose_xyzquat"}, {"position_tol", "angle_tol"})
@@ -251,7 +255,18 @@ def _hand(h: Any) -> tuple[int, int]:
     pairs = _list(excl, "hand.collision_exclude", 0, MAX_EXCLUDE_PAIRS, "[link, link] pairs")
     for k, pair in enumerate(pairs):
         _names(pair, f"hand.collision_exclude[{k}]", 2, 2, "link names")
+    _mesh_sha256(h.get("mesh_sha256", {}))
     return len(joints), len(tips)
+
+
+def _mesh_sha256(table: Any) -> None:
+    """``hand.mesh_sha256``: mesh URI -> 64 lower-case hex digits."""
+    if not isinstance(table, Mapping) or len(table) > MAX_MESHES:
+        _fail("hand.mesh_sha256", f"must be a table of at most {MAX_MESHES} mesh digests", table)
+    for uri, digest in table.items():
+        _string(uri, "hand.mesh_sha256 key", MAX_PATH_CHARS)
+        if not (isinstance(digest, str) and re.fullmatch(r"[0-9a-f]{64}", digest)):
+            _fail(f"hand.mesh_sha256[{uri!r}]", "must be a SHA-256 in 64 hex digits", digest)
 
 
 def _shape(d: Any, path: str, base_dir: Path | None) -> None:

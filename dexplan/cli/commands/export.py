@@ -18,6 +18,7 @@ from dexplan.execution.export import TrajectoryFormat, trajectory_document, writ
 from dexplan.execution.forces import force_settings_from_plan
 from dexplan.execution.segment_timing import TimingLimits
 from dexplan.execution.trajectory import build_trajectory
+from dexplan.model.hand.packages import package_search_path
 from dexplan.planfile import hand_from_plan, read_plan
 
 __all__ = ["run"]
@@ -36,6 +37,13 @@ def _limits(opts: ExportOptions) -> TimingLimits:
 
 def run(opts: ExportOptions) -> int:
     """Time-parameterise a plan, add grip forces, write the trajectory (JSON, CSV or a bag)."""
+    # every hand built inside (plan, recording, replay) searches them too
+    with package_search_path(opts.package_dirs):
+        return _run(opts)
+
+
+def _run(opts: ExportOptions) -> int:
+    """The command itself, inside the ``--package-dir`` search path."""
     out = check_output_path(interrupt.output(opts.output), "-o")
     is_bag = out.suffix.lower() == BAG_SUFFIX
     if TrajectoryFormat.of_path(out) is None and not is_bag:

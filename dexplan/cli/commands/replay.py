@@ -11,6 +11,7 @@ from dexplan.cli.options import ReplayLoops, ReplayOptions
 from dexplan.core.files import check_output_path
 from dexplan.execution.replay.result import Loop
 from dexplan.execution.replay.simulation import replay_loops, require_mujoco
+from dexplan.model.hand.packages import package_search_path
 from dexplan.planfile import read_plan
 from dexplan.viz import require_rerun
 from dexplan.viz.replay_recording import record_replay
@@ -20,6 +21,13 @@ __all__ = ["run"]
 
 def run(opts: ReplayOptions) -> int:
     """Replay the plan in the loops asked; exit 1 if the first one (closed if asked) loses track."""
+    # every hand built inside (plan, recording, replay) searches them too
+    with package_search_path(opts.package_dirs):
+        return _run(opts)
+
+
+def _run(opts: ReplayOptions) -> int:
+    """The command itself, inside the ``--package-dir`` search path."""
     require_mujoco()
     if opts.rrd is not None:
         require_rerun()

@@ -7,12 +7,20 @@ import sys
 from dexplan import viz
 from dexplan.cli.console import ExitCode
 from dexplan.cli.options import ShowOptions
+from dexplan.model.hand.packages import package_search_path
 
 __all__ = ["run"]
 
 
 def run(opts: ShowOptions) -> int:
     """Open the source in the Rerun viewer, or with ``--save`` write the recording."""
+    # every hand built inside (plan, recording, replay) searches them too
+    with package_search_path(opts.package_dirs):
+        return _run(opts)
+
+
+def _run(opts: ShowOptions) -> int:
+    """The command itself, inside the ``--package-dir`` search path."""
     viz.require_rerun()
     if opts.save is not None:
         out = viz.write_recording(opts.source, opts.save, roadmap=opts.roadmap, plan=opts.plan)

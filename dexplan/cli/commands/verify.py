@@ -7,6 +7,7 @@ from pathlib import Path
 
 from dexplan.cli.console import ExitCode
 from dexplan.cli.options import VerifyOptions
+from dexplan.model.hand.packages import package_search_path
 from dexplan.planfile import read_plan, verify_plan
 
 __all__ = ["run"]
@@ -14,6 +15,13 @@ __all__ = ["run"]
 
 def run(opts: VerifyOptions) -> int:
     """Verify a plan file; print the first violations and the verdict."""
+    # every hand built inside (plan, recording, replay) searches them too
+    with package_search_path(opts.package_dirs):
+        return _run(opts)
+
+
+def _run(opts: VerifyOptions) -> int:
+    """The command itself, inside the ``--package-dir`` search path."""
     doc = read_plan(opts.plan)
     report = verify_plan(doc, Path(opts.plan).resolve().parent)
     shown = opts.max_violations

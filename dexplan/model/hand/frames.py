@@ -66,12 +66,18 @@ def fingertip_frame_id(model: pin.Model, tip: object, name: str) -> int:
     """
     frames = [f.name for f in model.frames]
     if not isinstance(tip, str) or tip not in frames:
-        close = difflib.get_close_matches(str(tip), frames, n=1)
+        # the candidates in full: links and operational frames (a tip frame is
+        # one of those; joint frames and the universe only lengthen the line)
+        candidates = [
+            f.name
+            for f in model.frames
+            if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME) and f.name != "universe"
+        ]
+        close = difflib.get_close_matches(str(tip), candidates, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        # the full list: a user picking a tip frame needs to see them all
         raise ModelError(
             f"unknown fingertip frame {shorten(tip)} in hand {name!r}{hint} "
-            f"(frames: {', '.join(frames)})"
+            f"(links and frames: {', '.join(candidates)})"
         )
     return int(model.getFrameId(tip))
 

@@ -38,6 +38,7 @@ from dexplan.model.hand.ik import (
     batch_dls,
     finger_dls,
 )
+from dexplan.model.hand.packages import mesh_sha256, search_dirs
 from dexplan.model.hand.reach import ReachVoxels, reach_samples
 from dexplan.model.hand.urdf import (
     build_models,
@@ -83,7 +84,9 @@ class Hand:
         collision_exclude: link-name pairs never checked against each other
             (beyond adjacent links, which are always excluded).
         name: human-readable name.
-        package_dirs: directories searched for mesh files.
+        package_dirs: folders ``package://`` URIs and relative mesh paths are
+            searched in first (then ROS_PACKAGE_PATH and the description
+            wheels' share folders, see :mod:`dexplan.model.hand.packages`).
         effort_limits: joint effort limits (N m) replacing the URDF's: one for
             every joint, or a table by joint name (written into ``urdf_xml``).
 
@@ -112,9 +115,13 @@ class Hand:
         if effort_limits is not None:  # written into the URDF text a plan carries
             self.urdf_xml = with_effort_limits(self.urdf_xml, effort_limits)
         description = parse_urdf(self.urdf_xml, name)
-        #: folders the URDF's mesh files were found in (viewers load its visual meshes there)
-        self.package_dirs: tuple[str, ...] = tuple(str(d) for d in package_dirs)
-        self.model, self.geom_model = build_models(description, name, package_dirs)
+        #: folders the URDF's mesh files are searched in: ``package_dirs``, then
+        #: ROS_PACKAGE_PATH's and the description wheels' (:mod:`.packages`);
+        #: viewers load the visual meshes there too
+        self.package_dirs: tuple[str, ...] = search_dirs(package_dirs)
+        self.model, self.geom_model = build_models(description, name, self.package_dirs)
+        #: SHA-256 of each collision mesh by URI as the URDF gives it (plan files carry it)
+        self.mesh_sha256: dict[str, str] = mesh_sha256(self.urdf_xml, self.package_dirs)
         self.data: pin.Data = self.model.createData()
 
         self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])
@@ -186,6 +193,7 @@ class Hand:
             spec.fingertip_radius,
             collision_exclude=spec.collision_exclude,
             effort_limits=spec.effort_limits,
+            package_dirs=[spec.urdf.parent, *spec.package_dirs],
         )
 
     @classmethod
@@ -196,7 +204,7 @@ class Hand:
         fingertip_radius: float | None = None,
         **kwargs: object,
     ) -> Hand:
-        """Load a hand from a URDF file; mesh paths resolve relative to its folder.
+        """Load a hand from a URDF file; mesh paths resolve in its folder first.
 
         Raises:
             ModelError: the file is missing, unreadable or not UTF-8 text, or

@@ -73,8 +73,10 @@ from dexplan.model.scenario.spec import (
     MAX_OBJECT_SIZE,
     MAX_OBSTACLE_SIZE,
     MAX_OBSTACLES,
+    MAX_PACKAGE_DIRS,
     MAX_PARAM_FLOAT,
     MAX_PARAM_INT,
+    MAX_PATH,
     MAX_PLANNER_PARAMS,
     MAX_POSITION_TOL,
     MAX_SCENARIO_BYTES,
@@ -227,7 +229,29 @@ def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
         else None,
         collision_exclude=tuple((a, b) for a, b in excl),
         effort_limits=_effort_limits(h),
+        package_dirs=_package_dirs(h, base_dir),
     )
+
+
+def _package_dirs(h: Mapping[str, Any], base_dir: Path) -> tuple[Path, ...]:
+    """``[hand] package_dirs``: existing folders, relative to the scenario file."""
+    dirs = h.get("package_dirs", [])
+    if not (
+        isinstance(dirs, list)
+        and len(dirs) <= MAX_PACKAGE_DIRS
+        and all(isinstance(d, str) and d and len(d) <= MAX_PATH for d in dirs)
+    ):
+        fail(
+            f"hand.package_dirs must be a list of at most {MAX_PACKAGE_DIRS} folder names, "
+            f"got {shorten(dirs)}"
+        )
+    out = []
+    for d in dirs:
+        path = (base_dir / Path(d).expanduser()).resolve()
+        if not path.is_dir():
+            fail(f"hand.package_dirs: {d!r} is not a folder (looked at {str(path)!r})")
+        out.append(path)
+    return tuple(out)
 
 
 def _params(p: Mapping[str, Any]) -> dict[str, Any]:

@@ -65,6 +65,7 @@ MAX_HOLD_SHIFT = 0.05  # m: contact.hold_shift
 MAX_URDF_BYTES = 50_000_000  # hand.urdf file size
 MAX_NAME = 256  # characters of a name (scenario, obstacle, planner, frame, parameter)
 MAX_PATH = 4096  # characters of a file name (hand.urdf; mesh paths likewise)
+MAX_PACKAGE_DIRS = 64  # hand.package_dirs entries
 MAX_PLANNER_PARAMS = 64  # planner.params entries
 MAX_PARAM_INT = 2**53  # |integer planner.params value| (exact as a double, as OMPL stores it)
 MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
@@ -74,7 +75,14 @@ MAX_PARAM_FLOAT = 1e12  # |float planner.params value|
 # docs/scenario.md documents every one (tests/test_scenario_docs.py checks it).
 HAND_BUILTIN_FIELDS = frozenset({"builtin", "effort_limits"})
 HAND_URDF_FIELDS = frozenset(
-    {"urdf", "fingertip_frames", "fingertip_radius", "collision_exclude", "effort_limits"}
+    {
+        "urdf",
+        "fingertip_frames",
+        "fingertip_radius",
+        "collision_exclude",
+        "effort_limits",
+        "package_dirs",
+    }
 )
 #: Fields of ``[hand]`` both kinds of hand accept.
 HAND_COMMON_FIELDS = frozenset({"effort_limits"})
@@ -122,6 +130,9 @@ class HandSpec:
     #: ``[hand] effort_limits``: one limit (N m) for every joint, a table by
     #: joint name, or None (the URDF's own)
     effort_limits: float | Mapping[str, float] | None = None
+    #: ``[hand] package_dirs``: folders ``package://`` mesh URIs resolve in
+    #: (after the URDF's own folder, before ROS_PACKAGE_PATH)
+    package_dirs: tuple[Path, ...] = ()
 
 
 @dataclass(frozen=True)

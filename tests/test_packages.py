@@ -1,0 +1,100 @@
+"""``package://`` mesh URIs: scenario folders, ROS_PACKAGE_PATH, wheels, plan-file hashes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from dexplan.core.errors import ModelError, PlanFileError
+from dexplan.model.hand.builtin import example_robot_data_share
+from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.packages import (
+    ROS_PACKAGE_PATH,
+    package_search_path,
+    search_dirs,
+)
+from dexplan.model.scenario import load_scenario
+from dexplan.planfile import hand_from_plan, hand_table
+
+TIPS = ["f0_tip", "f1_tip", "f2_tip"]
+URI = "package://my_hand_description/meshes/palm.stl"
+PALM_CYLINDER = '<geometry><cylinder radius="0.09" length="0.01"/></geometry>'
+
+
+def _workspace(root: Path, extent: float = 0.1) -> Path:
+    """A ROS workspace ``root/src/my_hand_description`` with a palm mesh; its ``src``."""
+    pkg = root / "src" / "my_hand_description"
+    (pkg / "meshes").mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>my_hand_description</name></package>")
+    trimesh.creation.box((extent, extent, 0.01)).export(pkg / "meshes" / "palm.stl")
+    return root / "src"
+
+
+def _urdf(folder: Path) -> Path:
+    """The three-finger hand with its palm a ``package://`` mesh, in ``folder``."""
+    text = Hand.builtin("three_finger").urdf_xml
+    assert PALM_CYLINDER in text
+    text = text.replace(PALM_CYLINDER, f'<geometry><mesh filename="{URI}"/></geometry>', 1)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "hand.urdf").write_text(text)
+    return folder / "hand.urdf"
+
+
+def test_unresolved_package_uri_names_the_search_folders(tmp_path: Path) -> None:
+    path = _urdf(tmp_path / "elsewhere")
+    with pytest.raises(ModelError, match="package_dirs"):
+        Hand.from_urdf_file(path, TIPS)
+
+
+def test_package_dirs_and_ros_package_path_resolve(tmp_path: Path, monkeypatch) -> None:
+    src = _workspace(tmp_path / "ws")
+    path = _urdf(tmp_path / "elsewhere")
+    hand = Hand.from_urdf_file(path, TIPS, package_dirs=[src])
+    assert list(hand.mesh_sha256) == [URI]
+    # ROS_PACKAGE_PATH naming the workspace: packages two levels below are found
+    monkeypatch.setenv(ROS_PACKAGE_PATH, str(tmp_path / "ws"))
+    assert Hand.from_urdf_file(path, TIPS).mesh_sha256 == hand.mesh_sha256
+    monkeypatch.delenv(ROS_PACKAGE_PATH)
+    with package_search_path([src]):  # what --package-dir does
+        assert Hand.from_urdf_file(path, TIPS).mesh_sha256 == hand.mesh_sha256
+    assert ROS_PACKAGE_PATH not in __import__("os").environ
+
+
+def test_example_robot_data_share_is_searched() -> None:
+    assert str(example_robot_data_share()) in search_dirs()
+
+
+def test_scenario_package_dirs(tmp_path: Path) -> None:
+    _workspace(tmp_path / "ws")
+    _urdf(tmp_path / "hands")
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(
+        '[hand]\nurdf = "hands/hand.urdf"\nfingertip_frames = ["f0_tip", "f1_tip", "f2_tip"]\n'
+        'package_dirs = ["ws/src"]\n[object]\nshape = "sphere"\nradius = 0.04\n'
+        "[start]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0, 1]\n"
+        "[goal]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0, 1]\n"
+    )
+    spec = load_scenario(scenario).hand
+    assert spec.package_dirs == ((tmp_path / "ws" / "src").resolve(),)
+    assert spec.fingertip_radius is None  # read from the URDF's tip spheres
+    assert Hand.from_spec(spec).fingertip_radius == pytest.approx(0.012)
+
+
+def test_plan_keeps_uris_and_refuses_other_meshes(tmp_path: Path) -> None:
+    src = _workspace(tmp_path / "ws")
+    hand = Hand.from_urdf_file(_urdf(tmp_path / "h"), TIPS, package_dirs=[src])
+    table = hand_table(hand)
+    assert URI in table["urdf_xml"] and str(tmp_path) not in table["urdf_xml"]
+    assert list(table["mesh_sha256"]) == [URI]
+    # another machine: the same package elsewhere rebuilds the hand
+    other = _workspace(tmp_path / "other")
+    assert hand_from_plan(table, [other]).mesh_sha256 == hand.mesh_sha256
+    # a different mesh under the same URI is refused
+    changed = _workspace(tmp_path / "changed", extent=0.12)
+    with pytest.raises(PlanFileError, match="hand.mesh_sha256: mesh 'package://my_hand"):
+        hand_from_plan(table, [changed])
+    # no mesh at all: the message says where meshes are searched
+    with pytest.raises(PlanFileError, match="--package-dir"):
+        hand_from_plan(table, [tmp_path / "nowhere"])
