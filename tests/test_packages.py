@@ -93,7 +93,7 @@ def test_plan_keeps_uris_and_refuses_other_meshes(tmp_path: Path) -> None:
     assert hand_from_plan(table, [other]).mesh_sha256 == hand.mesh_sha256
     # a different mesh under the same URI is refused
     changed = _workspace(tmp_path / "changed", extent=0.12)
-    with pytest.raises(PlanFileError, match="hand.mesh_sha256: mesh 'package://my_hand"):
+    with pytest.raises(PlanFileError, match=r"hand\.mesh_sha256: mesh 'package://my_hand"):
         hand_from_plan(table, [changed])
     # no mesh at all: the message says where meshes are searched
     with pytest.raises(PlanFileError, match="--package-dir"):
