@@ -31,6 +31,9 @@ class Rejections:
         top_pairs: ``((geometry, geometry), count)`` of the pairs that collided
             most often, most frequent first.
         samples: the first rejected states of each reason (``--debug-rrd``).
+        screened: sampled poses whose every combined grasp was screened out
+            (half-space test, fingertip clearance) before any check.
+        screen_reason: why, when known in advance (faces only on a box).
     """
 
     attempts: int
@@ -43,6 +46,8 @@ class Rejections:
     force_closure: int
     top_pairs: tuple[tuple[tuple[str, str], int], ...]
     samples: tuple[RejectedSample, ...] = ()
+    screened: int = 0
+    screen_reason: str = ""
 
     @classmethod
     def from_stats(cls, sampler: SamplerStats, validity: ValidityStats) -> Rejections:
@@ -59,6 +64,8 @@ class Rejections:
             force_closure=r.get("force_closure", 0),
             top_pairs=tuple(validity.top_collision_pairs(3)),
             samples=tuple(validity.samples),
+            screened=sampler.screened,
+            screen_reason=sampler.screen_reason,
         )
 
     def dominant(self) -> list[tuple[str, int]]:
@@ -82,6 +89,16 @@ class Rejections:
                 text += f" (most often {a} / {b}: {n})"
             parts.append(text)
         why = ", ".join(parts) if parts else "none"
+        if self.checked == 0 and self.screened:
+            # nothing reached the checker: say what stopped every grasp before it
+            reason = self.screen_reason or (
+                "every combination of the fingers' reachable contacts had a required "
+                "subgrasp the half-space test rules out, or fingertips too close"
+            )
+            return (
+                f"{self.attempts} sampler attempts: every grasp was screened out before any "
+                f"check ({self.screened} object poses): {reason}"
+            )
         return (
             f"{self.attempts} sampler attempts, {self.valid} of {self.checked} checked states "
             f"valid; rejections: {why}"

@@ -13,6 +13,8 @@ candidate grasps, so samplers and landing searches run it before the exact
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from dexplan.core.typing import FloatArray
@@ -48,3 +50,36 @@ def cannot_be_force_closure(
     cos = np.einsum("msc,msjc->msj", v, subs).min(axis=2)
     bound = mu / np.sqrt(1.0 + mu * mu)  # sin(atan(mu))
     return np.any((cos > bound) & (norm[..., 0] > 1e-9), axis=1)
+
+
+#: Most distinct face normals :func:`faces_cannot_hold` enumerates combinations of.
+MAX_FACE_NORMALS = 12
+
+
+def faces_cannot_hold(
+    face_normals_out: FloatArray, contacts: int, mu: float, *, subgrasps: bool = True
+) -> bool:
+    """Whether no grasp with every contact on a face passes the half-space test.
+
+    Every choice of ``contacts`` face normals (repeats allowed: two fingers
+    may share a face) is tested; True when :func:`cannot_be_force_closure`
+    rules out all of them. A 3-finger hand on a cube at mu 0.8 is such a case:
+    two fingers on adjacent faces push 90 degrees apart, more than their
+    friction cones (2 x 38.7 degrees) can close, so some 2-finger subgrasp of
+    every face-only grasp fails. Grasps then need edge or vertex contacts.
+
+    Args:
+        face_normals_out: (F, 3) distinct outward face normals, F at most
+            :data:`MAX_FACE_NORMALS` (more: False, not decided).
+        contacts: fingers in contact.
+        mu: Coulomb friction coefficient.
+        subgrasps: as for :func:`cannot_be_force_closure`.
+    """
+    normals = np.asarray(face_normals_out, dtype=float).reshape(-1, 3)
+    if not 0 < len(normals) <= MAX_FACE_NORMALS or contacts < 1:
+        return False
+    choice = np.array(
+        list(itertools.combinations_with_replacement(range(len(normals)), contacts)),
+        dtype=np.int64,
+    )
+    return bool(cannot_be_force_closure(normals[choice], mu, subgrasps=subgrasps).all())

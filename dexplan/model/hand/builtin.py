@@ -1,7 +1,8 @@
 """The builtin hands: the URDF, fingertips and mounting each is built from.
 
 ``"paper"`` (4 x 3 DOF, after the paper) and ``"three_finger"`` (3 x 3 DOF,
-capsule links) ship with dexplan; ``"allegro"`` and ``"allegro_left"``
+capsule links) ship with dexplan; ``"trifinger"`` (3 x 3 DOF, the TriFinger
+platform, :mod:`.trifinger`) is built from example-robot-data's finger_edu; ``"allegro"`` and ``"allegro_left"``
 (4 x 4 DOF) are read from the installed ``example-robot-data`` distribution,
 given the real hand's joint torque caps (:data:`ALLEGRO_EFFORT_LIMITS`) and
 collision shapes fitted to its visual meshes (:data:`ALLEGRO_COLLISION_SHAPES`),
@@ -20,6 +21,12 @@ from pathlib import Path
 from typing import Literal
 
 from dexplan.core.errors import DependencyError, InvalidInputError, ModelError, shorten
+from dexplan.model.hand.trifinger import (
+    FINGER_EDU_URDF,
+    TRIFINGER_TIP_RADIUS,
+    TRIFINGER_TIPS,
+    trifinger_urdf,
+)
 from dexplan.model.hand.urdf import mount_urdf, urdf_text, with_effort_limits
 
 #: Frames the builtin hands use for their fingertips.
@@ -157,6 +164,7 @@ class BuiltinHandName(StrEnum):
     THREE_FINGER = "three_finger"
     ALLEGRO = "allegro"
     ALLEGRO_LEFT = "allegro_left"
+    TRIFINGER = "trifinger"
 
 
 #: The builtin hands' names.
@@ -199,6 +207,8 @@ def builtin_hand(name: str) -> BuiltinHand:
         return BuiltinHand(text, THREE_FINGER_TIPS, THREE_FINGER_TIP_RADIUS, "three_finger")
     if name in ("allegro", "allegro_left"):
         return _allegro_hand(left=name == "allegro_left")
+    if name == "trifinger":
+        return _trifinger_hand()
     raise InvalidInputError(
         f"hand.builtin must be one of {[str(h) for h in BUILTIN_HANDS]}, got {shorten(name)}"
     )
@@ -285,6 +295,22 @@ def _allegro_hand(*, left: bool) -> BuiltinHand:
         ALLEGRO_TIP_RADIUS,
         hand_name,
         collision_exclude=ALLEGRO_COLLISION_EXCLUDE,
+        package_dirs=(str(example_robot_data_share(path)),),
+    )
+
+
+def _trifinger_hand() -> BuiltinHand:
+    """The TriFinger from example-robot-data's finger_edu (:mod:`.trifinger`)."""
+    try:
+        path = example_robot_data_file(FINGER_EDU_URDF)
+    except DependencyError as exc:
+        raise DependencyError(f"hand 'trifinger': {exc}") from None
+    text = urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
+    return BuiltinHand(
+        trifinger_urdf(text),
+        TRIFINGER_TIPS,
+        TRIFINGER_TIP_RADIUS,
+        "trifinger",
         package_dirs=(str(example_robot_data_share(path)),),
     )
 

@@ -46,6 +46,7 @@ from dexplan.model.grasp.halfspace import cannot_be_force_closure
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn.combinations import Combinations, FingerPool, combine_pools
+from dexplan.planning.gsn.contact_kinds import faces_only_reason
 from dexplan.planning.gsn.finger_reach import fingertip_fits, link_clearance, reach_shell
 from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
 from dexplan.planning.gsn.validity import GraspValidity
@@ -59,13 +60,10 @@ class SamplerSettings:
         candidates: surface points drawn per finger and attempt.
         candidate_edges: edge points drawn with them when ``edge_contacts``
             is on (shapes with edges).
-        edge_contacts: sample grasps with fingertips on the object's edges
-            too (a fingertip on an edge pushes between the faces' normals);
-            None: for hands with fingers of more than 3 joints. The Allegro
-            holds a cube only that way (its pads touch the faces it reaches
-            with parallel normals); the paper hand holds boxes on their
-            faces, and edge grasps there roughly double the regrasps of a
-            box turn.
+        edge_contacts: sample fingertips on the object's edges too; None:
+            for fingers of more than 3 joints, and wherever faces alone
+            cannot hold (:mod:`.contact_kinds`; the paper hand holds boxes
+            on faces, where edges double the regrasps of a box turn).
         max_attempts: attempts per :meth:`GraspSampler.sample` call before None.
         tip_clearance: minimum gap between two fingertip spheres (m).
         min_facing: minimum cosine between a candidate's outward normal and
@@ -139,6 +137,9 @@ class SamplerStats:
     time_s: float = 0.0
     pools: int = 0
     finger_rejections: int = 0
+    #: poses whose every combined grasp was screened out before any check, and why
+    screened: int = 0
+    screen_reason: str = ""
 
     @property
     def valid_fraction(self) -> float:
@@ -158,6 +159,7 @@ class SamplerStats:
             "ik_failures": self.ik_failures,
             "pools": self.pools,
             "finger_rejections": self.finger_rejections,
+            "screened": self.screened,
             "valid_fraction": self.valid_fraction,
             "samples_per_second": self.samples_per_second,
         }
@@ -218,10 +220,15 @@ class GraspSampler:
         hand = gsn.hand
         per_finger = self.settings.per_finger
         self.per_finger = bool(per_finger)
+        vs = validity.settings  # why face points alone cannot hold (None: they may)
+        self.faces_only = faces_only_reason(
+            gsn.obj, hand, len(gsn.contact_ids), vs.mu, vs.subgrasps
+        )
         edges = self.settings.edge_contacts
-        if edges is None:
-            edges = _long_fingers(hand)
+        if edges is None:  # every hand, wherever faces alone cannot hold
+            edges = _long_fingers(hand) or self.faces_only is not None
         self._edges = (self.settings.candidate_edges, self.settings.pool_edges) if edges else (0, 0)
+        self.stats.screen_reason = "" if edges else self.faces_only or ""
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
         self._finger_data = [world.pairs_data(pairs) for pairs in self._finger_pairs]
@@ -401,6 +408,7 @@ class GraspSampler:
                     continue
                 found = self.combinations(pose_k, pools)
                 if not found.states:
+                    self.stats.screened += 1
                     self.stats.attempts += 1
                     budget -= 1
                     continue
