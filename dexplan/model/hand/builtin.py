@@ -2,11 +2,12 @@
 
 ``"paper"`` (4 x 3 DOF, after the paper) and ``"three_finger"`` (3 x 3 DOF,
 capsule links) ship with dexplan; ``"trifinger"`` (3 x 3 DOF, the TriFinger
-platform, :mod:`.trifinger`) is built from example-robot-data's finger_edu; ``"allegro"`` and ``"allegro_left"``
-(4 x 4 DOF) are read from the installed ``example-robot-data`` distribution,
-given the real hand's joint torque caps (:data:`ALLEGRO_EFFORT_LIMITS`) and
-collision shapes fitted to its visual meshes (:data:`ALLEGRO_COLLISION_SHAPES`),
-and mounted palm-up (see :data:`ALLEGRO_MOUNT_RPY`).
+platform, :mod:`.trifinger`) is built from example-robot-data's finger_edu;
+``"allegro"`` and ``"allegro_left"`` (4 x 4 DOF) are read from the installed
+``example-robot-data`` distribution, given the real hand's joint torque caps
+(:data:`ALLEGRO_EFFORT_LIMITS`) and collision shapes fitted to its visual
+meshes (:data:`ALLEGRO_COLLISION_SHAPES`), and mounted palm-up (see
+:data:`ALLEGRO_MOUNT_RPY`).
 """
 
 from __future__ import annotations

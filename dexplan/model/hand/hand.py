@@ -33,9 +33,11 @@ from dexplan.model.hand.frames import (
 from dexplan.model.hand.ik import (
     FingerChain,
     IKResult,
+    OffsetFingerIK,
     PlanarFingerIK,
     SplitFingerIK,
     batch_dls,
+    branch_solutions,
     finger_dls,
 )
 from dexplan.model.hand.packages import mesh_sha256, search_dirs
@@ -67,7 +69,8 @@ class Hand:
       (a redundant finger following a moving contact);
     - :meth:`finger_ik_batch`: one solution per target for many targets;
     - :meth:`finger_ik_candidates`: every branch per target for many targets
-      (the sampler and the landing choice try them all).
+      (the sampler and the landing choice try them all; fingers without a
+      closed form: seeded solves, :mod:`dexplan.model.hand.ik.branches`).
 
     Args:
         urdf_xml: full URDF text (``str``; UTF-8 ``bytes`` are decoded).
@@ -157,7 +160,8 @@ class Hand:
 
         :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint
         fingers; otherwise the vectorised kinematics of :mod:`dexplan.model.hand.ik`
-        (closed form also for 4-joint fingers, redundancy on a grid, else batched DLS).
+        (closed form also for 4-joint fingers, redundancy on a grid, and for
+        3-joint fingers with offset axes; else batched DLS from several seeds).
         """
         self._analytic_ik: list[PlanarFingerIK | None] = [
             PlanarFingerIK.detect(
@@ -168,16 +172,15 @@ class Hand:
         self._chains: list[FingerChain | None] = [
             FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
         ]
-        self._split_ik: list[SplitFingerIK | None] = [
-            None
-            if self._analytic_ik[i] is not None
-            else SplitFingerIK.detect(
-                self._chains[i],
-                self.lower[self.finger_q_index[i]],
-                self.upper[self.finger_q_index[i]],
-            )
-            for i in range(self.n_fingers)
-        ]
+        self._split_ik: list[SplitFingerIK | None] = []
+        # 3-joint fingers with offset axes (the TriFinger's): every branch in closed form
+        self._offset_ik: list[OffsetFingerIK | None] = []
+        for i, idx in enumerate(self.finger_q_index):
+            lo, hi, chain = self.lower[idx], self.upper[idx], self._chains[i]
+            planar = self._analytic_ik[i] is not None
+            self._split_ik.append(None if planar else SplitFingerIK.detect(chain, lo, hi))
+            other = planar or self._split_ik[i] is not None
+            self._offset_ik.append(None if other else OffsetFingerIK.detect(chain, lo, hi))
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
 
     # ------------------------------------------------------------------ loading
@@ -339,6 +342,10 @@ class Hand:
         split = self._split_ik[finger]
         if split is not None:
             return split.solve_near(p_target_world, q_hand[self.finger_q_index[finger]], approach)
+        offset = self._offset_ik[finger]
+        if offset is not None:
+            q_f, ok = offset.nearest(p_target_world, q_hand[self.finger_q_index[finger]])
+            return q_f[0] if ok[0] else None
         res = self.finger_ik(finger, p_target_world, q_hand)
         return res.q_finger if res.success else None
 
@@ -392,7 +399,11 @@ class Hand:
         Redundant 4-joint fingers whose other three joints have a closed form
         count (``dexplan.model.hand.ik.SplitFingerIK``; docs/hands.md, "IK and redundancy").
         """
-        return self._analytic_ik[finger] is not None or self._split_ik[finger] is not None
+        return (
+            self._analytic_ik[finger] is not None
+            or self._split_ik[finger] is not None
+            or self._offset_ik[finger] is not None
+        )
 
     def planar_ik(self, finger: int) -> PlanarFingerIK | None:
         """``finger``'s closed-form 3-joint solver, or None (see :mod:`dexplan.model.hand.ik`)."""
@@ -418,12 +429,21 @@ class Hand:
         Returns:
             ``q_finger: (N, C, m)`` within limits and ``ok: (N, C)``. Closed-form
             redundant fingers give every branch at every grid value of the free
-            joint; other fingers one solution per target (C = 1).
+            joint; revolute fingers without a closed form every branch their
+            seeded solves find (:mod:`dexplan.model.hand.ik.branches`); planar
+            closed-form fingers one solution per target (C = 1).
         """
         targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
         split = self._split_ik[finger]
         if split is not None:
             return split.candidates(targets)
+        offset = self._offset_ik[finger]
+        if offset is not None:
+            return offset.branches(targets)
+        chain = self._chains[finger]
+        if self._analytic_ik[finger] is None and chain is not None:
+            idx = self.finger_q_index[finger]
+            return branch_solutions(chain, targets, self.lower[idx], self.upper[idx])
         q, ok = self.finger_ik_batch(finger, targets)
         return q[:, None, :], ok[:, None]
 
@@ -453,6 +473,10 @@ class Hand:
         if split is not None:
             return split.solve(targets)
         idx = self.finger_q_index[finger]
+        offset = self._offset_ik[finger]
+        if offset is not None:  # the branch nearest q_init's (the middle of the ranges)
+            near = 0.5 * (self.lower[idx] + self.upper[idx]) if q_init is None else q_init[idx]
+            return offset.nearest(targets, near)
         chain = self._chains[finger]
         if chain is not None:
             q0 = (self.neutral if q_init is None else q_init)[idx]
@@ -532,6 +556,13 @@ class Hand:
                 err = float(np.linalg.norm(self._finger_tip(finger, q)[0] - target))
                 if err < tol:
                     return IKResult(q_f, True, err, 1)
+        offset = self._offset_ik[finger]
+        if offset is not None:
+            q_all, ok_all = offset.nearest(target, q[idx])
+            q[idx] = q_all[0]
+            err = float(np.linalg.norm(self._finger_tip(finger, q)[0] - target))
+            if ok_all[0] and err < tol:
+                return IKResult(q_all[0], True, err, 1)
         split = self._split_ik[finger]
         if split is not None:
             q_f = split.solve_near(target, q[idx])

@@ -15,8 +15,10 @@ finger's joints in chain order (root to tip), which is also the order of
 ``Hand.finger_q_index[i]``.
 """
 
+from dexplan.model.hand.ik.branches import BRANCH_SEEDS, branch_solutions
 from dexplan.model.hand.ik.chain import FingerChain
 from dexplan.model.hand.ik.numeric import IKResult, batch_dls, finger_dls
+from dexplan.model.hand.ik.offset import OffsetFingerIK
 from dexplan.model.hand.ik.planar import PlanarFingerIK, nearest_branch, planar_branches
 from dexplan.model.hand.ik.split import (
     SAMPLE_GRID,
@@ -27,15 +29,18 @@ from dexplan.model.hand.ik.split import (
 )
 
 __all__ = [
+    "BRANCH_SEEDS",
     "SAMPLE_GRID",
     "TRACK_DELTAS",
     "TRACK_MAX_STEP",
     "TRACK_RESOLUTION",
     "FingerChain",
     "IKResult",
+    "OffsetFingerIK",
     "PlanarFingerIK",
     "SplitFingerIK",
     "batch_dls",
+    "branch_solutions",
     "finger_dls",
     "nearest_branch",
     "planar_branches",
