@@ -147,4 +147,4 @@ class OffsetFingerIK:
         d = np.sum((q - np.asarray(q_near, dtype=float).reshape(-1, 1, 3)) ** 2, axis=2)
         best = np.argmin(np.where(ok, d, np.inf), axis=1)
         rows = np.arange(len(q))
-        return q[rows, best], ok.any(axis=1)
+        return q[rows, best], np.asarray(ok.any(axis=1))
