@@ -18,7 +18,7 @@ object. :func:`trifinger_urdf` builds that hand from the single
   mesh ends in a hemisphere of that radius centred on the tip frame);
 - the lower link's mesh, which is the fingertip's own rounded end, would touch
   the object wherever the tip does, so its collision element is a capsule along
-  the shaft 1.5 mm slimmer than the mesh and ending 4 mm behind the tip centre
+  the shaft 1.7 mm slimmer than the mesh and ending 4 mm behind the tip centre
   (inside the tip sphere's front half); the upper and middle links and the
   base parts keep their ``package://example-robot-data/...`` meshes;
 - the joint effort limits are the platform's motor torque cap
