@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
 import trimesh
+from cli_contract import assert_bad_input, run_cli
 
+from dexplan.cli import main as cli
 from dexplan.core.errors import ModelError, PlanFileError
 from dexplan.model.hand.builtin import example_robot_data_share
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.packages import (
     ROS_PACKAGE_PATH,
+    mesh_sha256,
     package_search_path,
     search_dirs,
 )
@@ -98,3 +102,35 @@ def test_plan_keeps_uris_and_refuses_other_meshes(tmp_path: Path) -> None:
     # no mesh at all: the message says where meshes are searched
     with pytest.raises(PlanFileError, match="--package-dir"):
         hand_from_plan(table, [tmp_path / "nowhere"])
+
+
+def _with_package_mesh(plan: Path, ws_src: Path) -> None:
+    """The plan's hand with an extra palm mesh ``package://my_hand_description/...``.
+
+    The mesh sits 0.5 m below the palm, clear of everything, so the plan stays valid.
+    """
+    doc = json.loads(plan.read_text())
+    extra = (
+        '<collision><origin xyz="0 0 -0.5"/>'
+        f'<geometry><mesh filename="{URI}"/></geometry></collision>'
+    )
+    text = doc["hand"]["urdf_xml"]
+    head, sep, tail = text.partition('<link name="palm">')
+    assert sep, "the paper hand's palm link"
+    doc["hand"]["urdf_xml"] = head + sep + extra + tail
+    doc["hand"]["mesh_sha256"] = mesh_sha256(doc["hand"]["urdf_xml"], [ws_src])
+    plan.write_text(json.dumps(doc))
+
+
+def test_verify_package_dir(paper_plan, tmp_path: Path, capfd) -> None:
+    """`dexplan verify --package-dir`: the plan's package:// mesh found, changed or missing."""
+    src = _workspace(tmp_path / "ws", extent=0.01)
+    plan = paper_plan(1, tmp_path)
+    _with_package_mesh(plan, src)
+    code, _, err = run_cli(capfd, "verify", plan)
+    assert_bad_input(code, err, names=["--package-dir"])
+    code, out, _ = run_cli(capfd, "verify", plan, "--package-dir", src)
+    assert code == cli.EXIT_OK and out.startswith("OK"), out
+    other = _workspace(tmp_path / "other", extent=0.02)
+    code, _, err = run_cli(capfd, "verify", plan, "--package-dir", other)
+    assert_bad_input(code, err, names=["hand.mesh_sha256", URI])

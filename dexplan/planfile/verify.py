@@ -35,6 +35,7 @@ from dexplan.model.grasp import exact_force_closure, force_closure_quality, min_
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.packages import search_dirs
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.planfile.document import segments_from_dicts
 from dexplan.planfile.models import PlanModels, hand_from_plan, models_from_document
@@ -523,9 +524,11 @@ def _plan_hand(table: Mapping[str, Any]) -> Hand:
     (URDF parsing, Pinocchio and coal geometry) for each plan costs about as much as
     checking a third of its waypoints. The key is the whole table (URDF text,
     fingertip frames and radius, exclusions, joint names), so a plan of any
-    other hand is rebuilt from its own file.
+    other hand is rebuilt from its own file. The folders mesh files are
+    searched in are part of the key: the same table elsewhere may resolve
+    its ``package://`` meshes to other files (checked against ``mesh_sha256``).
     """
-    key = json.dumps(table, sort_keys=True)
+    key = json.dumps([table, search_dirs()], sort_keys=True)
     hand = _HANDS.pop(key, None)
     if hand is None:
         hand = hand_from_plan(table)
