@@ -12,7 +12,7 @@ from cli_contract import run_cli
 from dexplan import api
 from dexplan import planfile as plan_module
 from dexplan.planning.diagnostics import Rejections
-from dexplan.planning.gsn.sampler import SamplerStats
+from dexplan.planning.gsn.sampler_stats import SamplerStats
 from dexplan.planning.gsn.validity import KEPT_PER_REASON, REASONS, ValidityStats
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from dexplan.planning.gsn.sampler import SamplerStats
+from dexplan.planning.gsn.sampler_stats import SamplerStats
 from dexplan.planning.gsn.validity import RejectedSample, ValidityStats
 
 

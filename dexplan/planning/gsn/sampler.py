@@ -48,6 +48,7 @@ from dexplan.planning.deadline import Deadline
 from dexplan.planning.gsn.combinations import Combinations, FingerPool, combine_pools
 from dexplan.planning.gsn.contact_kinds import faces_only_reason
 from dexplan.planning.gsn.finger_reach import fingertip_fits, link_clearance, reach_shell
+from dexplan.planning.gsn.sampler_stats import SamplerStats
 from dexplan.planning.gsn.space import POSE_DIM, GraspSubspace
 from dexplan.planning.gsn.validity import GraspValidity
 
@@ -122,66 +123,39 @@ class SamplerSettings:
     check_batch: int = 24
 
 
-@dataclass
-class SamplerStats:
-    """Counters of the sampler: attempts, valid samples, IK failures, time.
-
-    With per-finger pools an attempt is one combined grasp (or one pose whose
-    pools came out empty); ``pools`` counts the poses pools were built at and
-    ``finger_rejections`` the per-finger IK solutions dropped for a collision.
-    """
-
-    attempts: int = 0
-    valid: int = 0
-    ik_failures: int = 0
-    time_s: float = 0.0
-    pools: int = 0
-    finger_rejections: int = 0
-    #: poses whose every combined grasp was screened out before any check, and why
-    screened: int = 0
-    screen_reason: str = ""
-
-    @property
-    def valid_fraction(self) -> float:
-        """Fraction of attempts that gave a valid state."""
-        return self.valid / self.attempts if self.attempts else 0.0
-
-    @property
-    def samples_per_second(self) -> float:
-        """Valid samples per second of sampling time."""
-        return self.valid / self.time_s if self.time_s > 0 else 0.0
-
-    def as_dict(self) -> dict[str, float]:
-        """Plain-dict view for statistics output."""
-        return {
-            "attempts": self.attempts,
-            "valid": self.valid,
-            "ik_failures": self.ik_failures,
-            "pools": self.pools,
-            "finger_rejections": self.finger_rejections,
-            "screened": self.screened,
-            "valid_fraction": self.valid_fraction,
-            "samples_per_second": self.samples_per_second,
-        }
-
-
 def _long_fingers(hand: Hand) -> bool:
     """Whether some finger of ``hand`` has more than 3 joints (redundant for a contact)."""
     return max(len(idx) for idx in hand.finger_q_index) > 3
 
 
-def _resolved(settings: SamplerSettings, hand: Hand) -> tuple[SamplerSettings, int, int]:
+def _resolved(
+    settings: SamplerSettings, hand: Hand, faces_only: bool
+) -> tuple[SamplerSettings, int, int, bool]:
     """``settings`` with the hand-dependent defaults (None fields) filled in.
 
+    Where faces alone cannot hold (``faces_only``) and ``edge_contacts`` is
+    automatic, pools draw as many edge points as face points, keep 64
+    solutions and rank 16000 draws: a valid grasp then needs edges with
+    normals in a narrow band for two fingers at once (a TriFinger on its cube:
+    none in 250 combined grasps at the start pose without, 2 to 3 with).
+
     Returns:
-        ``(settings, combinations, grasps_per_pose)``: the two filled-in values
-        also as plain ints.
+        ``(settings, combinations, grasps_per_pose, edges)``: the filled-in
+        values also as plain values.
     """
     long = _long_fingers(hand)
     combinations = (96 if long else 40) if settings.combinations is None else settings.combinations
     per_pose = (64 if long else 2) if settings.grasps_per_pose is None else settings.grasps_per_pose
     filled = replace(settings, combinations=combinations, grasps_per_pose=per_pose)
-    return filled, combinations, per_pose
+    if settings.edge_contacts is None and faces_only and not long:
+        filled = replace(
+            filled,
+            pool_edges=max(filled.pool_edges, filled.pool_candidates),
+            pool_size=max(filled.pool_size, 64),
+            combination_draws=max(filled.combination_draws, 16000),
+        )
+    edges = long or faces_only if settings.edge_contacts is None else settings.edge_contacts
+    return filled, combinations, per_pose, edges
 
 
 class GraspSampler:
@@ -208,8 +182,12 @@ class GraspSampler:
         self.deadline = deadline or Deadline()
         self.validity = validity
         self.rng = rng
-        self.settings, self._combinations, self._grasps_per_pose = _resolved(
-            settings or SamplerSettings(), gsn.hand
+        vs = validity.settings  # why face points alone cannot hold (None: they may)
+        self.faces_only = faces_only_reason(
+            gsn.obj, gsn.hand, len(gsn.contact_ids), vs.mu, vs.subgrasps
+        )
+        self.settings, self._combinations, self._grasps_per_pose, edges = _resolved(
+            settings or SamplerSettings(), gsn.hand, self.faces_only is not None
         )
         if self.settings.check_batch < 1:
             raise InvalidInputError(
@@ -220,13 +198,6 @@ class GraspSampler:
         hand = gsn.hand
         per_finger = self.settings.per_finger
         self.per_finger = bool(per_finger)
-        vs = validity.settings  # why face points alone cannot hold (None: they may)
-        self.faces_only = faces_only_reason(
-            gsn.obj, hand, len(gsn.contact_ids), vs.mu, vs.subgrasps
-        )
-        edges = self.settings.edge_contacts
-        if edges is None:  # every hand, wherever faces alone cannot hold
-            edges = _long_fingers(hand) or self.faces_only is not None
         self._edges = (self.settings.candidate_edges, self.settings.pool_edges) if edges else (0, 0)
         self.stats.screen_reason = "" if edges else self.faces_only or ""
         world = validity.world
