@@ -33,6 +33,8 @@ from pathlib import Path
 
 __all__ = [
     "ROS_PACKAGE_PATH",
+    "collision_mesh_uris",
+    "mesh_mismatches",
     "mesh_sha256",
     "package_search_path",
     "resolve_mesh",
