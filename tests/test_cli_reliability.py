@@ -226,8 +226,10 @@ def test_unsolvable_query_ends_with_a_status_at_its_limit():
     res = plan(load_scenario(UNSOLVABLE), time_limit=1.0)
     assert res.status == PlanStatus.NO_GOAL_GRASP and not res.solved
     assert res.stats.goal_samples == 0
-    # it searched until the deadline (DEXPLAN_SLOWDOWN shortens it); no upper bound here
-    assert res.stats.time_s >= 0.9 * budget(1.0)
+    # it searched on towards the deadline (DEXPLAN_SLOWDOWN shortens it), not ending at
+    # once as a reach check does: the stage stops a sampler batch and the verification
+    # reserve short of the limit, so half the budget is the bound; no upper bound here
+    assert res.stats.time_s >= 0.5 * budget(1.0)
 
 
 def test_run_can_be_called_many_times_in_one_process(capfd):
