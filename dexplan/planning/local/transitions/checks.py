@@ -83,6 +83,21 @@ class FingerChecks:
             return self.world.is_free(q, pose, mask)
         return not self.world.pairs_collide(self._move_data[finger], q, self.frames(pose)[1])
 
+    def collision_finger(
+        self, q: FloatArray, pose: FloatArray, mask: tuple[bool, ...]
+    ) -> tuple[bool, int | None]:
+        """(collision-free, finger involved in the first collision or None) at ``q``, ``pose``.
+
+        A contact fingertip's penetration blames nobody in particular (None).
+        """
+        rep = self.world.check(q, pose, mask)
+        if rep.free:
+            return True, None
+        if rep.pair is None:
+            return False, None
+        fingers = [f for f in (self.world.finger_of(n) for n in rep.pair) if f is not None]
+        return False, (fingers[0] if fingers else None)
+
     def first_free(
         self, q: FloatArray, idx: IntArray, postures: Iterable[FloatArray], pose: FloatArray
     ) -> FloatArray | None:

@@ -163,12 +163,9 @@ class RollingTransferPlanner:
         for f, idx in enumerate(self.hand.finger_q_index):
             if np.any(rolled.q[idx] < lo[idx]) or np.any(rolled.q[idx] > hi[idx]):
                 return f, TransferStop.JOINT_LIMIT
-        rep = self.checks.world.check(rolled.q, pose, self.checks.all_contact)
-        if not rep.free:
-            names = rep.pair or ()
-            fingers = [self.checks.world.finger_of(name) for name in names]
-            fingers = [f for f in fingers if f is not None]
-            return (fingers[0] if fingers else None), TransferStop.COLLISION
+        free, finger = self.checks.collision_finger(rolled.q, pose, self.checks.all_contact)
+        if not free:
+            return finger, TransferStop.COLLISION
         if self.quality(GraspContacts(rolled.points, rolled.normals)) <= self.fc_margin:
             moved = np.linalg.norm(rolled.points - before.points, axis=1)
             return int(np.argmax(moved)), TransferStop.FORCE_CLOSURE

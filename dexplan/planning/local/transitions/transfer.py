@@ -183,7 +183,7 @@ class TransferPlanner:
             if isinstance(second, tuple):
                 return second
             return first + second
-        free, finger = self._collision_finger(q_b, pb, self.checks.all_contact)
+        free, finger = self.checks.collision_finger(q_b, pb, self.checks.all_contact)
         if not free and finger is not None:
             q_alt = self._other_posture(finger, pb, q_a, q_b, grasp)
             if q_alt is not None:
@@ -209,19 +209,6 @@ class TransferPlanner:
                 return i, TransferStop.JOINT_LIMIT
             q[idx] = q_f
         return q
-
-    def _collision_finger(
-        self, q: FloatArray, pose: FloatArray, mask: tuple[bool, ...]
-    ) -> tuple[bool, int | None]:
-        """(collision-free, finger involved in the first collision or None)."""
-        rep = self.checks.world.check(q, pose, mask)
-        if rep.free:
-            return True, None
-        if rep.pair is None:  # contact penetration: blame nobody in particular
-            return False, None
-        fingers = [self.checks.world.finger_of(n) for n in rep.pair]
-        fingers = [f for f in fingers if f is not None]
-        return False, (fingers[0] if fingers else None)
 
     def _other_posture(
         self, finger: int, pose: FloatArray, q_a: FloatArray, q_b: FloatArray, grasp: GraspContacts
