@@ -13,6 +13,7 @@ from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.edge_reduction import reduce_gsn_path
+from dexplan.planning.local.gait_choice import GaitSettings
 from dexplan.planning.local.grasps import grasp_from_state
 from dexplan.planning.local.reduction import ReductionSettings
 from dexplan.planning.local.transitions import densify_poses
@@ -206,7 +207,12 @@ def test_failed_regrasp_search_is_retried_before_giving_up(
         x0[POSE_DIM:],
         grasp,
         # backtrack_steps=0: go back even when stuck within the first steps
-        ReductionSettings(regrasp_retries=retries, backtracks=backtracks, backtrack_steps=0),
+        ReductionSettings(
+            regrasp_retries=retries,
+            backtracks=backtracks,
+            backtrack_steps=0,
+            gaits=GaitSettings(beam_width=0),  # the one-regrasp-at-a-time reduction
+        ),
     )
     assert not red.success
     assert red.reason is not None and red.reason.startswith("no feasible regrasp")
@@ -287,7 +293,9 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
     s = ctx.transitions.settings
     dense = densify_poses(np.stack([x0[:POSE_DIM], xg[:POSE_DIM]]), s.max_step_m, s.max_step_rad)
     grasp = grasp_from_state(ctx.transitions, x0[:POSE_DIM], x0[POSE_DIM:])
-    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=0)
+    settings = ReductionSettings(
+        max_blind=3, max_stall=7, backtracks=0, gaits=GaitSettings(beam_width=0)
+    )
     red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
     assert not red.success and red.reason is not None
     assert len(set(calls)) == 1  # all at the step the transfer was blocked at
@@ -297,7 +305,9 @@ def test_moves_that_give_the_blocking_finger_nothing_end_the_attempt(
         assert red.reason.startswith("no progress after") and len(calls) == 8
     # with backtracks, each run of them starts again from the last checkpoint
     calls.clear()
-    settings = ReductionSettings(max_blind=3, max_stall=7, backtracks=2, backtrack_steps=0)
+    settings = ReductionSettings(
+        max_blind=3, max_stall=7, backtracks=2, backtrack_steps=0, gaits=GaitSettings(beam_width=0)
+    )
     red = reduction.reduce_object_path(ctx.transitions, dense, x0[POSE_DIM:], grasp, settings)
     assert not red.success and red.stats["backtracks"] == 2
     assert len(calls) == 3 * (4 if mode == "any" else 8)
@@ -346,14 +356,17 @@ def test_stuck_gaits_go_back_to_an_earlier_transfer_and_carry_on(
         return real(trans, poses, idx, *args)
 
     monkeypatch.setattr(red_mod, "_regrasp_retrying", fails_once_past_step_10)
-    settings = ReductionSettings(backtracks=0)
+    greedy = GaitSettings(beam_width=0)  # the one-regrasp-at-a-time reduction
+    settings = ReductionSettings(backtracks=0, gaits=greedy)
     gave_up = reduce_object_path(ctx.transitions, poses, x0[POSE_DIM:], grasp, settings)
     assert blocked and not gave_up.success
     assert gave_up.reason.startswith(f"no feasible regrasp at trajectory step {blocked[0]}")
 
     blocked.clear()
     ctx = build_context(scenario, seed=1)
-    res = reduce_object_path(ctx.transitions, poses, x0[POSE_DIM:], grasp)
+    res = reduce_object_path(
+        ctx.transitions, poses, x0[POSE_DIM:], grasp, ReductionSettings(gaits=greedy)
+    )
     assert blocked and res.success, res.reason
     assert res.stats["backtracks"] == 1
     # the kept segments chain: each starts where the one before ended

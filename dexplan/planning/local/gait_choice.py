@@ -62,6 +62,13 @@ class GaitSettings:
         strong_quality: regrasps whose grasp's least (n-1)-subgrasp
             force-closure quality reaches this are preferred to weaker ones
             however far those go (0: strength only breaks ties of reach).
+        beam_width: gait states the gait search keeps per number of
+            regrasps (:mod:`dexplan.planning.local.gait_search`; 0: no
+            search, the one-regrasp-at-a-time reduction only).
+        branching: landings of longest stroke the gait search tries per
+            regrasped finger.
+        search_states: gait states the search expands at most before the
+            reduction falls back on one regrasp at a time.
     """
 
     lookahead_landings: int = 4
@@ -69,6 +76,9 @@ class GaitSettings:
     strength_tolerance: float = 0.85
     reset_steps: int = 6
     strong_quality: float = 0.0
+    beam_width: int = 3
+    branching: int = 3
+    search_states: int = 150
 
     def __post_init__(self) -> None:
         if self.lookahead_landings < 1 or self.horizon_steps < 1 or self.reset_steps < 0:

@@ -38,6 +38,7 @@ from dexplan.planning.local.gait_choice import (
     best_option,
     look_ahead,
 )
+from dexplan.planning.local.gait_search import search_gaits
 from dexplan.planning.local.grasps import current_follow
 from dexplan.planning.local.transitions import (
     GraspContacts,
@@ -239,6 +240,22 @@ def reduce_object_path(
         A :class:`ReductionResult`.
     """
     settings = settings or ReductionSettings()
+    g = settings.gaits
+    if g.beam_width > 0:
+        searched = search_gaits(
+            trans,
+            poses,
+            q_start,
+            grasp,
+            beam_width=g.beam_width,
+            branching=g.branching,
+            max_regrasps=settings.max_regrasps,
+            max_expanded=g.search_states,
+        )
+        if searched.reason is None:
+            regrasps = sum(s.kind == SegmentKind.REGRASP for s in searched.segments)
+            stats = reduction_stats(trans, regrasps)
+            return ReductionResult(True, searched.segments, len(poses) - 1, None, stats)
     gait = _GaitState(trans, settings, q_start, grasp)
     reset: int | None = None  # a finger to regrasp before the next transfer
     while True:

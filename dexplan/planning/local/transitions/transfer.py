@@ -202,13 +202,34 @@ class TransferPlanner:
         q = q_prev.copy()
         for i in range(self.hand.n_fingers):
             idx = self.hand.finger_q_index[i]
+            lo, hi = self.checks.lo[idx], self.checks.hi[idx]
             q_f = self.hand.finger_ik_fast(i, targets[i], q, inward[i])
-            if q_f is None:
-                return i, TransferStop.IK
-            if np.any(q_f < self.checks.lo[idx]) or np.any(q_f > self.checks.hi[idx]):
-                return i, TransferStop.JOINT_LIMIT
+            if q_f is None or np.any(q_f < lo) or np.any(q_f > hi):
+                # a redundant finger's preferred posture may leave its limits
+                # where another one a tracking step away does not (as the
+                # landing search follows it: :meth:`FingerFollower.track_score`)
+                alt = self._posture_in_limits(i, targets[i], q, inward[i])
+                if alt is None:
+                    return i, TransferStop.IK if q_f is None else TransferStop.JOINT_LIMIT
+                q_f = alt
             q[idx] = q_f
         return q
+
+    def _posture_in_limits(
+        self, finger: int, tip: FloatArray, q: FloatArray, inward: FloatArray
+    ) -> FloatArray | None:
+        """The best of ``finger``'s other postures one tracking step from ``q`` within limits.
+
+        ``tip: (3,)`` fingertip centre, ``inward: (3,)`` inward normal, world
+        frame; None for fingers with a single posture per branch.
+        """
+        idx = self.hand.finger_q_index[finger]
+        lo, hi = self.checks.lo[idx], self.checks.hi[idx]
+        options = self.hand.finger_ik_alternatives(finger, tip, q, inward)
+        for q_f in options[: self.settings.posture_options]:
+            if not (np.any(q_f < lo) or np.any(q_f > hi)):
+                return q_f
+        return None
 
     def _other_posture(
         self, finger: int, pose: FloatArray, q_a: FloatArray, q_b: FloatArray, grasp: GraspContacts
