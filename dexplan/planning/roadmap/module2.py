@@ -466,9 +466,10 @@ def _link_candidates(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Module-2 link candidates from the start's component, best first.
 
-    Pairs are ranked by link length plus how far the far end still is from
-    the goal: links straight into a goal component come first, links into
-    other components (merged on the way, as in the paper) next.
+    The start straight to the goal's vertices comes first. Other pairs are
+    ranked by link length plus how far the far end still is from the goal:
+    links straight into a goal component come first, links into other
+    components (merged on the way, as in the paper) next.
 
     Returns:
         ``(src, dst, order)``: the start component's vertices, the other
@@ -487,4 +488,9 @@ def _link_candidates(
         [[pose_distance(roadmap.vertices[a], roadmap.vertices[b]) for b in dst] for a in src]
     )
     d = d + to_goal[None, :]
-    return src, dst, np.argsort(d, axis=None)[:64]
+    # the start straight to the goal first: a link there is the whole plan (the
+    # reduction of the query's path reuses it), while links between other
+    # vertices turn the object about axes the task never asked for, only for
+    # the query's reduction to redo the gaits along the path that results
+    d[np.flatnonzero(src == start)[:, None], np.flatnonzero(np.isin(dst, goals))[None, :]] = -1.0
+    return src, dst, np.argsort(d, axis=None, kind="stable")[:64]

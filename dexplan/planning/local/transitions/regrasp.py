@@ -29,6 +29,8 @@ from dexplan.planning.ompl import plan_joint_path
 
 #: Joint-space steps beyond which a straight finger move is not tried.
 _MAX_SUBSTEPS = 200
+#: Release verdicts kept (:meth:`RegraspPlanner.can_release`) before the cache starts over.
+_RELEASE_CACHE = 4096
 
 
 class RegraspPlanner:
@@ -68,6 +70,7 @@ class RegraspPlanner:
         self.deadline = deadline
         self.holds = holds
         self.stats = stats
+        self._released: dict[tuple[int, bytes, bytes, bytes], bool] = {}
 
     def can_release(
         self, finger: int, pose: FloatArray, q: FloatArray, grasp: GraspContacts
@@ -89,11 +92,23 @@ class RegraspPlanner:
         """
         if self.holds is None:
             return True
-        contacts = [None if i == finger else grasp.points[i] for i in range(self.hand.n_fingers)]
-        if self.holds.holds(q, pose, contacts):
-            return True
-        self.stats["weak_holds"] += 1
-        return False
+        # the gait search asks the same question where a transfer stops, where
+        # it regrasps there and where it plans that regrasp: each hold is a
+        # handful of linear programmes
+        others = np.delete(grasp.points, finger, axis=0)
+        key = (finger, pose.tobytes(), q.tobytes(), others.tobytes())
+        known = self._released.get(key)
+        if known is None:
+            contacts = [
+                None if i == finger else grasp.points[i] for i in range(self.hand.n_fingers)
+            ]
+            known = self.holds.holds(q, pose, contacts)
+            if len(self._released) >= _RELEASE_CACHE:
+                self._released.clear()
+            self._released[key] = known
+        if not known:
+            self.stats["weak_holds"] += 1
+        return known
 
     def regrasp(
         self,
