@@ -106,7 +106,7 @@ def test_a_finger_that_cannot_be_let_go_where_it_blocks_is_regrasped_before(
 
     monkeypatch.setattr(type(trans), "can_release", can_release)
     state = gait_search._State(0, x0[POSE_DIM:], grasp, (0,) * ctx.hand.n_fingers, (), 0, 0.0)
-    kids = gait_search._children(trans, poses, state, tr, 3)
+    kids = gait_search._children(trans, poses, state, tr, 3, 0.85)
     assert kids
     for kid in kids:
         assert len(kid.segments) == 2, (tr.reached, kid.idx)

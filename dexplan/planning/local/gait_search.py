@@ -15,8 +15,11 @@ grasp)``, layer by layer in the number of regrasps made, keeping the
 :attr:`GaitSettings.beam_width` best states of each layer:
 
 1. from a state, one transfer follows the trajectory until a finger blocks;
-2. the children are regrasps of that finger where it blocks onto the
-   :attr:`GaitSettings.branching` landings of longest stroke; where the
+2. the children are regrasps of that finger where it blocks onto
+   :attr:`GaitSettings.branching` of its landings: among those of longest
+   stroke, the ones whose stroke is at least
+   :attr:`GaitSettings.strength_tolerance` of the longest, strongest grasp
+   first (the grasp's least (n-1)-subgrasp force-closure quality); where the
    other fingers cannot hold the object without it there, the finger is
    regrasped *before* it blocks, at the latest step of the transfer where
    they can (the transfer is cut there); where the finger has no landing
@@ -30,7 +33,7 @@ grasp)``, layer by layer in the number of regrasps made, keeping the
    gait go on;
 4. the first layer in which a state's transfer reaches the end of the
    trajectory gives the plan: the fewest regrasps the beam found, and among
-   those the best-ranked state;
+   those the one whose weakest grasp is strongest;
 5. where every state of a layer is a dead end (no feasible regrasp, or
    only back to a state the search has been in), the search goes back to
    the states ranked out of earlier layers that got farthest.
@@ -96,6 +99,7 @@ class _State:
             where it stops (the others hold the object without it): a
             state where it cannot needs regrasps without progress later.
         transfer: the transfer from here, once run (:func:`_evaluate`).
+        weakest: the least ``strength`` of the gait's grasps so far.
     """
 
     idx: int
@@ -107,10 +111,11 @@ class _State:
     strength: float
     viable: bool = True
     transfer: TransferResult | None = None
+    weakest: float = np.inf
 
     def rank(self, end: int) -> tuple[bool, int, int, float]:
-        """Beam order (larger first): viable, stroke secured, progress, strength."""
-        return (self.viable, sum(min(c, end) for c in self.cover), self.idx, self.strength)
+        """Beam order (larger first): viable, stroke secured, progress, weakest grasp."""
+        return (self.viable, sum(min(c, end) for c in self.cover), self.idx, self.weakest)
 
 
 def search_gaits(
@@ -123,6 +128,7 @@ def search_gaits(
     branching: int,
     max_regrasps: int,
     max_expanded: int,
+    tolerance: float = 0.85,
 ) -> GaitSearchResult:
     """The gait with fewest regrasps the beam search finds along ``poses``.
 
@@ -135,11 +141,14 @@ def search_gaits(
         branching: landings of longest stroke tried per regrasped finger.
         max_regrasps: give up past this many regrasps.
         max_expanded: give up after expanding this many gait states.
+        tolerance: landings whose stroke is at least this share of the
+            longest one's are tried strongest grasp first.
     """
     end = len(poses) - 1
     n = trans.hand.n_fingers
     cover = tuple(current_follow(trans, f, q_start, grasp, poses) for f in range(n))
-    first = _State(0, q_start.copy(), grasp, cover, (), 0, trans.grasp_quality(grasp))
+    strength = trans.grasp_quality(grasp)
+    first = _State(0, q_start.copy(), grasp, cover, (), 0, strength, weakest=strength)
     layer = _evaluate(trans, poses, [first])
     reached, expanded = 0, 0
     seen: set[tuple[int, bytes]] = set()
@@ -151,10 +160,12 @@ def search_gaits(
         layer = [s for s in layer if s.regrasps <= max_regrasps]
         done = [s for s in layer if s.transfer is not None and s.transfer.reason is None]
         if done:
-            tr = done[0].transfer
+            # as many regrasps each: the one whose weakest grasp is strongest
+            best = max(done, key=lambda s: s.weakest)
+            tr = best.transfer
             assert tr is not None
             return GaitSearchResult(
-                (*done[0].segments, *_transfer(tr, len(tr.waypoints))), end, None, expanded
+                (*best.segments, *_transfer(tr, len(tr.waypoints))), end, None, expanded
             )
         if expanded >= max_expanded:
             break
@@ -163,7 +174,7 @@ def search_gaits(
             expanded += 1
             tr = state.transfer
             if tr is not None and tr.blocking is not None:
-                children.extend(_children(trans, poses, state, tr, branching))
+                children.extend(_children(trans, poses, state, tr, branching, tolerance))
         ranked = sorted(
             _evaluate(trans, poses, _unseen(children, seen)),
             key=lambda s: s.rank(end),
@@ -210,6 +221,9 @@ def _evaluate(trans: Transitions, poses: FloatArray, states: list[_State]) -> li
         if trans.deadline.expired():
             break
         tr = trans.transfer(poses, s.idx, s.q, s.grasp)
+        landed = s.segments[-1].finger if s.segments else None
+        if landed is not None and tr.reached == s.idx and tr.blocking == landed:
+            continue  # the finger just landed blocks at once: the regrasp gained nothing
         cover, viable = list(s.cover), True
         if tr.blocking is not None:
             f = tr.blocking
@@ -227,7 +241,12 @@ def _transfer(tr: TransferResult, upto: int) -> tuple[Segment, ...]:
 
 
 def _children(
-    trans: Transitions, poses: FloatArray, state: _State, tr: TransferResult, branching: int
+    trans: Transitions,
+    poses: FloatArray,
+    state: _State,
+    tr: TransferResult,
+    branching: int,
+    tolerance: float,
 ) -> list[_State]:
     """The regrasps after transfer ``tr`` from ``state`` (see the module, step 2)."""
     f = tr.blocking
@@ -235,7 +254,9 @@ def _children(
     cover = list(state.cover)
     cover[f] = min(cover[f], tr.reached)  # it blocked there, whatever the estimate said
     for at in _release_steps(trans, poses, state, tr, f):
-        kids = _regrasps_of(trans, poses, state, tr, at, f, tuple(cover), branching, None)
+        kids = _regrasps_of(
+            trans, poses, state, tr, at, f, tuple(cover), branching, None, tolerance
+        )
         if kids:
             return kids
     # the finger cannot be regrasped: move another where it blocks, one that
@@ -245,7 +266,11 @@ def _children(
     out: list[_State] = []
     others = sorted((g for g in range(trans.hand.n_fingers) if g != f), key=lambda g: cover[g])
     for g in others:
-        out.extend(_regrasps_of(trans, poses, state, tr, at_block, g, tuple(cover), 1, (f, held)))
+        out.extend(
+            _regrasps_of(
+                trans, poses, state, tr, at_block, g, tuple(cover), 1, (f, held), tolerance
+            )
+        )
     return out
 
 
@@ -302,8 +327,14 @@ def _regrasps_of(
     cover: tuple[int, ...],
     most: int,
     blocked: tuple[int, bool] | None,
+    tolerance: float,
 ) -> list[_State]:
-    """Children regrasping ``finger`` at ``at = (waypoint of tr, step)``: longest strokes first.
+    """Children regrasping ``finger`` at ``at = (waypoint of tr, step)``.
+
+    Of the finger's landings of longest stroke, those whose stroke is at
+    least ``tolerance`` of the longest come first, strongest grasp first
+    (the least force-closure quality of its (n-1)-subgrasps: where a real
+    hand drops the object), then the others by stroke.
 
     ``blocked = (finger, held)``: the regrasp is made for a blocked finger
     that cannot be regrasped itself (``held``: the others could let it go
@@ -315,22 +346,29 @@ def _regrasps_of(
     grasp = _grasp_at(trans, poses, tr, k, idx)
     future = poses[idx:]
     head = (*state.segments, *_transfer(tr, k + 1))
+    landings = [
+        (point, normal, int(score), trans.grasp_quality(grasp.replace(finger, point, normal)))
+        for point, normal, score in trans.landing_candidates(
+            finger, poses[idx], w.q, grasp, future, None, 2 * most + 2
+        )
+        if score > 0
+    ]
+    if not landings:
+        return []
+    far = tolerance * max(t[2] for t in landings)
+    landings.sort(key=lambda t: (t[2] >= far, t[3] if t[2] >= far else t[2]), reverse=True)
     out: list[_State] = []
-    for point, normal, score in trans.landing_candidates(
-        finger, poses[idx], w.q, grasp, future, None, 2 * most + 2
-    ):
-        if score <= 0:
-            continue
+    for point, normal, score, quality in landings:
         seg = trans.regrasp(poses[idx], w.q, grasp, finger, point, normal)
         if seg is None:
             continue
         new = grasp.replace(finger, point, normal)
-        if blocked is not None and idx + int(score) < cover[finger] + _MIN_GAIN:
+        if blocked is not None and idx + score < cover[finger] + _MIN_GAIN:
             b, held = blocked
             if held or not trans.can_release(b, poses[idx], seg.end.q, new):
                 continue
         c = list(cover)
-        c[finger] = idx + int(score)
+        c[finger] = idx + score
         out.append(
             _State(
                 idx,
@@ -339,7 +377,8 @@ def _regrasps_of(
                 tuple(c),
                 (*head, seg),
                 state.regrasps + 1,
-                trans.grasp_quality(new),
+                quality,
+                weakest=min(state.weakest, quality),
             )
         )
         if len(out) >= most or trans.deadline.expired():

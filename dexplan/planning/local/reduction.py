@@ -251,6 +251,7 @@ def reduce_object_path(
             branching=g.branching,
             max_regrasps=settings.max_regrasps,
             max_expanded=g.search_states,
+            tolerance=g.strength_tolerance,
         )
         if searched.reason is None:
             regrasps = sum(s.kind == SegmentKind.REGRASP for s in searched.segments)
