@@ -40,6 +40,7 @@ from dexplan.model.hand.ik import (
     branch_solutions,
     finger_dls,
 )
+from dexplan.model.hand.mjcf import mjcf_hand
 from dexplan.model.hand.packages import mesh_sha256, search_dirs
 from dexplan.model.hand.reach import ReachVoxels, reach_samples
 from dexplan.model.hand.urdf import (
@@ -186,9 +187,15 @@ class Hand:
     # ------------------------------------------------------------------ loading
     @classmethod
     def from_spec(cls, spec: HandSpec) -> Hand:
-        """The hand a scenario's ``[hand]`` table names: a builtin hand or a URDF file."""
+        """The hand a scenario's ``[hand]`` table names: builtin, a URDF or an MJCF file."""
         if spec.builtin is not None:
             return cls.builtin(spec.builtin, effort_limits=spec.effort_limits)
+        if spec.mjcf is not None:  # exported to a URDF, which plan files carry (.mjcf)
+            m = mjcf_hand(spec.mjcf, spec.fingertip_frames, spec.locked_joints, name=spec.mjcf.stem)
+            exclude = (*m.collision_exclude, *spec.collision_exclude)
+            return cls(m.urdf_xml, spec.fingertip_frames, spec.fingertip_radius,
+                       collision_exclude=exclude, name=spec.mjcf.stem,
+                       package_dirs=m.mesh_dirs, effort_limits=spec.effort_limits)  # fmt: skip
         assert spec.urdf is not None
         return cls.from_urdf_file(
             spec.urdf,

@@ -13,7 +13,10 @@ it, in this order (:func:`search_dirs`):
    the folders holding the packages found below it (``package.xml``, two
    levels deep, as ROS crawls a workspace);
 3. the ``share`` folders of installed description wheels: example-robot-data's
-   (``cmeel.prefix/share``, where every cmeel-packaged description installs).
+   (``cmeel.prefix/share``, where every cmeel-packaged description installs),
+   and the folder holding each installed Python package of
+   :data:`PYTHON_DESCRIPTION_PACKAGES` (``package://gymnasium_robotics/...``
+   names a file of the gymnasium-robotics wheel, the Shadow hand's MJCF).
 
 A plan file keeps the URDF's URIs exactly as given, so it does not depend on
 the folders of the machine that made it, and records the SHA-256 of every
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.util
 import os
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
@@ -37,6 +41,7 @@ __all__ = [
     "mesh_mismatches",
     "mesh_sha256",
     "package_search_path",
+    "package_uri",
     "resolve_mesh",
     "search_dirs",
     "wheel_share_dirs",
@@ -45,6 +50,37 @@ __all__ = [
 #: The environment variable ROS reads its package folders from.
 ROS_PACKAGE_PATH = "ROS_PACKAGE_PATH"
 _PACKAGE = "package://"
+#: Python packages whose installed files ``package://<name>/...`` URIs may name.
+PYTHON_DESCRIPTION_PACKAGES: tuple[str, ...] = ("gymnasium_robotics",)
+
+
+def python_package_dirs() -> dict[str, Path]:
+    """Installed folder of each package of :data:`PYTHON_DESCRIPTION_PACKAGES`.
+
+    Found with :func:`importlib.util.find_spec`, which does not import the package.
+    """
+    out = {}
+    for name in PYTHON_DESCRIPTION_PACKAGES:
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            spec = None
+        locations = list(spec.submodule_search_locations or []) if spec is not None else []
+        if locations and Path(locations[0]).is_dir():
+            out[name] = Path(locations[0])
+    return out
+
+
+def package_uri(path: Path) -> str | None:
+    """``package://<name>/<path>`` for a file inside a :func:`python_package_dirs` folder."""
+    resolved = path.resolve()
+    for name, folder in python_package_dirs().items():
+        try:
+            rel = resolved.relative_to(folder.resolve())
+        except ValueError:
+            continue
+        return f"{_PACKAGE}{name}/{rel.as_posix()}"
+    return None
 
 
 def wheel_share_dirs() -> list[Path]:
@@ -80,11 +116,12 @@ def search_dirs(given: Sequence[str | Path] = ()) -> tuple[str, ...]:
 
     Returns:
         ``given``, then ``ROS_PACKAGE_PATH``'s folders, then the wheels'
-        ``share`` folders, each once.
+        ``share`` folders and Python package folders' parents, each once.
     """
     dirs = [Path(d) for d in given]
     dirs += _ros_dirs(os.environ.get(ROS_PACKAGE_PATH, ""))
     dirs += wheel_share_dirs()
+    dirs += [folder.parent for folder in python_package_dirs().values()]
     return tuple(dict.fromkeys(str(d) for d in dirs))
 
 

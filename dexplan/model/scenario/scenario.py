@@ -36,8 +36,6 @@ from dexplan.model.objects.factory import SHAPE_FIELDS, SHAPE_KINDS, field_key, 
 from dexplan.model.objects.mesh import unit_scale_hint
 from dexplan.model.scenario.fields import (
     as_float,
-    check_text_file,
-    existing_file,
     fail,
     integer,
     number,
@@ -50,17 +48,11 @@ from dexplan.model.scenario.fields import (
 # The table checks keep the name ``_only`` here: tests/test_scenario_docs.py
 # finds every table's unknown-field check by it, to hold the parser to SCENARIO_FIELDS.
 from dexplan.model.scenario.fields import check_only as _only
+from dexplan.model.scenario.hand_table import hand_spec
 from dexplan.model.scenario.spec import (
     DEFAULT_SCENARIO,
-    HAND_BUILTIN_FIELDS,
-    HAND_COMMON_FIELDS,
-    HAND_URDF_FIELDS,
     MAX_ANGLE_TOL,
-    MAX_COLLISION_EXCLUDE,
-    MAX_EFFORT_LIMIT,
     MAX_FC_MARGIN,
-    MAX_FINGERS,
-    MAX_FINGERTIP_RADIUS,
     MAX_GRAVITY,
     MAX_HALF_EXTENT,
     MAX_HOLD_SHIFT,
@@ -73,15 +65,12 @@ from dexplan.model.scenario.spec import (
     MAX_OBJECT_SIZE,
     MAX_OBSTACLE_SIZE,
     MAX_OBSTACLES,
-    MAX_PACKAGE_DIRS,
     MAX_PARAM_FLOAT,
     MAX_PARAM_INT,
-    MAX_PATH,
     MAX_PLANNER_PARAMS,
     MAX_POSITION_TOL,
     MAX_SCENARIO_BYTES,
     MAX_TIME_LIMIT,
-    MAX_URDF_BYTES,
     OBJECT_OWN_FIELDS,
     OBSTACLE_OWN_FIELDS,
     SCENARIO_FIELDS,
@@ -137,121 +126,9 @@ def _shape_fields(
 
 
 def _hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
-    """``[hand]``: a builtin hand, or a URDF file with its fingertip frames."""
-    if "urdf" not in h:
-        return _builtin_hand(h)
-    if "builtin" in h:
-        fail(
-            f"hand.builtin (= {shorten(h['builtin'], 40)}) and hand.urdf "
-            f"(= {shorten(h['urdf'], 40)}) exclude each other: give one"
-        )
-    return _urdf_hand(h, base_dir)
-
-
-def _builtin_hand(h: Mapping[str, Any]) -> HandSpec:
-    """``[hand] builtin``: one of the builtin hands' names (``"paper"`` by default)."""
-    for key, val in h.items():
-        if key in HAND_URDF_FIELDS - HAND_COMMON_FIELDS:
-            fail(
-                f"hand.{key} (= {shorten(val, 40)}) is only used with hand.urdf; "
-                "a builtin hand defines its own"
-            )
-    _only(h, "hand", HAND_BUILTIN_FIELDS)
-    # imported on use: dexplan.model.hand loads Pinocchio (about 0.5 s measured),
-    # which validating a scenario does not otherwise need
-    from dexplan.model.hand.builtin import BUILTIN_HANDS
-
-    builtin = h.get("builtin", "paper")
-    if not isinstance(builtin, str) or builtin not in BUILTIN_HANDS:
-        fail(f"hand.builtin must be one of {', '.join(BUILTIN_HANDS)}, got {shorten(builtin)}")
-    return HandSpec(builtin=builtin, effort_limits=_effort_limits(h))
-
-
-def _effort_limits(h: Mapping[str, Any]) -> float | dict[str, float] | None:
-    """``[hand] effort_limits``: one limit (N m) for every joint, or a table by joint name.
-
-    The joint names are checked when the hand is built (they are the URDF's).
-    """
-    if "effort_limits" not in h:
-        return None
-    v = h["effort_limits"]
-    if isinstance(v, Mapping):
-        if not v or len(v) > MAX_FINGERS * 16:
-            fail(f"hand.effort_limits must name 1 to {MAX_FINGERS * 16} joints, got {shorten(v)}")
-        return {
-            str(k): number(v, k, "hand.effort_limits", lo=0.0, lo_open=True, hi=MAX_EFFORT_LIMIT)
-            for k in v
-        }
-    return number(h, "effort_limits", "hand", lo=0.0, lo_open=True, hi=MAX_EFFORT_LIMIT)
-
-
-def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
-    """``[hand] urdf``: the URDF file, its fingertip frames and radius, excluded pairs."""
-    _only(h, "hand", HAND_URDF_FIELDS)
-    if "fingertip_frames" not in h:
-        fail("missing field hand.fingertip_frames (the URDF frames of the fingertip centres)")
-    frames = h["fingertip_frames"]
-    if not (
-        isinstance(frames, list)
-        and 1 <= len(frames) <= MAX_FINGERS
-        and all(isinstance(f, str) and f and len(f) <= MAX_NAME for f in frames)
-    ):
-        fail(
-            f"hand.fingertip_frames must be a list of 1 to {MAX_FINGERS} frame names, "
-            f"got {shorten(frames)}"
-        )
-    excl = h.get("collision_exclude", [])
-    if not (
-        isinstance(excl, list)
-        and len(excl) <= MAX_COLLISION_EXCLUDE
-        and all(
-            isinstance(p, list)
-            and len(p) == 2
-            and all(isinstance(x, str) and x and len(x) <= MAX_NAME for x in p)
-            for p in excl
-        )
-    ):
-        fail(
-            f"hand.collision_exclude must be a list of at most {MAX_COLLISION_EXCLUDE} "
-            f"[link, link] pairs, got {shorten(excl)}"
-        )
-    urdf = existing_file(h, "urdf", "hand", base_dir)
-    check_text_file(urdf, "hand.urdf", MAX_URDF_BYTES)
-    return HandSpec(
-        builtin=None,
-        urdf=urdf,
-        fingertip_frames=tuple(frames),
-        # absent: read from the URDF's fingertip spheres when the hand is built
-        fingertip_radius=number(
-            h, "fingertip_radius", "hand", lo=0.0, lo_open=True, hi=MAX_FINGERTIP_RADIUS
-        )
-        if "fingertip_radius" in h
-        else None,
-        collision_exclude=tuple((a, b) for a, b in excl),
-        effort_limits=_effort_limits(h),
-        package_dirs=_package_dirs(h, base_dir),
-    )
-
-
-def _package_dirs(h: Mapping[str, Any], base_dir: Path) -> tuple[Path, ...]:
-    """``[hand] package_dirs``: existing folders, relative to the scenario file."""
-    dirs = h.get("package_dirs", [])
-    if not (
-        isinstance(dirs, list)
-        and len(dirs) <= MAX_PACKAGE_DIRS
-        and all(isinstance(d, str) and d and len(d) <= MAX_PATH for d in dirs)
-    ):
-        fail(
-            f"hand.package_dirs must be a list of at most {MAX_PACKAGE_DIRS} folder names, "
-            f"got {shorten(dirs)}"
-        )
-    out = []
-    for d in dirs:
-        path = (base_dir / Path(d).expanduser()).resolve()
-        if not path.is_dir():
-            fail(f"hand.package_dirs: {d!r} is not a folder (looked at {str(path)!r})")
-        out.append(path)
-    return tuple(out)
+    """``[hand]``: a builtin hand, or a URDF or MJCF file (:mod:`.hand_table`)."""
+    _only(h, "hand", SCENARIO_FIELDS["hand"])
+    return hand_spec(h, base_dir)
 
 
 def _params(p: Mapping[str, Any]) -> dict[str, Any]:

@@ -84,7 +84,17 @@ HAND_URDF_FIELDS = frozenset(
         "package_dirs",
     }
 )
-#: Fields of ``[hand]`` both kinds of hand accept.
+HAND_MJCF_FIELDS = frozenset(
+    {
+        "mjcf",
+        "fingertip_frames",
+        "fingertip_radius",
+        "collision_exclude",
+        "effort_limits",
+        "locked_joints",
+    }
+)
+#: Fields of ``[hand]`` every kind of hand accepts.
 HAND_COMMON_FIELDS = frozenset({"effort_limits"})
 OBSTACLE_OWN_FIELDS = frozenset({"name", "pose_xyzquat"})  # beside its shape fields
 OBJECT_OWN_FIELDS = frozenset({"mass"})  # a property of the object, not of its shape
@@ -103,7 +113,8 @@ SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
             "world",
         }
     ),
-    "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS,  # builtin, or urdf and its fields
+    # builtin, or urdf or mjcf and its fields
+    "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS | HAND_MJCF_FIELDS,
     "object": ALL_SHAPE_FIELDS | OBJECT_OWN_FIELDS,  # its shape kind's (SHAPE_FIELDS), mass
     "contact": frozenset(
         {"mu", "friction_edges", "fc_margin", "model", "torsion", "hold_shift", "motion"}
@@ -120,7 +131,7 @@ SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
 
 @dataclass(frozen=True)
 class HandSpec:
-    """Which hand: a builtin name, or a URDF file with its fingertip frames."""
+    """Which hand: a builtin name, or a URDF or MJCF file with its fingertip frames."""
 
     builtin: str | None = "paper"
     urdf: Path | None = None
@@ -133,6 +144,10 @@ class HandSpec:
     #: ``[hand] package_dirs``: folders ``package://`` mesh URIs resolve in
     #: (after the URDF's own folder, before ROS_PACKAGE_PATH)
     package_dirs: tuple[Path, ...] = ()
+    #: ``[hand] mjcf``: the MJCF file (:mod:`dexplan.model.hand.mjcf`)
+    mjcf: Path | None = None
+    #: ``[hand] locked_joints``: MJCF joint values (rad, m) held fixed, by joint name
+    locked_joints: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,414 @@
+"""MJCF hands: Pinocchio's MJCF reader, locked joints, and the URDF a plan carries.
+
+An MJCF hand (``[hand] mjcf``) is read with ``pin.buildModelFromMJCF`` and
+``pin.buildGeomFromMJCF`` (collision geoms: ``contype`` or ``conaffinity``
+non-zero) from a flattened copy of the file (:mod:`.mjcf_xml`), then turned
+into a URDF (:func:`mjcf_hand`) that :class:`~dexplan.model.hand.hand.Hand`
+loads like any other. The plan file carries that URDF, so ``verify``,
+``show``, ``export`` and ``replay`` need neither the MJCF nor its reader, and
+planning and verification check the same model.
+
+The rules (``docs/hands.md``, "MJCF hands"):
+
+- the hand is the top-level ``<worldbody>`` body holding the fingertip frames
+  (sites or bodies); other top-level bodies and the world's own geoms are not;
+- the palm is the deepest body above every fingertip: its frame is the world
+  frame, and the joints above it are locked (at ``[hand] locked_joints``'
+  value, else at 0 clipped into the joint's range), as are the joints of
+  fingers not listed;
+- a coupling (a limited fixed tendon over several joints, a joint equality)
+  between joints that are not locked is refused: lock one of its joints and
+  the others' ranges shrink to what the coupling allows at that value;
+- effort limits are the actuators' (:func:`~.mjcf_xml.effort_limits`);
+- link pairs MuJoCo never checks against each other (``contype`` /
+  ``conaffinity``, parent and child bodies, ``<exclude>``) become
+  ``collision_exclude`` pairs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from dexplan.core.errors import ModelError, shorten
+from dexplan.core.native_output import captured_stderr
+from dexplan.model.hand.mjcf_xml import (
+    Coupling,
+    MjcfDocument,
+    body_of_names,
+    contact_filter,
+    couplings,
+    effort_limits,
+    flatten_mjcf,
+)
+from dexplan.model.hand.packages import package_uri
+
+__all__ = ["MjcfHand", "mjcf_hand"]
+
+#: Effort limit written for joints the MJCF gives none (``[hand] effort_limits`` overrides).
+_NO_EFFORT = 1e4
+_REVOLUTE = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
+_PRISMATIC = {"PX": (1.0, 0.0, 0.0), "PY": (0.0, 1.0, 0.0), "PZ": (0.0, 0.0, 1.0)}
+
+
+@dataclass(frozen=True)
+class MjcfHand:
+    """An MJCF hand as dexplan loads it.
+
+    Attributes:
+        urdf_xml: the URDF exported from the Pinocchio model (palm at the
+            world origin; locked joints frozen; ranges and effort limits set).
+        collision_exclude: link pairs MuJoCo never checks against each other.
+        locked: the locked joints and their values (rad or m).
+        mesh_dirs: folders the URDF's relative mesh paths resolve in.
+    """
+
+    urdf_xml: str
+    collision_exclude: tuple[tuple[str, str], ...]
+    locked: Mapping[str, float]
+    mesh_dirs: tuple[str, ...]
+
+
+def _load(doc: MjcfDocument, name: str) -> tuple[pin.Model, pin.GeometryModel]:
+    """Pinocchio's model and collision model of the flattened document."""
+    failure: Exception | None = None
+    with tempfile.TemporaryDirectory(prefix="dexplan-mjcf-") as tmp:
+        path = Path(tmp) / "hand.xml"
+        path.write_text(ET.tostring(doc.root, encoding="unicode"))
+        with captured_stderr() as err:
+            try:
+                model = pin.buildModelFromMJCF(str(path))
+                geom = pin.buildGeomFromMJCF(model, str(path), pin.COLLISION)
+            except (RuntimeError, ValueError) as exc:
+                failure = exc
+    if failure is not None:
+        detail = err.first_line() or " ".join(str(failure).split()).split("message: ")[-1]
+        raise ModelError(f"cannot load MJCF hand {name!r}: {shorten(detail, 200)}") from failure
+    return model, geom
+
+
+def _chain(model: pin.Model, jid: int) -> list[int]:
+    out = []
+    while jid > 0:
+        out.append(jid)
+        jid = model.parents[jid]
+    return out[::-1]
+
+
+def _locks(
+    model: pin.Model,
+    tips: Sequence[int],
+    given: Mapping[str, float],
+    cups: Sequence[Coupling],
+    name: str,
+) -> tuple[dict[str, float], dict[str, tuple[float, float]], int]:
+    """Locked joint values, narrowed ranges of free joints, and the palm's joint."""
+    names = list(model.names)
+    for joint, value in given.items():
+        if joint not in names[1:]:
+            raise ModelError(
+                f"hand {name!r}: locked_joints names unknown joint {shorten(joint)} "
+                f"(joints: {shorten(names[1:], 200)})"
+            )
+        j = names.index(joint)
+        lo, hi = model.lowerPositionLimit[model.idx_qs[j]], model.upperPositionLimit[model.idx_qs[j]]
+        if not lo - 1e-9 <= value <= hi + 1e-9:
+            raise ModelError(
+                f"hand {name!r}: locked_joints[{joint!r}] = {value!r} is outside the joint's "
+                f"range [{lo:g}, {hi:g}]"
+            )
+    chains = [_chain(model, model.frames[f].parentJoint) for f in tips]
+    common = 0
+    for level in zip(*chains, strict=False):
+        if len(set(level)) != 1:
+            break
+        common = level[0]
+    fingers = {j for c in chains for j in c if j not in _chain(model, common)}
+    locked: dict[str, float] = {}
+    for j in range(1, model.njoints):
+        lo, hi = model.lowerPositionLimit[model.idx_qs[j]], model.upperPositionLimit[model.idx_qs[j]]
+        if names[j] in given:
+            locked[names[j]] = float(given[names[j]])
+        elif j not in fingers:  # above the palm, or a finger not listed
+            locked[names[j]] = float(np.clip(0.0, lo, hi))
+    ranges = {
+        names[j]: (
+            float(model.lowerPositionLimit[model.idx_qs[j]]),
+            float(model.upperPositionLimit[model.idx_qs[j]]),
+        )
+        for j in range(1, model.njoints)
+    }
+    for cup in cups:
+        _apply_coupling(cup, locked, ranges, name)
+    return locked, ranges, common
+
+
+def _apply_coupling(
+    cup: Coupling, locked: dict[str, float], ranges: dict[str, tuple[float, float]], name: str
+) -> None:
+    """Resolve one coupling given the locked joints: narrow, lock, or refuse."""
+    free = [j for j in cup.joints if j not in locked]
+    if cup.kind == "equality":
+        a, poly = cup.joints[0], cup.coefs
+        if len(cup.joints) == 1:
+            free_val: tuple[str, float] | None = (a, poly[0])
+        elif cup.joints[1] in locked:
+            q = locked[cup.joints[1]]
+            free_val = (a, sum(c * q**k for k, c in enumerate(poly)))
+        elif a in locked and any(poly[2:]) is False and poly[1] != 0.0:
+            free_val = (cup.joints[1], (locked[a] - poly[0]) / poly[1])
+        else:
+            free_val = None
+        if free_val is None or (free_val[0] in locked and abs(locked[free_val[0]] - free_val[1]) > 1e-6):
+            _refuse(cup, name)
+        assert free_val is not None
+        locked[free_val[0]] = free_val[1]
+        return
+    if len(free) > 1:
+        _refuse(cup, name)
+    rest = sum(c * locked[j] for j, c in zip(cup.joints, cup.coefs, strict=True) if j in locked)
+    lo, hi = cup.bounds[0] - rest, cup.bounds[1] - rest
+    if not free:
+        if not lo - 1e-9 <= 0.0 <= hi + 1e-9:
+            raise ModelError(
+                f"hand {name!r}: the locked joint values break MJCF {cup.describe()}"
+            )
+        return
+    joint = free[0]
+    coef = cup.coefs[cup.joints.index(joint)]
+    if coef == 0.0:
+        return
+    a, b = sorted((lo / coef, hi / coef))
+    old = ranges[joint]
+    new = (max(old[0], a), min(old[1], b))
+    if new[0] > new[1]:
+        raise ModelError(
+            f"hand {name!r}: joint {joint!r} has no value left within MJCF {cup.describe()} "
+            "at the locked joint values"
+        )
+    ranges[joint] = new
+
+
+def _refuse(cup: Coupling, name: str) -> None:
+    first = cup.joints[0]
+    raise ModelError(
+        f"hand {name!r}: MJCF {cup.describe()} couples joints dexplan would plan independently; "
+        f'lock one of them, e.g. [hand] locked_joints = {{"{first}" = 0.0}}'
+    )
+
+
+# ------------------------------------------------------------------- URDF export
+def _xyz_rpy(m: pin.SE3) -> str:
+    xyz = " ".join(repr(float(v)) for v in m.translation)
+    rpy = " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(m.rotation))
+    return f'<origin xyz="{xyz}" rpy="{rpy}"/>'
+
+
+def _geometry_xml(go: pin.GeometryObject, mesh_dirs: Sequence[Path], name: str) -> str:
+    g = go.geometry
+    if isinstance(g, coal.Sphere):
+        return f'<sphere radius="{g.radius!r}"/>'
+    if isinstance(g, coal.Box):
+        size = " ".join(repr(2.0 * float(v)) for v in g.halfSide)
+        return f'<box size="{size}"/>'
+    if isinstance(g, coal.Capsule):  # dexplan's <capsule>: length between the cap centres
+        return f'<capsule radius="{g.radius!r}" length="{2.0 * g.halfLength!r}"/>'
+    if isinstance(g, coal.Cylinder):
+        return f'<cylinder radius="{g.radius!r}" length="{2.0 * g.halfLength!r}"/>'
+    if go.meshPath and Path(go.meshPath).is_file():
+        scale = " ".join(repr(float(v)) for v in go.meshScale)
+        return f'<mesh filename="{_mesh_uri(Path(go.meshPath), mesh_dirs)}" scale="{scale}"/>'
+    raise ModelError(
+        f"hand {name!r}: collision geom {go.name!r} is a {type(g).__name__}; dexplan reads "
+        "sphere, box, capsule, cylinder and mesh geoms"
+    )
+
+
+def _mesh_uri(path: Path, mesh_dirs: Sequence[Path]) -> str:
+    """A ``package://`` URI inside an installed Python package, else relative to the MJCF."""
+    uri = package_uri(path)
+    if uri is not None:
+        return uri
+    for d in mesh_dirs:
+        try:
+            return path.resolve().relative_to(d.resolve()).as_posix()
+        except ValueError:
+            continue
+    return str(path.resolve())
+
+
+@dataclass(frozen=True)
+class _Export:
+    model: pin.Model
+    geom: pin.GeometryModel
+    base: int  # the palm's BODY frame
+    ranges: Mapping[str, tuple[float, float]]
+    efforts: Mapping[str, float]
+    mesh_dirs: tuple[Path, ...]
+    name: str
+
+
+def _own_body(model: pin.Model, j: int) -> int | None:
+    """The BODY frame a joint moves directly (its MJCF body), or None."""
+    for i, f in enumerate(model.frames):
+        if f.type == pin.FrameType.BODY and f.parentJoint == j:
+            prev = model.frames[f.previousFrame]
+            if prev.type == pin.FrameType.JOINT and prev.parentJoint == j:
+                return i
+    return None
+
+
+def _urdf(ex: _Export, tips: Sequence[str]) -> str:
+    """The URDF text: one link per joint (its body's name), fixed links for the rest.
+
+    Every placement Pinocchio gives is relative to a joint frame; ``frame[L]``
+    is link L's frame relative to its joint's (the identity for a joint's own
+    link, whose frame is the joint frame; the palm's placement for the root).
+    """
+    model = ex.model
+    base = model.frames[ex.base]
+    link_of_joint = {0: base.name}
+    frame = {base.name: base.placement}
+    for j in range(1, model.njoints):
+        own = _own_body(model, j)
+        link_of_joint[j] = model.frames[own].name if own is not None else f"{model.names[j]}_link"
+        frame[link_of_joint[j]] = pin.SE3.Identity()
+    links: list[str] = list(dict.fromkeys(link_of_joint.values()))
+    fixed: list[str] = []
+    for f in model.frames:
+        is_tip = f.type == pin.FrameType.OP_FRAME and f.name in tips
+        if not (f.type == pin.FrameType.BODY or is_tip) or f.name in frame or f.name == "universe":
+            continue
+        parent = link_of_joint[f.parentJoint]
+        frame[f.name] = f.placement
+        links.append(f.name)
+        fixed.append(
+            f'<joint name="{f.name}_fixed" type="fixed"><parent link="{parent}"/>'
+            f'<child link="{f.name}"/>{_xyz_rpy(frame[parent].inverse() * f.placement)}</joint>'
+        )
+    collisions: dict[str, list[str]] = {}
+    for go in ex.geom.geometryObjects:
+        body = model.frames[go.parentFrame].name
+        link = body if body in frame and body in links else link_of_joint[go.parentJoint]
+        place = frame[link].inverse() * go.placement
+        shape = _geometry_xml(go, ex.mesh_dirs, ex.name)
+        collisions.setdefault(link, []).append(
+            f"<collision>{_xyz_rpy(place)}<geometry>{shape}</geometry></collision>"
+        )
+    parts = [f'<robot name="{ex.name}">']
+    parts += [f'<link name="{k}">{"".join(collisions.get(k, []))}</link>' for k in links]
+    for j in range(1, model.njoints):
+        origin = frame[link_of_joint[model.parents[j]]].inverse() * model.jointPlacements[j]
+        parts.append(_joint_xml(ex, j, link_of_joint, origin))
+    return "\n".join([*parts, *fixed, "</robot>"])
+
+
+def _joint_xml(ex: _Export, j: int, link_of_joint: Mapping[int, str], origin: pin.SE3) -> str:
+    model, jname = ex.model, ex.model.names[j]
+    jm = model.joints[j]
+    short = jm.shortname().replace("JointModel", "")
+    if short in _REVOLUTE or short in _PRISMATIC:
+        kind = "revolute" if short in _REVOLUTE else "prismatic"
+        axis = _REVOLUTE.get(short) or _PRISMATIC[short]
+    elif short in ("RevoluteUnaligned", "PrismaticUnaligned"):
+        kind = "revolute" if short.startswith("Revolute") else "prismatic"
+        axis = tuple(float(v) for v in jm.extract().axis)
+    else:
+        raise ModelError(
+            f"hand {ex.name!r}: joint {jname!r} is a {short} joint; dexplan plans hinge and "
+            "slide joints (lock it with [hand] locked_joints)"
+        )
+    lo, hi = ex.ranges[jname]
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ModelError(f"hand {ex.name!r}: joint {jname!r} has no finite range in the MJCF")
+    effort = ex.efforts.get(jname, _NO_EFFORT)
+    return (
+        f'<joint name="{jname}" type="{kind}"><parent link="{link_of_joint[model.parents[j]]}"/>'
+        f'<child link="{link_of_joint[j]}"/>{_xyz_rpy(origin)}'
+        f'<axis xyz="{" ".join(repr(a) for a in axis)}"/>'
+        f'<limit lower="{lo!r}" upper="{hi!r}" effort="{effort!r}" velocity="10"/></joint>'
+    )
+
+
+def _excluded_links(
+    model: pin.Model, doc: MjcfDocument, links: Sequence[str]
+) -> tuple[tuple[str, str], ...]:
+    """Link pairs MuJoCo's filters never let touch (contype/conaffinity, parent-child, exclude)."""
+    filt = contact_filter(doc)
+    with_geoms = [b for b in links if filt.geoms.get(b)]
+    out = []
+    for k, a in enumerate(with_geoms):
+        for b in with_geoms[k + 1 :]:
+            if not filt.bodies_collide(a, b):
+                out.append((a, b))
+    return tuple(out)
+
+
+def mjcf_hand(
+    path: Path,
+    fingertip_frames: Sequence[str],
+    locked_joints: Mapping[str, float] | None = None,
+    *,
+    name: str = "hand",
+) -> MjcfHand:
+    """Load an MJCF hand and export the URDF dexplan plans with.
+
+    Args:
+        path: the MJCF file.
+        fingertip_frames: per finger, a site or body at its fingertip sphere's centre.
+        locked_joints: joint values (rad, m) to lock, by MJCF joint name.
+        name: the hand's name, for messages and the URDF's ``<robot name>``.
+
+    Raises:
+        ModelError: unreadable MJCF, unknown fingertip frames or joints, a
+            coupling between joints that are not locked, a joint that is
+            neither hinge nor slide, a geom dexplan cannot represent.
+    """
+    path = Path(path)
+    tops = body_of_names(flatten_mjcf(path))
+    hand_bodies = {tops[t] for t in fingertip_frames if t in tops}
+    missing = [t for t in fingertip_frames if t not in tops]
+    if missing or len(hand_bodies) != 1:
+        what = f"unknown fingertip frame {missing[0]!r}" if missing else "fingertips on several bodies"
+        raise ModelError(
+            f"hand {name!r}: {what} in MJCF file {str(path)!r} (sites and bodies: "
+            f"{shorten(sorted(tops), 200)})"
+        )
+    doc = flatten_mjcf(path, keep_body=hand_bodies.pop())
+    full, geom = _load(doc, name)
+    tip_ids = [full.getFrameId(t) for t in fingertip_frames]
+    locked, ranges, palm_joint = _locks(full, tip_ids, dict(locked_joints or {}), couplings(doc), name)
+    q_ref = pin.neutral(full)
+    for joint, value in locked.items():
+        q_ref[full.idx_qs[full.getJointId(joint)]] = value
+    lock_ids = [full.getJointId(j) for j in locked]
+    palm = _own_body(full, palm_joint) if palm_joint else next(
+        i for i, f in enumerate(full.frames) if f.type == pin.FrameType.BODY and i > 0
+    )
+    assert palm is not None
+    palm_name = full.frames[palm].name
+    model, geom = pin.buildReducedModel(full, geom, lock_ids, q_ref)
+    mesh_dirs = (path.resolve().parent,)
+    ex = _Export(
+        model, geom, model.getFrameId(palm_name), ranges, effort_limits(doc), mesh_dirs, name
+    )
+    urdf = _urdf(ex, fingertip_frames)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    note = (
+        f"<!-- dexplan: exported from MJCF {path.name} (sha256 {digest}); palm {palm_name!r} "
+        f"at the origin; locked joints: {', '.join(f'{k}={v:.6g}' for k, v in locked.items()) or 'none'} -->"
+    )
+    urdf = urdf.replace(">", ">\n" + note, 1)
+    links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    return MjcfHand(
+        urdf, _excluded_links(model, doc, links), locked, tuple(str(d) for d in mesh_dirs)
+    )
