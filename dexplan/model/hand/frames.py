@@ -16,7 +16,21 @@ import pinocchio as pin
 from dexplan.core.errors import ModelError, shorten
 from dexplan.core.typing import FloatArray
 
-__all__ = ["finger_joint_indices", "fingertip_frame_id", "fingertip_list", "joint_limits"]
+__all__ = [
+    "finger_joint_indices",
+    "fingertip_frame_id",
+    "fingertip_list",
+    "joint_limits",
+    "joint_names",
+]
+
+
+def joint_names(model: pin.Model) -> tuple[str, ...]:
+    """Names of the joints with a value of their own, in ``q`` order.
+
+    A ``<mimic>`` joint follows another joint's value and has none (nq = 0).
+    """
+    return tuple(model.names[j] for j in range(1, model.njoints) if model.joints[j].nq > 0)
 
 
 def joint_limits(
@@ -91,7 +105,8 @@ def finger_joint_indices(model: pin.Model, fid: int, tip: str) -> list[int]:
     chain = []
     jid = model.frames[fid].parentJoint
     while jid > 0:
-        chain.append(model.joints[jid].idx_q)
+        if model.joints[jid].nq > 0:  # a mimic joint moves with its primary's value
+            chain.append(model.joints[jid].idx_q)
         jid = model.parents[jid]
     chain.sort()
     if not chain:

@@ -29,6 +29,7 @@ from dexplan.model.hand.frames import (
     fingertip_frame_id,
     fingertip_list,
     joint_limits,
+    joint_names,
 )
 from dexplan.model.hand.ik import (
     FingerChain,
@@ -128,7 +129,7 @@ class Hand:
         self.mesh_sha256: dict[str, str] = mesh_sha256(self.urdf_xml, self.package_dirs)
         self.data: pin.Data = self.model.createData()
 
-        self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])
+        self.joint_names: tuple[str, ...] = joint_names(self.model)
         self.lower, self.upper = joint_limits(self.model, self.joint_names, name)
         links = {f.name for f in self.model.frames if f.type == pin.FrameType.BODY}
         self.collision_exclude = check_collision_exclude(collision_exclude, links, name)

@@ -41,9 +41,10 @@ import pinocchio as pin
 
 from dexplan.core.errors import ModelError, shorten
 from dexplan.core.native_output import captured_stderr
+from dexplan.model.hand.couplings import ResolvedJoints, resolve_couplings
 from dexplan.model.hand.mjcf_xml import (
-    Coupling,
     MjcfDocument,
+    actuated_joints,
     body_of_names,
     contact_filter,
     couplings,
@@ -69,12 +70,14 @@ class MjcfHand:
             world origin; locked joints frozen; ranges and effort limits set).
         collision_exclude: link pairs MuJoCo never checks against each other.
         locked: the locked joints and their values (rad or m).
+        mimic: the joints that follow another (a coupling), by name: the joint followed.
         mesh_dirs: folders the URDF's relative mesh paths resolve in.
     """
 
     urdf_xml: str
     collision_exclude: tuple[tuple[str, str], ...]
     locked: Mapping[str, float]
+    mimic: Mapping[str, str]
     mesh_dirs: tuple[str, ...]
 
 
@@ -108,19 +111,25 @@ def _locks(
     model: pin.Model,
     tips: Sequence[int],
     given: Mapping[str, float],
-    cups: Sequence[Coupling],
+    doc: MjcfDocument,
     name: str,
-) -> tuple[dict[str, float], dict[str, tuple[float, float]], int]:
-    """Locked joint values, narrowed ranges of free joints, and the palm's joint."""
+) -> tuple[ResolvedJoints, int]:
+    """Locked, following and free joints with their ranges; and the palm's joint."""
     names = list(model.names)
+    ranges = {
+        names[j]: (
+            float(model.lowerPositionLimit[model.idx_qs[j]]),
+            float(model.upperPositionLimit[model.idx_qs[j]]),
+        )
+        for j in range(1, model.njoints)
+    }
     for joint, value in given.items():
-        if joint not in names[1:]:
+        if joint not in ranges:
             raise ModelError(
                 f"hand {name!r}: locked_joints names unknown joint {shorten(joint)} "
                 f"(joints: {shorten(names[1:], 200)})"
             )
-        j = names.index(joint)
-        lo, hi = model.lowerPositionLimit[model.idx_qs[j]], model.upperPositionLimit[model.idx_qs[j]]
+        lo, hi = ranges[joint]
         if not lo - 1e-9 <= value <= hi + 1e-9:
             raise ModelError(
                 f"hand {name!r}: locked_joints[{joint!r}] = {value!r} is outside the joint's "
@@ -132,78 +141,16 @@ def _locks(
         if len(set(level)) != 1:
             break
         common = level[0]
-    fingers = {j for c in chains for j in c if j not in _chain(model, common)}
+    above = set(_chain(model, common))
+    fingers = {j for c in chains for j in c if j not in above}
     locked: dict[str, float] = {}
     for j in range(1, model.njoints):
-        lo, hi = model.lowerPositionLimit[model.idx_qs[j]], model.upperPositionLimit[model.idx_qs[j]]
         if names[j] in given:
             locked[names[j]] = float(given[names[j]])
         elif j not in fingers:  # above the palm, or a finger not listed
-            locked[names[j]] = float(np.clip(0.0, lo, hi))
-    ranges = {
-        names[j]: (
-            float(model.lowerPositionLimit[model.idx_qs[j]]),
-            float(model.upperPositionLimit[model.idx_qs[j]]),
-        )
-        for j in range(1, model.njoints)
-    }
-    for cup in cups:
-        _apply_coupling(cup, locked, ranges, name)
-    return locked, ranges, common
-
-
-def _apply_coupling(
-    cup: Coupling, locked: dict[str, float], ranges: dict[str, tuple[float, float]], name: str
-) -> None:
-    """Resolve one coupling given the locked joints: narrow, lock, or refuse."""
-    free = [j for j in cup.joints if j not in locked]
-    if cup.kind == "equality":
-        a, poly = cup.joints[0], cup.coefs
-        if len(cup.joints) == 1:
-            free_val: tuple[str, float] | None = (a, poly[0])
-        elif cup.joints[1] in locked:
-            q = locked[cup.joints[1]]
-            free_val = (a, sum(c * q**k for k, c in enumerate(poly)))
-        elif a in locked and any(poly[2:]) is False and poly[1] != 0.0:
-            free_val = (cup.joints[1], (locked[a] - poly[0]) / poly[1])
-        else:
-            free_val = None
-        if free_val is None or (free_val[0] in locked and abs(locked[free_val[0]] - free_val[1]) > 1e-6):
-            _refuse(cup, name)
-        assert free_val is not None
-        locked[free_val[0]] = free_val[1]
-        return
-    if len(free) > 1:
-        _refuse(cup, name)
-    rest = sum(c * locked[j] for j, c in zip(cup.joints, cup.coefs, strict=True) if j in locked)
-    lo, hi = cup.bounds[0] - rest, cup.bounds[1] - rest
-    if not free:
-        if not lo - 1e-9 <= 0.0 <= hi + 1e-9:
-            raise ModelError(
-                f"hand {name!r}: the locked joint values break MJCF {cup.describe()}"
-            )
-        return
-    joint = free[0]
-    coef = cup.coefs[cup.joints.index(joint)]
-    if coef == 0.0:
-        return
-    a, b = sorted((lo / coef, hi / coef))
-    old = ranges[joint]
-    new = (max(old[0], a), min(old[1], b))
-    if new[0] > new[1]:
-        raise ModelError(
-            f"hand {name!r}: joint {joint!r} has no value left within MJCF {cup.describe()} "
-            "at the locked joint values"
-        )
-    ranges[joint] = new
-
-
-def _refuse(cup: Coupling, name: str) -> None:
-    first = cup.joints[0]
-    raise ModelError(
-        f"hand {name!r}: MJCF {cup.describe()} couples joints dexplan would plan independently; "
-        f'lock one of them, e.g. [hand] locked_joints = {{"{first}" = 0.0}}'
-    )
+            locked[names[j]] = float(np.clip(0.0, *ranges[names[j]]))
+    resolved = resolve_couplings(couplings(doc), locked, ranges, actuated_joints(doc), name)
+    return resolved, common
 
 
 # ------------------------------------------------------------------- URDF export
@@ -251,7 +198,7 @@ class _Export:
     model: pin.Model
     geom: pin.GeometryModel
     base: int  # the palm's BODY frame
-    ranges: Mapping[str, tuple[float, float]]
+    joints: ResolvedJoints
     efforts: Mapping[str, float]
     mesh_dirs: tuple[Path, ...]
     name: str
@@ -327,21 +274,26 @@ def _joint_xml(ex: _Export, j: int, link_of_joint: Mapping[int, str], origin: pi
             f"hand {ex.name!r}: joint {jname!r} is a {short} joint; dexplan plans hinge and "
             "slide joints (lock it with [hand] locked_joints)"
         )
-    lo, hi = ex.ranges[jname]
+    lo, hi = ex.joints.ranges[jname]
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise ModelError(f"hand {ex.name!r}: joint {jname!r} has no finite range in the MJCF")
     effort = ex.efforts.get(jname, _NO_EFFORT)
+    m = ex.joints.mimic.get(jname)
+    mimic = (
+        ""
+        if m is None
+        else f'<!-- {m.source.replace("--", "- -")} --><mimic joint="{m.primary}" multiplier="{m.multiplier!r}" '
+        f'offset="{m.offset!r}"/>'
+    )
     return (
         f'<joint name="{jname}" type="{kind}"><parent link="{link_of_joint[model.parents[j]]}"/>'
         f'<child link="{link_of_joint[j]}"/>{_xyz_rpy(origin)}'
         f'<axis xyz="{" ".join(repr(a) for a in axis)}"/>'
-        f'<limit lower="{lo!r}" upper="{hi!r}" effort="{effort!r}" velocity="10"/></joint>'
+        f'<limit lower="{lo!r}" upper="{hi!r}" effort="{effort!r}" velocity="10"/>{mimic}</joint>'
     )
 
 
-def _excluded_links(
-    model: pin.Model, doc: MjcfDocument, links: Sequence[str]
-) -> tuple[tuple[str, str], ...]:
+def _excluded_links(doc: MjcfDocument, links: Sequence[str]) -> tuple[tuple[str, str], ...]:
     """Link pairs MuJoCo's filters never let touch (contype/conaffinity, parent-child, exclude)."""
     filt = contact_filter(doc)
     with_geoms = [b for b in links if filt.geoms.get(b)]
@@ -378,7 +330,9 @@ def mjcf_hand(
     hand_bodies = {tops[t] for t in fingertip_frames if t in tops}
     missing = [t for t in fingertip_frames if t not in tops]
     if missing or len(hand_bodies) != 1:
-        what = f"unknown fingertip frame {missing[0]!r}" if missing else "fingertips on several bodies"
+        what = (
+            f"unknown fingertip frame {missing[0]!r}" if missing else "fingertips on several bodies"
+        )
         raise ModelError(
             f"hand {name!r}: {what} in MJCF file {str(path)!r} (sites and bodies: "
             f"{shorten(sorted(tops), 200)})"
@@ -386,29 +340,30 @@ def mjcf_hand(
     doc = flatten_mjcf(path, keep_body=hand_bodies.pop())
     full, geom = _load(doc, name)
     tip_ids = [full.getFrameId(t) for t in fingertip_frames]
-    locked, ranges, palm_joint = _locks(full, tip_ids, dict(locked_joints or {}), couplings(doc), name)
+    joints, palm_joint = _locks(full, tip_ids, dict(locked_joints or {}), doc, name)
     q_ref = pin.neutral(full)
-    for joint, value in locked.items():
+    for joint, value in joints.locked.items():
         q_ref[full.idx_qs[full.getJointId(joint)]] = value
-    lock_ids = [full.getJointId(j) for j in locked]
-    palm = _own_body(full, palm_joint) if palm_joint else next(
-        i for i, f in enumerate(full.frames) if f.type == pin.FrameType.BODY and i > 0
-    )
+    palm = _own_body(full, palm_joint) if palm_joint else 1  # frame 1: the first body
     assert palm is not None
     palm_name = full.frames[palm].name
+    lock_ids = [full.getJointId(j) for j in joints.locked]
     model, geom = pin.buildReducedModel(full, geom, lock_ids, q_ref)
     mesh_dirs = (path.resolve().parent,)
-    ex = _Export(
-        model, geom, model.getFrameId(palm_name), ranges, effort_limits(doc), mesh_dirs, name
-    )
-    urdf = _urdf(ex, fingertip_frames)
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    efforts = effort_limits(doc)
+    ex = _Export(model, geom, model.getFrameId(palm_name), joints, efforts, mesh_dirs, name)
+    locks = ", ".join(f"{k}={v:.6g}" for k, v in joints.locked.items()) or "none"
     note = (
-        f"<!-- dexplan: exported from MJCF {path.name} (sha256 {digest}); palm {palm_name!r} "
-        f"at the origin; locked joints: {', '.join(f'{k}={v:.6g}' for k, v in locked.items()) or 'none'} -->"
+        f"<!-- dexplan: exported from MJCF {path.name} (sha256 "
+        f"{hashlib.sha256(path.read_bytes()).hexdigest()}); palm {palm_name!r} at the origin; "
+        f"locked joints: {locks} -->"
     )
-    urdf = urdf.replace(">", ">\n" + note, 1)
+    urdf = _urdf(ex, fingertip_frames).replace(">", ">\n" + note, 1)
     links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     return MjcfHand(
-        urdf, _excluded_links(model, doc, links), locked, tuple(str(d) for d in mesh_dirs)
+        urdf,
+        _excluded_links(doc, links),
+        dict(joints.locked),
+        {k: m.primary for k, m in joints.mimic.items()},
+        tuple(str(d) for d in mesh_dirs),
     )

@@ -34,6 +34,8 @@ __all__ = [
     "ContactFilter",
     "Coupling",
     "MjcfDocument",
+    "actuated_joints",
+    "body_of_names",
     "contact_filter",
     "couplings",
     "effort_limits",
@@ -73,7 +75,9 @@ class MjcfDocument:
             cls = parent
         return None
 
-    def floats(self, elem: ET.Element, key: str, what: str, active: str | None = None) -> list[float]:
+    def floats(
+        self, elem: ET.Element, key: str, what: str, active: str | None = None
+    ) -> list[float]:
         """The numbers of attribute ``key`` (empty when absent)."""
         raw = self.attr(elem, key, active)
         if raw is None:
@@ -150,7 +154,9 @@ def flatten_mjcf(path: Path, keep_body: str | None = None) -> MjcfDocument:
     except OSError as exc:
         raise ModelError(f"cannot read MJCF file {str(path)!r}: {exc.strerror}") from None
     if root.tag != "mujoco":
-        raise ModelError(f"MJCF file {str(path)!r}: root element must be <mujoco>, got <{root.tag}>")
+        raise ModelError(
+            f"MJCF file {str(path)!r}: root element must be <mujoco>, got <{root.tag}>"
+        )
     folder = path.resolve().parent
     _splice_includes(root, folder, 0)
     _absolute_asset_dirs(root, folder)
@@ -225,6 +231,16 @@ def effort_limits(doc: MjcfDocument) -> dict[str, float]:
     return {k: v for k, v in out.items() if v > 0.0}
 
 
+def actuated_joints(doc: MjcfDocument) -> set[str]:
+    """The joints an actuator drives (its ``joint`` attribute)."""
+    return {
+        a.get("joint", "")
+        for act in doc.root.iter("actuator")
+        for a in act
+        if a.tag in ACTUATOR_TAGS and a.get("joint")
+    }
+
+
 # ------------------------------------------------------------------ couplings
 @dataclass(frozen=True)
 class Coupling:
@@ -248,8 +264,12 @@ class Coupling:
     def describe(self) -> str:
         """One line: the constraint as the MJCF states it."""
         if self.kind == "tendon":
-            terms = " + ".join(f"{c:g} q[{j!r}]" for j, c in zip(self.joints, self.coefs, strict=True))
-            return f"fixed tendon {self.name!r} ({self.bounds[0]:g} <= {terms} <= {self.bounds[1]:g})"
+            terms = " + ".join(
+                f"{c:g} q[{j!r}]" for j, c in zip(self.joints, self.coefs, strict=True)
+            )
+            return (
+                f"fixed tendon {self.name!r} ({self.bounds[0]:g} <= {terms} <= {self.bounds[1]:g})"
+            )
         rhs = f"poly({self.joints[1]!r})" if len(self.joints) > 1 else f"{self.coefs[0]:g}"
         return f"joint equality {self.name!r} (q[{self.joints[0]!r}] = {rhs})"
 
@@ -276,7 +296,8 @@ def couplings(doc: MjcfDocument) -> list[Coupling]:
                 continue
             rng = doc.floats(t, "range", f"MJCF tendon {name!r}")
             joints = tuple(j.get("joint", "") for j in t.findall("joint"))
-            coefs = tuple(doc.floats(j, "coef", f"MJCF tendon {name!r}")[0] for j in t.findall("joint"))
+            what = f"MJCF tendon {name!r}"
+            coefs = tuple((doc.floats(j, "coef", what) or [0.0])[0] for j in t.findall("joint"))
             if len(rng) == 2 and joints:
                 out.append(Coupling("tendon", name, joints, coefs, (rng[0], rng[1])))
     for eq in doc.root.iter("equality"):
@@ -286,12 +307,13 @@ def couplings(doc: MjcfDocument) -> list[Coupling]:
                 continue
             if e.tag == "joint":
                 joints = tuple(j for j in (e.get("joint1"), e.get("joint2")) if j)
-                poly = tuple(doc.floats(e, "polycoef", f"MJCF equality {name!r}") or [0, 1, 0, 0, 0])
+                what = f"MJCF equality {name!r}"
+                poly = tuple(doc.floats(e, "polycoef", what) or [0.0, 1.0, 0.0, 0.0, 0.0])
                 out.append(Coupling("equality", name, joints, poly))
             elif e.tag in ("connect", "weld", "distance"):
                 raise ModelError(
                     f"MJCF equality <{e.tag}> {name!r} closes a kinematic loop: dexplan plans "
-                    "for tree-shaped hands (remove it, or set active=\"false\")"
+                    'for tree-shaped hands (remove it, or set active="false")'
                 )
     return out
 

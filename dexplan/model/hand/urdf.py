@@ -254,7 +254,10 @@ def _kinematic_model(desc: UrdfDescription, name: str) -> tuple[pin.Model, str]:
     failure: Exception | None = None
     with captured_stderr() as err:
         try:
-            model = pin.buildModelFromXML(desc.pinocchio_xml)
+            # <mimic> joints (an MJCF hand's couplings, .couplings) follow
+            # their joint exactly: one degree of freedom, as Pinocchio models it
+            mimic = "<mimic" in desc.pinocchio_xml
+            model = pin.buildModelFromXML(desc.pinocchio_xml, mimic=mimic)
         except (RuntimeError, ValueError) as exc:
             failure = exc
     if failure is not None:

@@ -73,7 +73,8 @@ class FingerChain:
         for j in jids:
             M = model.jointPlacements[j]
             placements.append((np.array(M.rotation), np.array(M.translation)))
-            w = J[3:, model.joints[j].idx_v]
+            # idx_vExtended: with <mimic> joints the columns of J include theirs
+            w = J[3:, model.joints[j].idx_vExtended]
             axes.append(data.oMi[j].rotation.T @ w)
         axes_arr = np.array(axes)
         axes_arr /= np.linalg.norm(axes_arr, axis=1, keepdims=True)
