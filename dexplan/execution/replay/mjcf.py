@@ -42,6 +42,7 @@ import pinocchio as pin
 from dexplan.core.typing import FloatArray
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.hand.hand import Hand
+from dexplan.model.hand.mimic import MimicJoint
 from dexplan.planfile import shape_of
 
 __all__ = [
@@ -151,7 +152,15 @@ def build_mjcf(
     start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
     actuators = "\n".join(_actuator_xml(model, n) for n in hand.joint_names)
     palm = "\n".join("    " + g for g in geoms_of.get(0, []))
-    tree = "\n".join(_body_xml(model, c, "    ", geoms_of, children) for c in children.get(0, []))
+    mimic = hand.mimic_joints  # coupled joints follow through a joint equality
+    tree = "\n".join(
+        _body_xml(model, c, "    ", geoms_of, children, mimic) for c in children.get(0, [])
+    )
+    equality = "\n".join(
+        f'    <joint joint1="{n}" joint2="{m.primary}" '
+        f'polycoef="{m.offset!r} {m.multiplier!r} 0 0 0"/>'
+        for n, m in mimic.items()
+    )
     xml = f"""<mujoco model="dexplan replay">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{TIMESTEP:g}" gravity="{_f(gravity)}" cone="elliptic" impratio="10"
@@ -171,6 +180,9 @@ def build_mjcf(
   <actuator>
 {actuators}
   </actuator>
+  <equality>
+{equality}
+  </equality>
 </mujoco>
 """
     return xml, tips
@@ -250,6 +262,7 @@ def _body_xml(
     indent: str,
     geoms_of: Mapping[int, list[str]],
     children: Mapping[int, list[int]],
+    mimic: Mapping[str, MimicJoint],
 ) -> str:
     """MJCF body of Pinocchio joint ``j`` and, nested, of every joint below it.
 
@@ -259,13 +272,18 @@ def _body_xml(
         indent: the body's indentation.
         geoms_of: the hand geoms by joint (:func:`_hand_geoms`).
         children: the child joints of each joint.
+        mimic: the hand's mimic joints (``Hand.mimic_joints``).
     """
     name = model.names[j]
     jm = model.joints[j]
     short = jm.shortname()
     kind = "slide" if "Prismatic" in short or short.startswith("JointModelP") else "hinge"
-    axis = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
-    if axis is None:
+    axis: tuple[float, ...] | None = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}.get(short[-1])
+    follower = mimic.get(name)
+    if follower is not None:  # Pinocchio does not expose a mimic joint's own axis
+        kind = "slide" if follower.kind == "prismatic" else "hinge"
+        axis = follower.axis
+    elif axis is None:
         axis = tuple(np.asarray(jm.extract().axis, dtype=float))
     inertia = model.inertias[j]
     m = max(float(inertia.mass), 1e-4)
@@ -276,7 +294,9 @@ def _body_xml(
     lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
     # the joint's total actuator torque, the links' gravity compensation included,
     # is clamped to the effort limit: a real hand's motors do both
-    e = _effort(model, j)
+    e = _effort(model, j) if follower is None else None
+    if follower is not None:
+        lo, hi = follower.lower, follower.upper
     limit = "" if e is None else f' actuatorgravcomp="true" actuatorfrcrange="{-e:.9g} {e:.9g}"'
     parts = [
         f'{indent}<body name="b_{name}" {_pose_attrs(model.jointPlacements[j])} gravcomp="1">',
@@ -286,7 +306,7 @@ def _body_xml(
     ]
     parts += [indent + "  " + g for g in geoms_of.get(j, [])]
     for c in children.get(j, []):
-        parts.append(_body_xml(model, c, indent + "  ", geoms_of, children))
+        parts.append(_body_xml(model, c, indent + "  ", geoms_of, children, mimic))
     parts.append(f"{indent}</body>")
     return "\n".join(parts)
 

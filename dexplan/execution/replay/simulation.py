@@ -347,6 +347,9 @@ class _Replay:
         """Settle at the start, then follow the trajectory to its end or the drop."""
         mujoco, m, d, traj, oq = self.mujoco, self.m, self.d, self.traj, self.oq
         d.qpos[self.jq] = traj.q[0]
+        for name, mim in self.hand.mimic_joints.items():  # coupled joints start coupled
+            q_primary = traj.q[0][self.hand.joint_names.index(mim.primary)]
+            d.qpos[m.jnt_qposadr[m.joint(name).id]] = mim.multiplier * q_primary + mim.offset
         d.qpos[oq : oq + 3] = traj.object_pose[0, :3]
         d.qpos[oq + 3 : oq + 7] = traj.object_pose[0, [6, 3, 4, 5]]
         mujoco.mj_forward(m, d)

@@ -41,7 +41,8 @@ from dexplan.model.hand.ik import (
     branch_solutions,
     finger_dls,
 )
-from dexplan.model.hand.mjcf import mjcf_hand
+from dexplan.model.hand.mimic import MimicJoint, mimic_joints
+from dexplan.model.hand.mjcf import mjcf_arguments
 from dexplan.model.hand.packages import mesh_sha256, search_dirs
 from dexplan.model.hand.reach import ReachVoxels, reach_samples
 from dexplan.model.hand.urdf import (
@@ -128,6 +129,8 @@ class Hand:
         #: SHA-256 of each collision mesh by URI as the URDF gives it (plan files carry it)
         self.mesh_sha256: dict[str, str] = mesh_sha256(self.urdf_xml, self.package_dirs)
         self.data: pin.Data = self.model.createData()
+        #: joints that follow another (URDF ``<mimic>``, an MJCF coupling), not in ``q``
+        self.mimic_joints: dict[str, MimicJoint] = mimic_joints(self.urdf_xml)
 
         self.joint_names: tuple[str, ...] = joint_names(self.model)
         self.lower, self.upper = joint_limits(self.model, self.joint_names, name)
@@ -191,12 +194,9 @@ class Hand:
         """The hand a scenario's ``[hand]`` table names: builtin, a URDF or an MJCF file."""
         if spec.builtin is not None:
             return cls.builtin(spec.builtin, effort_limits=spec.effort_limits)
-        if spec.mjcf is not None:  # exported to a URDF, which plan files carry (.mjcf)
-            m = mjcf_hand(spec.mjcf, spec.fingertip_frames, spec.locked_joints, name=spec.mjcf.stem)
-            exclude = (*m.collision_exclude, *spec.collision_exclude)
-            return cls(m.urdf_xml, spec.fingertip_frames, spec.fingertip_radius,
-                       collision_exclude=exclude, name=spec.mjcf.stem,
-                       package_dirs=m.mesh_dirs, effort_limits=spec.effort_limits)  # fmt: skip
+        if spec.mjcf is not None:  # exported to the URDF plan files carry (.mjcf)
+            urdf_xml, kwargs = mjcf_arguments(spec)
+            return cls(urdf_xml, spec.fingertip_frames, spec.fingertip_radius, **kwargs)
         assert spec.urdf is not None
         return cls.from_urdf_file(
             spec.urdf,

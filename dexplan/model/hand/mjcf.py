@@ -34,6 +34,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import coal
 import numpy as np
@@ -52,8 +53,9 @@ from dexplan.model.hand.mjcf_xml import (
     flatten_mjcf,
 )
 from dexplan.model.hand.packages import package_uri
+from dexplan.model.scenario.spec import HandSpec
 
-__all__ = ["MjcfHand", "mjcf_hand"]
+__all__ = ["MjcfHand", "mjcf_arguments", "mjcf_hand"]
 
 #: Effort limit written for joints the MJCF gives none (``[hand] effort_limits`` overrides).
 _NO_EFFORT = 1e4
@@ -251,12 +253,32 @@ def _urdf(ex: _Export, tips: Sequence[str]) -> str:
         collisions.setdefault(link, []).append(
             f"<collision>{_xyz_rpy(place)}<geometry>{shape}</geometry></collision>"
         )
+    inertials = {
+        link_of_joint[j]: _inertial_xml(model.inertias[j]) for j in range(1, model.njoints)
+    }
     parts = [f'<robot name="{ex.name}">']
-    parts += [f'<link name="{k}">{"".join(collisions.get(k, []))}</link>' for k in links]
+    parts += [
+        f'<link name="{k}">{inertials.get(k, "")}{"".join(collisions.get(k, []))}</link>'
+        for k in links
+    ]
     for j in range(1, model.njoints):
         origin = frame[link_of_joint[model.parents[j]]].inverse() * model.jointPlacements[j]
         parts.append(_joint_xml(ex, j, link_of_joint, origin))
     return "\n".join([*parts, *fixed, "</robot>"])
+
+
+def _inertial_xml(inertia: pin.Inertia) -> str:
+    """A joint link's ``<inertial>``: the MJCF bodies it moves, merged by Pinocchio.
+
+    The replay's physics needs them; planning does not.
+    """
+    rows = np.asarray(inertia.inertia, dtype=float).tolist()  # about the centre of mass
+    com = " ".join(repr(float(v)) for v in inertia.lever)
+    return (
+        f'<inertial><origin xyz="{com}" rpy="0 0 0"/><mass value="{float(inertia.mass)!r}"/>'
+        f'<inertia ixx="{rows[0][0]!r}" ixy="{rows[0][1]!r}" ixz="{rows[0][2]!r}" '
+        f'iyy="{rows[1][1]!r}" iyz="{rows[1][2]!r}" izz="{rows[2][2]!r}"/></inertial>'
+    )
 
 
 def _joint_xml(ex: _Export, j: int, link_of_joint: Mapping[int, str], origin: pin.SE3) -> str:
@@ -268,7 +290,8 @@ def _joint_xml(ex: _Export, j: int, link_of_joint: Mapping[int, str], origin: pi
         axis = _REVOLUTE.get(short) or _PRISMATIC[short]
     elif short in ("RevoluteUnaligned", "PrismaticUnaligned"):
         kind = "revolute" if short.startswith("Revolute") else "prismatic"
-        axis = tuple(float(v) for v in jm.extract().axis)
+        x, y, z = (float(v) for v in jm.extract().axis)
+        axis = (x, y, z)
     else:
         raise ModelError(
             f"hand {ex.name!r}: joint {jname!r} is a {short} joint; dexplan plans hinge and "
@@ -279,12 +302,13 @@ def _joint_xml(ex: _Export, j: int, link_of_joint: Mapping[int, str], origin: pi
         raise ModelError(f"hand {ex.name!r}: joint {jname!r} has no finite range in the MJCF")
     effort = ex.efforts.get(jname, _NO_EFFORT)
     m = ex.joints.mimic.get(jname)
-    mimic = (
-        ""
-        if m is None
-        else f'<!-- {m.source.replace("--", "- -")} --><mimic joint="{m.primary}" multiplier="{m.multiplier!r}" '
-        f'offset="{m.offset!r}"/>'
-    )
+    mimic = ""
+    if m is not None:  # the coupling it comes from, as a comment (no "--" in XML comments)
+        source = m.source.replace("--", "- -")
+        mimic = (
+            f'<!-- {source} --><mimic joint="{m.primary}" multiplier="{m.multiplier!r}" '
+            f'offset="{m.offset!r}"/>'
+        )
     return (
         f'<joint name="{jname}" type="{kind}"><parent link="{link_of_joint[model.parents[j]]}"/>'
         f'<child link="{link_of_joint[j]}"/>{_xyz_rpy(origin)}'
@@ -367,3 +391,16 @@ def mjcf_hand(
         {k: m.primary for k, m in joints.mimic.items()},
         tuple(str(d) for d in mesh_dirs),
     )
+
+
+def mjcf_arguments(spec: HandSpec) -> tuple[str, dict[str, Any]]:
+    """The URDF text and the keyword arguments of the :class:`Hand` a ``[hand] mjcf`` names."""
+    assert spec.mjcf is not None
+    name = spec.mjcf.stem
+    m = mjcf_hand(spec.mjcf, spec.fingertip_frames, spec.locked_joints, name=name)
+    return m.urdf_xml, {
+        "collision_exclude": (*m.collision_exclude, *spec.collision_exclude),
+        "name": name,
+        "package_dirs": m.mesh_dirs,
+        "effort_limits": spec.effort_limits,
+    }
