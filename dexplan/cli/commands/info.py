@@ -88,8 +88,10 @@ def _write_joints(out: TextIO, model: pin.Model, finger_of: dict[int, int]) -> N
     """The joints in planning order (the plan's ``joint_names``), limits and effort."""
     out.write("joints (planning order): index, name, finger, lower, upper (rad), "
               "velocity (rad/s), effort (N m)\n")  # fmt: skip
-    for j, name in enumerate(model.names[1:]):
-        idx_v = model.joints[j + 1].idx_v
+    # joints with a value of their own: a mimic joint (a coupling) follows another's
+    own = [jid for jid in range(1, model.njoints) if model.joints[jid].nq > 0]
+    for j, jid in enumerate(own):
+        name, idx_v = model.names[jid], model.joints[jid].idx_v
         finger = finger_of.get(j)
         out.write(
             f"  {j:3d}  {name:<20s} {'-' if finger is None else finger:>2}  "
