@@ -54,7 +54,8 @@ OPTIONAL: tuple[str, ...] = ("rerun", "mujoco", "ray", "matplotlib", "example_ro
 ON_USE: frozenset[tuple[str, str]] = frozenset(
     {
         ("dexplan", "dexplan.api"),  # the front door's start-up cost (measured)
-        ("dexplan.model.scenario.scenario", "dexplan.model.hand.builtin"),  # Pinocchio's (measured)
+        ("dexplan.model.scenario.hand_table", "dexplan.model.hand.builtin"),  # Pinocchio's (measured)
+        ("dexplan.model.scenario.hand_table", "dexplan.model.hand.packages"),  # as builtin's
         ("dexplan.model.grasp.least_distance", "scipy.optimize._slsqplib"),  # guarded private API
     }
 )

@@ -210,7 +210,7 @@ def _own_body(model: pin.Model, j: int) -> int | None:
     """The BODY frame a joint moves directly (its MJCF body), or None."""
     for i, f in enumerate(model.frames):
         if f.type == pin.FrameType.BODY and f.parentJoint == j:
-            prev = model.frames[f.previousFrame]
+            prev = model.frames[f.parentFrame]
             if prev.type == pin.FrameType.JOINT and prev.parentJoint == j:
                 return i
     return None
