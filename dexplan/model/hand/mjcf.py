@@ -49,6 +49,7 @@ from dexplan.model.hand.mjcf_xml import (
     body_of_names,
     contact_filter,
     couplings,
+    deepest_common_body,
     effort_limits,
     flatten_mjcf,
 )
@@ -368,9 +369,12 @@ def mjcf_hand(
     q_ref = pin.neutral(full)
     for joint, value in joints.locked.items():
         q_ref[full.idx_qs[full.getJointId(joint)]] = value
-    palm = _own_body(full, palm_joint) if palm_joint else 1  # frame 1: the first body
-    assert palm is not None
-    palm_name = full.frames[palm].name
+    palm_name = deepest_common_body(doc, list(fingertip_frames))
+    if full.frames[full.getFrameId(palm_name)].parentJoint != palm_joint:
+        raise ModelError(
+            f"hand {name!r}: the fingertips' deepest common body {palm_name!r} is not "
+            "moved by the joints above every finger only"
+        )
     lock_ids = [full.getJointId(j) for j in joints.locked]
     model, geom = pin.buildReducedModel(full, geom, lock_ids, q_ref)
     mesh_dirs = (path.resolve().parent,)

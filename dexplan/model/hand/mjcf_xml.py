@@ -38,6 +38,7 @@ __all__ = [
     "body_of_names",
     "contact_filter",
     "couplings",
+    "deepest_common_body",
     "effort_limits",
     "flatten_mjcf",
 ]
@@ -177,6 +178,38 @@ def body_of_names(doc: MjcfDocument) -> dict[str, str]:
                 if elem.tag in ("body", "site", "geom") and elem.get("name"):
                     out[elem.get("name", "")] = top.get("name", "")
     return out
+
+
+def deepest_common_body(doc: MjcfDocument, frames: list[str]) -> str:
+    """The deepest body above (or at) every named site or body: the hand's palm."""
+    parent: dict[str, str] = {}
+    owner: dict[str, str] = {}
+
+    def walk(body: ET.Element, up: str) -> None:
+        name = body.get("name", "")
+        parent[name], owner[name] = up, name
+        for child in body:
+            if child.tag == "site" and child.get("name"):
+                owner[child.get("name", "")] = name
+            elif child.tag == "body":
+                walk(child, name)
+
+    for world in doc.root.findall("worldbody"):
+        for top in world.findall("body"):
+            walk(top, "")
+    paths = []
+    for frame in frames:
+        path, body = [], owner[frame]
+        while body:
+            path.append(body)
+            body = parent[body]
+        paths.append(path[::-1])
+    common = ""
+    for level in zip(*paths, strict=False):
+        if len(set(level)) != 1:
+            break
+        common = level[0]
+    return common
 
 
 # -------------------------------------------------------------- effort limits
