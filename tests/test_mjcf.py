@@ -14,6 +14,7 @@ from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.mjcf import mjcf_hand
 from dexplan.model.hand.packages import python_package_dirs
 from dexplan.model.scenario.scenario import load_scenario
+from dexplan.model.scenario.spec import HandSpec
 
 REPO = Path(__file__).resolve().parent.parent
 SHADOW = REPO / "scenarios" / "shadow_sphere.toml"
@@ -117,6 +118,42 @@ def test_collision_geoms_and_filters(tmp_path) -> None:
     # capsules of the 6 finger links, the palm and the mount box; no floor; two tip spheres
     names = [go.name for go in hand.geom_model.geometryObjects]
     assert len(names) == 10 and not any("floor" in n for n in names)
+
+
+def test_fingertips_on_bodies_and_spheres_read_from_the_mjcf(tmp_path) -> None:
+    path = write_hand(tmp_path, act3=True)
+    m = mjcf_hand(path, ["a3", "b3"])  # bodies as fingertip frames
+    hand = Hand(m.urdf_xml, ["a3", "b3"], 0.008, collision_exclude=m.collision_exclude)
+    np.testing.assert_allclose(
+        hand.fingertip_positions(np.zeros(6))[1], [-0.025, 0.0, 0.08], atol=1e-12
+    )
+    # a sphere geom centred on the tip site is the fingertip: its radius is read
+    text = path.read_text().replace(
+        '<site name="a_tip"', '<geom type="sphere" size="0.009" pos="0 0 0.022"/><site name="a_tip"'
+    )
+    text = text.replace(
+        '<site name="b_tip"', '<geom type="sphere" size="0.009" pos="0 0 0.022"/><site name="b_tip"'
+    )
+    path.write_text(text)
+    m = mjcf_hand(path, ["a_tip", "b_tip"])
+    hand = Hand(m.urdf_xml, ["a_tip", "b_tip"], None, collision_exclude=m.collision_exclude)
+    assert hand.fingertip_radius == pytest.approx(0.009)
+    with pytest.raises(ModelError, match="disagrees"):
+        Hand(m.urdf_xml, ["a_tip", "b_tip"], 0.01, collision_exclude=m.collision_exclude)
+
+
+def test_effort_limits_override_the_actuators(tmp_path) -> None:
+    path = write_hand(tmp_path, act3=True)
+    spec = HandSpec(
+        builtin=None,
+        mjcf=path,
+        fingertip_frames=("a_tip", "b_tip"),
+        fingertip_radius=0.008,
+        effort_limits={"a_j1": 0.25},
+    )
+    hand = Hand.from_spec(spec)
+    assert hand.model.effortLimit[0] == pytest.approx(0.25)
+    assert hand.model.effortLimit[1] == pytest.approx(1.0)  # the actuator's
 
 
 # --------------------------------------------------------------- couplings
