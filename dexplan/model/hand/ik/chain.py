@@ -10,9 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.typing import FloatArray
+from dexplan.core.typing import FloatArray, IntArray
 
 _REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"}
+_MIMIC = "JointModelMimic"
 
 
 def _skew(a: FloatArray) -> FloatArray:
@@ -34,12 +35,28 @@ class FingerChain:
     """
 
     def __init__(
-        self, placements: list[tuple[FloatArray, FloatArray]], axes: FloatArray, tip: FloatArray
+        self,
+        placements: list[tuple[FloatArray, FloatArray]],
+        axes: FloatArray,
+        tip: FloatArray,
+        coupling: tuple[IntArray, FloatArray, FloatArray] | None = None,
     ) -> None:
         self.placements = placements
         self.axes = axes
         self.tip = tip
-        self.m = len(placements)
+        #: joint k's angle is ``scale[k] * q[:, var[k]] + offset[k]``: a coupled
+        #: (URDF ``<mimic>``) joint follows another of the chain's values
+        var, scale, offset = coupling or (
+            np.arange(len(placements)),
+            np.ones(len(placements)),
+            np.zeros(len(placements)),
+        )
+        self._var, self._scale, self._offset = var, scale, offset
+        #: True when some joint follows another (the closed forms do not apply)
+        self.coupled = coupling is not None
+        #: the chain's values (its joints that have their own)
+        self.m = int(var.max()) + 1 if len(var) else 0
+        self.n_joints = len(placements)
         # joint j's local transform at angle q, Rodrigues folded into its
         # placement: [R_j + sin q (R_j K_j) + (1 - cos q) (R_j K_j^2), t_j],
         # as (m, 3, 9) coefficients of (1, sin q, 1 - cos q) and a 4x4 template
@@ -48,7 +65,7 @@ class FingerChain:
             K = _skew(a)
             terms.append(np.stack([Rj, Rj @ K, Rj @ K @ K]).reshape(3, 9))
         self._rodrigues = np.array(terms)
-        self._template = np.zeros((self.m, 4, 4))
+        self._template = np.zeros((self.n_joints, 4, 4))
         for j, (_, tj) in enumerate(placements):
             self._template[j, :3, 3] = tj
             self._template[j, 3, 3] = 1.0
@@ -64,44 +81,58 @@ class FingerChain:
             jids.append(jid)
             jid = model.parents[jid]
         jids.reverse()
-        if not jids or any(model.joints[j].shortname() not in _REVOLUTE for j in jids):
+        kinds = [model.joints[j].shortname() for j in jids]
+        if not jids or any(k not in _REVOLUTE and k != _MIMIC for k in kinds):
             return None
         data = model.createData()
         q0 = pin.neutral(model)
         J = pin.computeJointJacobians(model, data, q0)
-        placements, axes = [], []
-        for j in jids:
+        own = [model.joints[j].idx_q for j, k in zip(jids, kinds, strict=True) if k != _MIMIC]
+        placements, axes, var, scale, offset = [], [], [], [], []
+        for j, kind in zip(jids, kinds, strict=True):
+            jm = model.joints[j]
             M = model.jointPlacements[j]
             placements.append((np.array(M.rotation), np.array(M.translation)))
             # idx_vExtended: with <mimic> joints the columns of J include theirs
-            w = J[3:, model.joints[j].idx_vExtended]
+            w = J[3:, jm.idx_vExtended]
+            if np.linalg.norm(w) < 1e-9 or jm.idx_q not in own:  # a prismatic mimic joint
+                return None
             axes.append(data.oMi[j].rotation.T @ w)
+            mimic = jm.extract() if kind == _MIMIC else None
+            var.append(own.index(jm.idx_q))
+            scale.append(1.0 if mimic is None else float(mimic.scaling))
+            offset.append(0.0 if mimic is None else float(mimic.offset))
         axes_arr = np.array(axes)
         axes_arr /= np.linalg.norm(axes_arr, axis=1, keepdims=True)
-        return cls(placements, axes_arr, np.array(frame.placement.translation))
+        coupled = _MIMIC in kinds
+        coupling = (np.array(var), np.array(scale), np.array(offset)) if coupled else None
+        return cls(placements, axes_arr, np.array(frame.placement.translation), coupling)
 
     def forward(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Forward kinematics of many configurations.
 
         Args:
-            q: (N, m) joint values.
+            q: (N, m) joint values (the chain's own: a coupled joint follows one).
 
         Returns:
-            ``tip: (N, 3)`` fingertip centres, ``origins: (N, m, 3)`` joint
-            origins and ``axes: (N, m, 3)`` unit joint axes, world frame.
+            ``tip: (N, 3)`` fingertip centres, ``origins: (N, n_joints, 3)``
+            joint origins and ``axes: (N, n_joints, 3)`` unit joint axes,
+            world frame.
         """
         q = np.asarray(q, dtype=float)
         n = len(q)
+        theta = q if not self.coupled else q[:, self._var] * self._scale + self._offset
+        nj = self.n_joints
         # every joint's local 4x4 transform at once, then the chain products
-        coef = np.empty((n, self.m, 3))
+        coef = np.empty((n, nj, 3))
         coef[..., 0] = 1.0
-        coef[..., 1] = np.sin(q)
-        coef[..., 2] = 1.0 - np.cos(q)
+        coef[..., 1] = np.sin(theta)
+        coef[..., 2] = 1.0 - np.cos(theta)
         A = np.repeat(self._template[None], n, axis=0)
-        A[..., :3, :3] = (coef[:, :, None, :] @ self._rodrigues).reshape(n, self.m, 3, 3)
-        T = np.empty((n, self.m, 4, 4))
+        A[..., :3, :3] = (coef[:, :, None, :] @ self._rodrigues).reshape(n, nj, 3, 3)
+        T = np.empty((n, nj, 4, 4))
         T[:, 0] = A[:, 0]
-        for j in range(1, self.m):
+        for j in range(1, nj):
             T[:, j] = T[:, j - 1] @ A[:, j]
         # joint j's origin is T_j's translation; its axis is fixed by its own rotation
         origins = T[..., :3, 3]
@@ -115,4 +146,11 @@ class FingerChain:
     def jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Tip centres ``(N, 3)`` and position Jacobians ``(N, 3, m)`` (world frame)."""
         tip, origins, axes = self.forward(q)
-        return tip, np.cross(axes, tip[:, None, :] - origins).transpose(0, 2, 1)
+        J = np.cross(axes, tip[:, None, :] - origins).transpose(0, 2, 1)
+        if not self.coupled:
+            return tip, J
+        # a value moves every joint that follows it, each by its scale
+        out = np.zeros((len(J), 3, self.m))
+        for k, v in enumerate(self._var):
+            out[:, :, v] += J[:, :, k] * self._scale[k]
+        return tip, out

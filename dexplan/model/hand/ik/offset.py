@@ -74,7 +74,7 @@ class OffsetFingerIK:
         cls, chain: FingerChain | None, lo: FloatArray, hi: FloatArray
     ) -> OffsetFingerIK | None:
         """The solver when ``chain`` has this geometry and it matches FK, else None."""
-        if chain is None or chain.m != 3:
+        if chain is None or chain.coupled or chain.m != 3:
             return None
         _, _, axes = chain.forward(np.zeros((1, 3)))
         e, a, a3 = axes[0]

@@ -98,7 +98,7 @@ class SplitFingerIK:
         cls, chain: FingerChain | None, lo: FloatArray, hi: FloatArray
     ) -> SplitFingerIK | None:
         """The solver for ``chain`` when its structure allows one, else None."""
-        if chain is None or chain.m not in (3, 4):
+        if chain is None or chain.coupled or chain.m not in (3, 4):
             return None
         # a 4-joint finger: the distal joint free, else the first one
         options: list[tuple[tuple[int, int, int], int | None]] = (
