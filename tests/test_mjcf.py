@@ -176,6 +176,22 @@ def test_a_passive_joint_tendon_coupled_to_a_driven_one_follows_it(tmp_path) -> 
     np.testing.assert_allclose(hand.fingertip_positions(q)[0], expected, atol=1e-12)
 
 
+def test_the_vectorised_chain_of_a_coupled_finger_matches_pinocchio(tmp_path) -> None:
+    hand = build(write_hand(tmp_path, TENDON))
+    chain = hand.finger_chain(0)
+    assert chain is not None and chain.coupled and (chain.m, chain.n_joints) == (2, 3)
+    q = np.random.default_rng(0).uniform(hand.lower, hand.upper, size=(4, hand.nq))
+    tips, jac = chain.jacobian(q[:, hand.finger_q_index[0]])
+    for k in range(4):
+        p, J = hand.fingertip_jacobians(q[k])
+        np.testing.assert_allclose(tips[k], p[0], atol=1e-12)
+        np.testing.assert_allclose(jac[k], J[0], atol=1e-12)
+    # every IK solution of the coupled finger puts the tip on its target
+    q_ik, ok = hand.finger_ik_candidates(0, tips)
+    assert ok.any(axis=1).all()
+    np.testing.assert_allclose(chain.tips(q_ik[ok]), np.repeat(tips, ok.sum(axis=1), 0), atol=1e-6)
+
+
 def test_a_coupling_of_two_driven_joints_is_refused_naming_it(tmp_path) -> None:
     with pytest.raises(ModelError, match=r"fixed tendon 'couple'.*locked_joints") as err:
         build(write_hand(tmp_path, TENDON, act3=True))
