@@ -296,6 +296,9 @@ def test_shadow_hand_loads_as_the_mjcf_says() -> None:
         assert (hand.lower[k], hand.upper[k]) == pytest.approx((lo, hi)), name
         act = m.actuator(f"robot0:A_{name.split(':')[1]}")
         assert hand.model.effortLimit[k] == pytest.approx(act.forcerange[1]), name
+    # visual meshes for the viewer, every mesh named by its wheel's package:// URI
+    assert "<visual>" in hand.urdf_xml and "package://gymnasium_robotics/" in hand.urdf_xml
+    assert "/site-packages/" not in hand.urdf_xml
     for f in fingers:
         mim = hand.mimic_joints[f"robot0:{f}J0"]
         assert mim.primary == f"robot0:{f}J1"

@@ -84,8 +84,8 @@ class MjcfHand:
     mesh_dirs: tuple[str, ...]
 
 
-def _load(doc: MjcfDocument, name: str) -> tuple[pin.Model, pin.GeometryModel]:
-    """Pinocchio's model and collision model of the flattened document."""
+def _load(doc: MjcfDocument, name: str) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+    """Pinocchio's model, collision model and visual model of the flattened document."""
     failure: Exception | None = None
     with tempfile.TemporaryDirectory(prefix="dexplan-mjcf-") as tmp:
         path = Path(tmp) / "hand.xml"
@@ -94,12 +94,13 @@ def _load(doc: MjcfDocument, name: str) -> tuple[pin.Model, pin.GeometryModel]:
             try:
                 model = pin.buildModelFromMJCF(str(path))
                 geom = pin.buildGeomFromMJCF(model, str(path), pin.COLLISION)
+                visual = pin.buildGeomFromMJCF(model, str(path), pin.VISUAL)
             except (RuntimeError, ValueError) as exc:
                 failure = exc
     if failure is not None:
         detail = err.first_line() or " ".join(str(failure).split()).split("message: ")[-1]
         raise ModelError(f"cannot load MJCF hand {name!r}: {shorten(detail, 200)}") from failure
-    return model, geom
+    return model, geom, visual
 
 
 def _chain(model: pin.Model, jid: int) -> list[int]:
@@ -200,6 +201,7 @@ def _mesh_uri(path: Path, mesh_dirs: Sequence[Path]) -> str:
 class _Export:
     model: pin.Model
     geom: pin.GeometryModel
+    visual: pin.GeometryModel  # drawn by the viewer, never checked
     base: int  # the palm's BODY frame
     joints: ResolvedJoints
     efforts: Mapping[str, float]
@@ -246,14 +248,20 @@ def _urdf(ex: _Export, tips: Sequence[str]) -> str:
             f'<child link="{f.name}"/>{_xyz_rpy(frame[parent].inverse() * f.placement)}</joint>'
         )
     collisions: dict[str, list[str]] = {}
-    for go in ex.geom.geometryObjects:
-        body = model.frames[go.parentFrame].name
-        link = body if body in frame and body in links else link_of_joint[go.parentJoint]
-        place = frame[link].inverse() * go.placement
-        shape = _geometry_xml(go, ex.mesh_dirs, ex.name)
-        collisions.setdefault(link, []).append(
-            f"<collision>{_xyz_rpy(place)}<geometry>{shape}</geometry></collision>"
-        )
+    for tag, gm in (("visual", ex.visual), ("collision", ex.geom)):
+        for go in gm.geometryObjects:
+            body = model.frames[go.parentFrame].name
+            link = body if body in frame and body in links else link_of_joint[go.parentJoint]
+            place = frame[link].inverse() * go.placement
+            try:
+                shape = _geometry_xml(go, ex.mesh_dirs, ex.name)
+            except ModelError:
+                if tag == "visual":  # a shape URDF lacks only changes how the hand looks
+                    continue
+                raise
+            collisions.setdefault(link, []).append(
+                f"<{tag}>{_xyz_rpy(place)}<geometry>{shape}</geometry></{tag}>"
+            )
     inertials = {
         link_of_joint[j]: _inertial_xml(model.inertias[j]) for j in range(1, model.njoints)
     }
@@ -363,7 +371,7 @@ def mjcf_hand(
             f"{shorten(sorted(tops), 200)})"
         )
     doc = flatten_mjcf(path, keep_body=hand_bodies.pop())
-    full, geom = _load(doc, name)
+    full, geom, visual = _load(doc, name)
     tip_ids = [full.getFrameId(t) for t in fingertip_frames]
     joints, palm_joint = _locks(full, tip_ids, dict(locked_joints or {}), doc, name)
     q_ref = pin.neutral(full)
@@ -376,10 +384,11 @@ def mjcf_hand(
             "moved by the joints above every finger only"
         )
     lock_ids = [full.getJointId(j) for j in joints.locked]
-    model, geom = pin.buildReducedModel(full, geom, lock_ids, q_ref)
+    model, (geom, visual) = pin.buildReducedModel(full, [geom, visual], lock_ids, q_ref)
     mesh_dirs = (path.resolve().parent,)
     efforts = effort_limits(doc)
-    ex = _Export(model, geom, model.getFrameId(palm_name), joints, efforts, mesh_dirs, name)
+    palm = model.getFrameId(palm_name)
+    ex = _Export(model, geom, visual, palm, joints, efforts, mesh_dirs, name)
     locks = ", ".join(f"{k}={v:.6g}" for k, v in joints.locked.items()) or "none"
     note = (
         f"<!-- dexplan: exported from MJCF {path.name} (sha256 "
