@@ -112,7 +112,11 @@ def _direct_regrasp(trans: Transitions, a: Segment, b: Segment) -> Segment | Non
     grasp = _stated_grasp(trans, w0)
     end = _stated_grasp(trans, w1)
     seg = trans.regrasp(w0.object_pose_xyzquat, w0.q, grasp, f, end.points[f], end.normals_out[f])
-    if seg is None or not np.allclose(seg.end.q, w1.q, atol=1e-6):
+    if (
+        seg is None
+        or not np.allclose(seg.end.q, w1.q, atol=1e-6)
+        or not _holders_still(trans, f, w0, w1)
+    ):
         return None
     # reuse the exact boundary waypoints so the neighbours still join up
     return Segment(SegmentKind.REGRASP, f, (w0, *seg.waypoints[1:-1], w1))
@@ -200,10 +204,29 @@ def _regrasp_to(trans: Transitions, start: Waypoint, target: Segment) -> Segment
     end = _stated_grasp(trans, target.end)
     if trans.grasp_quality(grasp) <= trans.validity.fc_margin:
         return None  # certified bounds only: keep the original plan when unsure
+    if not _holders_still(trans, f, start, target.end):
+        return None
     seg = trans.regrasp(pose, start.q, grasp, f, end.points[f], end.normals_out[f])
     if seg is None or not np.allclose(seg.end.q, target.end.q, atol=1e-6):
         return None
     return Segment(SegmentKind.REGRASP, f, (start, *seg.waypoints[1:-1], target.end))
+
+
+#: How far (rad, m) a holding finger's joint may differ between a regrasp's
+#: first and last waypoints: the plan verifier's "does not move".
+_STILL = 1e-9
+
+
+def _holders_still(trans: Transitions, f: int, a: Waypoint, b: Waypoint) -> bool:
+    """True when every finger but ``f`` has the same joints at ``a`` and at ``b``.
+
+    A replacement regrasp ends on the waypoint of the segments it replaces;
+    that waypoint's holding fingers came from another IK solve, equal to
+    ``a``'s only where the IK is closed form (a numerical solve lands within
+    its tolerance, up to 1e-7 rad away), and a regrasp must not move them.
+    """
+    others = [i for k, idx in enumerate(trans.hand.finger_q_index) if k != f for i in idx]
+    return bool(np.all(np.abs(a.q[others] - b.q[others]) <= _STILL))
 
 
 def _join_transfers(segments: list[Segment]) -> list[Segment]:
