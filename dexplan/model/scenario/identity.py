@@ -70,6 +70,8 @@ def scenario_description(scenario: Scenario, *, models_only: bool = False) -> di
     doc["planner"] = {k: v for k, v in doc["planner"].items() if k in ("params", "space")}
     if scenario.hand.urdf is not None:
         doc["hand"]["urdf"] = _digest_or_mark(Path(scenario.base_dir) / scenario.hand.urdf)
+    if scenario.hand.mjcf is not None:  # by content: a wheel's file sits anywhere
+        doc["hand"]["mjcf"] = _digest_or_mark(Path(scenario.base_dir) / scenario.hand.mjcf)
     for shape in [doc["object"], *doc["obstacles"]]:
         if isinstance(shape, dict) and "path" in shape:
             shape["path_sha256"] = _digest_or_mark(Path(scenario.base_dir) / str(shape["path"]))
