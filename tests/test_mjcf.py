@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 from cli_contract import assert_bad_input, run_cli
 
+from dexplan.cli import main as cli
 from dexplan.core.errors import ModelError
+from dexplan.execution.replay.mjcf import build_mjcf
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.mjcf import mjcf_hand
 from dexplan.model.hand.packages import python_package_dirs
 from dexplan.model.scenario.scenario import load_scenario
 from dexplan.model.scenario.spec import HandSpec
+from dexplan.planfile.models import hand_from_plan
 
 REPO = Path(__file__).resolve().parent.parent
 SHADOW = REPO / "scenarios" / "shadow_sphere.toml"
@@ -317,13 +320,31 @@ def test_shadow_hand_loads_as_the_mjcf_says() -> None:
     np.testing.assert_allclose(hand.fingertip_positions(q), tips, atol=1e-12)
 
 
+@pytest.fixture(scope="module")
+def shadow_plan(tmp_path_factory) -> Path:
+    plan = tmp_path_factory.mktemp("shadow") / "plan.json"
+    assert cli.run(["plan", str(SHADOW), "--seed", "1", "-o", str(plan), "-q"]) == 0
+    return plan
+
+
 @needs_shadow
-def test_shadow_plan_verifies_from_the_file_alone(tmp_path, capfd) -> None:
-    plan = tmp_path / "plan.json"
-    code, out, err = run_cli(capfd, "plan", str(SHADOW), "--seed", "1", "-o", str(plan), "-q")
-    assert code == 0, err
-    doc = json.loads(plan.read_text())
+def test_shadow_plan_verifies_from_the_file_alone(shadow_plan, capfd) -> None:
+    doc = json.loads(shadow_plan.read_text())
     # the plan carries the exported URDF, its coupled joints as <mimic> joints
     assert "<mimic" in doc["hand"]["urdf_xml"] and "robot0:FFJ0" not in doc["hand"]["joint_names"]
-    code, out, err = run_cli(capfd, "verify", str(plan))
+    code, out, err = run_cli(capfd, "verify", str(shadow_plan))
     assert code == 0 and "0 violations" in out, out + err
+
+
+@needs_shadow
+@pytest.mark.slow
+def test_shadow_plan_exports_and_replays_coupled(shadow_plan, tmp_path, capfd) -> None:
+    code, out, err = run_cli(capfd, "export", str(shadow_plan), "-o", str(tmp_path / "t.json"))
+    assert code == 0 and "limits check: OK" in out, out + err
+    # the replay's MuJoCo model couples the two joints of each coupled finger
+    mujoco = pytest.importorskip("mujoco")
+    doc = json.loads(shadow_plan.read_text())
+    hand = hand_from_plan(doc["hand"])
+    xml, _ = build_mjcf(doc, hand, mass=0.1, gravity=np.zeros(3), base_dir=tmp_path)
+    m = mujoco.MjModel.from_xml_string(xml)
+    assert m.neq == len(hand.mimic_joints) == 2
