@@ -16,9 +16,11 @@ The rules (``docs/hands.md``, "MJCF hands"):
   frame, and the joints above it are locked (at ``[hand] locked_joints``'
   value, else at 0 clipped into the joint's range), as are the joints of
   fingers not listed;
-- a coupling (a limited fixed tendon over several joints, a joint equality)
-  between joints that are not locked is refused: lock one of its joints and
-  the others' ranges shrink to what the coupling allows at that value;
+- couplings (limited fixed tendons over several joints, joint equalities)
+  follow :mod:`.couplings`: a joint that follows another becomes a URDF
+  ``<mimic>`` joint, a tendon left with one free joint narrows its range,
+  the rest is refused until one of its joints is locked;
+- visual geoms become ``<visual>`` elements (the viewer's);
 - effort limits are the actuators' (:func:`~.mjcf_xml.effort_limits`);
 - link pairs MuJoCo never checks against each other (``contype`` /
   ``conaffinity``, parent and child bodies, ``<exclude>``) become
