@@ -64,6 +64,10 @@ _RELEASE_STRIDE = 2
 _RELEASE_TRIES = 8
 #: Steps of stroke a regrasp of a finger other than the blocked one must gain.
 _MIN_GAIN = 2
+#: Gait states expanded without any getting farther along the trajectory
+#: before the search gives up (the one-regrasp-at-a-time reduction, with its
+#: backtracking, then has the rest of the time).
+_STALL_STATES = 45
 
 
 @dataclass(frozen=True)
@@ -150,25 +154,24 @@ def search_gaits(
     strength = trans.grasp_quality(grasp)
     first = _State(0, q_start.copy(), grasp, cover, (), 0, strength, weakest=strength)
     layer = _evaluate(trans, poses, [first])
-    reached, expanded = 0, 0
+    reached, expanded, progressed = 0, 0, 0
     seen: set[tuple[int, bytes]] = set()
     reserve: list[_State] = []  # states ranked out of their layer, for dead ends
     for _ in range(2 * max_regrasps + 1):
         if trans.deadline.expired():
             return GaitSearchResult((), reached, "time limit reached", expanded)
-        reached = max([reached, *(s.transfer.reached for s in layer if s.transfer)])
+        farthest = max([reached, *(s.transfer.reached for s in layer if s.transfer)])
+        if farthest > reached:
+            reached, progressed = farthest, expanded
         layer = [s for s in layer if s.regrasps <= max_regrasps]
-        done = [s for s in layer if s.transfer is not None and s.transfer.reason is None]
-        if done:
-            # as many regrasps each: the one whose weakest grasp is strongest
-            best = max(done, key=lambda s: s.weakest)
-            tr = best.transfer
-            assert tr is not None
-            return GaitSearchResult(
-                (*best.segments, *_transfer(tr, len(tr.waypoints))), end, None, expanded
-            )
+        gait = _finished(layer)
+        if gait is not None:
+            return GaitSearchResult(gait, end, None, expanded)
         if expanded >= max_expanded:
             break
+        if expanded - progressed > _STALL_STATES:
+            why = f"no progress past trajectory step {reached} in {_STALL_STATES} gait states"
+            return GaitSearchResult((), reached, why, expanded)
         children: list[_State] = []
         for state in layer:
             expanded += 1
@@ -191,6 +194,19 @@ def search_gaits(
             return GaitSearchResult((), reached, "no gait state has a feasible regrasp", expanded)
     why = f"no gait within {max_regrasps} regrasps and {max_expanded} gait states"
     return GaitSearchResult((), reached, why, expanded)
+
+
+def _finished(layer: list[_State]) -> tuple[Segment, ...] | None:
+    """The gait of the state of ``layer`` whose transfer reaches the end, or None.
+
+    They have as many regrasps each: the one whose weakest grasp is strongest.
+    """
+    done = [s for s in layer if s.transfer is not None and s.transfer.reason is None]
+    if not done:
+        return None
+    best = max(done, key=lambda s: s.weakest)
+    assert best.transfer is not None
+    return (*best.segments, *_transfer(best.transfer, len(best.transfer.waypoints)))
 
 
 def _unseen(children: list[_State], seen: set[tuple[int, bytes]]) -> list[_State]:

@@ -240,23 +240,10 @@ def reduce_object_path(
         A :class:`ReductionResult`.
     """
     settings = settings or ReductionSettings()
-    g = settings.gaits
-    if g.beam_width > 0:
-        searched = search_gaits(
-            trans,
-            poses,
-            q_start,
-            grasp,
-            beam_width=g.beam_width,
-            branching=g.branching,
-            max_regrasps=settings.max_regrasps,
-            max_expanded=g.search_states,
-            tolerance=g.strength_tolerance,
-        )
-        if searched.reason is None:
-            regrasps = sum(s.kind == SegmentKind.REGRASP for s in searched.segments)
-            stats = reduction_stats(trans, regrasps)
-            return ReductionResult(True, searched.segments, len(poses) - 1, None, stats)
+    if settings.gaits.beam_width > 0:
+        searched = _search(trans, poses, q_start, grasp, settings)
+        if searched is not None:
+            return searched
     gait = _GaitState(trans, settings, q_start, grasp)
     reset: int | None = None  # a finger to regrasp before the next transfer
     while True:
@@ -300,6 +287,34 @@ def reduce_object_path(
         if stuck is not None and not gait.backtrack():
             return gait.result(stuck)
         reset = _reset_finger(option, settings.gaits)
+
+
+def _search(
+    trans: Transitions,
+    poses: FloatArray,
+    q_start: FloatArray,
+    grasp: GraspContacts,
+    settings: ReductionSettings,
+) -> ReductionResult | None:
+    """The gait search's plan (:mod:`dexplan.planning.local.gait_search`), or None."""
+    g = settings.gaits
+    found = search_gaits(
+        trans,
+        poses,
+        q_start,
+        grasp,
+        beam_width=g.beam_width,
+        branching=g.branching,
+        max_regrasps=settings.max_regrasps,
+        max_expanded=g.search_states,
+        tolerance=g.strength_tolerance,
+    )
+    if found.reason is not None:
+        return None
+    regrasps = sum(s.kind == SegmentKind.REGRASP for s in found.segments)
+    return ReductionResult(
+        True, found.segments, len(poses) - 1, None, reduction_stats(trans, regrasps)
+    )
 
 
 def _reset_finger(option: RegraspOption | None, settings: GaitSettings) -> int | None:
