@@ -238,6 +238,32 @@ class Box(Shape):
         normals[rows, b] = sb * np.sin(theta)
         return pts, normals
 
+    def sample_vertices(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points at the 8 corners (uniform), normals inside the corner's cone.
+
+        The outward normal at corner ``(sx hx, sy hy, sz hz)`` is any unit
+        vector with components of signs ``(sx, sy, sz)``: a fingertip there
+        pushes along the direction from the corner to its centre. Each
+        normal is drawn uniformly on that octant of the sphere and kept at
+        least :data:`EDGE_NORMAL_MIN` from each of the three face planes
+        (its component along each face normal is at least sin of it): a
+        fingertip whose centre came closer to an edge's or face's region
+        would be read on that edge or face by the plan verifier.
+        """
+        n = check_sample_args(n, rng)
+        signs = np.where(rng.random((n, 3)) < 0.5, 1.0, -1.0)
+        low = math.sin(EDGE_NORMAL_MIN)
+        normals = np.zeros((n, 3))
+        todo = np.arange(n)
+        # rejection sampling on the octant: about 60 % of the draws are kept
+        while len(todo):
+            v = np.abs(rng.normal(size=(len(todo), 3)))
+            v /= np.linalg.norm(v, axis=1, keepdims=True)
+            ok = np.all(v >= low, axis=1)
+            normals[todo[ok]] = v[ok]
+            todo = todo[~ok]
+        return signs * self._half, signs * normals
+
     @property
     def bounding_radius(self) -> float:
         """Half diagonal ``|size| / 2`` (m)."""

@@ -262,31 +262,38 @@ class Shape(ABC):
         return self._sample(n, rng)
 
     def sample_contacts(
-        self, n: int, rng: np.random.Generator, edges: int = 0
+        self, n: int, rng: np.random.Generator, edges: int = 0, vertices: int = 0
     ) -> tuple[FloatArray, FloatArray]:
-        """Fingertip contact candidates: surface points and, where the shape has them, edges.
+        """Fingertip contact candidates: surface, edge and vertex points.
 
-        ``n`` points of :meth:`sample_surface` and ``edges`` of
-        :meth:`sample_edges` (none on shapes without edges), shuffled together:
-        callers that take the first candidates that work (the landing search,
-        the GSn sampler's per-finger pools) then see both kinds. A fingertip on
-        an edge pushes along any direction between the faces' normals, which
-        no face point offers.
+        ``n`` points of :meth:`sample_surface`, ``edges`` of
+        :meth:`sample_edges` and ``vertices`` of :meth:`sample_vertices`
+        (none on shapes without them), shuffled together: callers that take
+        the first candidates that work (the landing search, the GSn sampler's
+        per-finger pools) then see every kind. A fingertip on an edge pushes
+        along any direction between the faces' normals, one on a vertex along
+        any direction inside the cone of the faces that meet there, which no
+        face point offers.
 
         Args:
             n: surface points (>= 0).
             rng: random generator (the only source of randomness).
             edges: edge points (>= 0).
+            vertices: vertex points (>= 0); 0 draws nothing from ``rng`` for
+                them, so the other candidates are those drawn without.
 
         Returns:
-            ``(points, normals_out)``: (m, 3) each, object frame; m = n + edges
-            on shapes with edges, else n.
+            ``(points, normals_out)``: (m, 3) each, object frame; m = n plus
+            the edge and vertex points of shapes that have them.
 
         Raises:
-            InvalidInputError: bad ``n``, ``edges`` or ``rng``.
+            InvalidInputError: bad ``n``, ``edges``, ``vertices`` or ``rng``.
         """
         pts, nrm = self.sample_surface(n, rng)
         e_pts, e_nrm = self.sample_edges(edges, rng)
+        if vertices:
+            v_pts, v_nrm = self.sample_vertices(vertices, rng)
+            e_pts, e_nrm = np.vstack([e_pts, v_pts]), np.vstack([e_nrm, v_nrm])
         if len(e_pts) == 0:
             return pts, nrm
         order = rng.permutation(len(pts) + len(e_pts))
@@ -309,6 +316,27 @@ class Shape(ABC):
         Returns:
             ``(points, normals_out)``: (m, 3) each, object frame (m = n on
             shapes with edges, else 0).
+        """
+        check_sample_args(n, rng)
+        return np.zeros((0, 3)), np.zeros((0, 3))
+
+    def sample_vertices(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points at the shape's vertices, with outward normals inside their cones.
+
+        A fingertip sphere on a vertex (a box corner) pushes along any
+        direction inside the cone spanned by the normals of the faces that
+        meet there: the direction from the vertex to the fingertip centre.
+        Only :class:`~dexplan.model.objects.primitives.Box` samples its
+        vertices so far: the others return empty arrays and leave ``rng``
+        untouched.
+
+        Args:
+            n: number of samples (>= 0).
+            rng: random generator.
+
+        Returns:
+            ``(points, normals_out)``: (m, 3) each, object frame (m = n on
+            shapes with vertices, else 0).
         """
         check_sample_args(n, rng)
         return np.zeros((0, 3)), np.zeros((0, 3))

@@ -104,6 +104,87 @@ def combine_pools(
     return _combined(pose_xyzquat, pools, fingers, pick[rows], normals[rows], hand, rng)
 
 
+def combine_pools_pairwise(
+    pose_xyzquat: FloatArray,
+    pools: dict[int, FingerPool],
+    hand: Hand,
+    rng: np.random.Generator,
+    *,
+    mu: float,
+    tip_clearance: float,
+    count: int,
+) -> Combinations:
+    """Every 3-finger combination whose 2-finger subgrasps can be force closure, best first.
+
+    For three contact fingers whose 2-finger subgrasps must each be force
+    closure, the random draws of :func:`combine_pools` rarely meet the
+    condition where it is narrow (a cube: two fingers on edges with normals
+    in a band of a few degrees). Two soft-finger contacts are force closure
+    only if the line through them lies strictly inside both friction cones
+    (Nguyen 1988), a pairwise condition: it is tested for every pair of pool
+    entries of every two fingers (``P^2`` per pair, one array each), and
+    every triple whose three pairs pass is kept (``P^3`` booleans, no
+    sampling). The test uses the round cone of half-angle ``atan(mu)``, which
+    contains the planner's linearised pyramid, so it never drops a grasp the
+    force-closure quality would accept. Triples rank by their worst pair: the
+    largest angle between a contact's inward normal and the line to the
+    other contact (the most central first).
+
+    Args:
+        pose_xyzquat: (7,) the object pose, world frame, XYZW.
+        pools: three contact fingers' pools at that pose.
+        hand: the hand.
+        rng: random generator (the free fingers' joints).
+        mu: friction coefficient.
+        tip_clearance: minimum gap between two fingertip spheres (m).
+        count: combinations returned at most.
+
+    Returns:
+        Up to ``count`` ambient states ``(7 + nq,)`` and their contacts.
+    """
+    fingers = list(pools)
+    if len(fingers) != 3:
+        raise ValueError(f"pairwise combinations need 3 contact fingers, got {len(fingers)}")
+    gap = 2 * hand.fingertip_radius + tip_clearance
+    r = hand.fingertip_radius
+    worst = {
+        (a, b): _pair_angles(pools[fingers[a]], pools[fingers[b]], r, gap)
+        for a, b in ((0, 1), (0, 2), (1, 2))
+    }
+    half = float(np.arctan(mu))
+    # (Pa, Pb, Pc): the worst of the three pairs' angles
+    total = np.maximum(
+        np.maximum(worst[0, 1][:, :, None], worst[0, 2][:, None, :]), worst[1, 2][None, :, :]
+    )
+    flat = np.flatnonzero(total < half)
+    if len(flat) > count:
+        flat = flat[np.argpartition(total.ravel()[flat], count)[:count]]
+    flat = flat[np.argsort(total.ravel()[flat], kind="stable")]
+    pick = np.stack(np.unravel_index(flat, total.shape), axis=1).astype(np.int64)
+    normals = np.stack([pools[i][1][pick[:, j]] for j, i in enumerate(fingers)], axis=1)
+    return _combined(pose_xyzquat, pools, fingers, pick, normals, hand, rng)
+
+
+def _pair_angles(pool_a: FingerPool, pool_b: FingerPool, radius: float, gap: float) -> FloatArray:
+    """``(Pa, Pb)`` per pair of entries, the larger angle (rad) between a normal and the line.
+
+    For each entry of ``pool_a`` and of ``pool_b`` (fingertip centres and
+    outward normals, world frame), the contacts are the centres less
+    ``radius`` along the normals; the angle is that between a contact's
+    inward normal and the line to the other contact, the larger of the two.
+    Pairs whose fingertip centres are closer than ``gap`` get pi (never kept).
+    """
+    (t_a, n_a, _), (t_b, n_b, _) = pool_a, pool_b
+    d = (t_b - radius * n_b)[None, :, :] - (t_a - radius * n_a)[:, None, :]
+    length = np.linalg.norm(d, axis=2)
+    u = d / np.maximum(length, 1e-12)[..., None]
+    cos_a = -np.einsum("abk,ak->ab", u, n_a)  # inward normal of a: -n_a
+    cos_b = np.einsum("abk,bk->ab", u, n_b)  # line b -> a is -u; inward -n_b
+    angle = np.arccos(np.clip(np.minimum(cos_a, cos_b), -1.0, 1.0))
+    apart = np.linalg.norm(t_a[:, None] - t_b[None], axis=2) >= gap
+    return np.asarray(np.where(apart & (length > 1e-9), angle, np.pi))
+
+
 def _apart(
     pools: dict[int, FingerPool], fingers: list[int], pick: IntArray, gap: float
 ) -> np.ndarray:

@@ -45,7 +45,12 @@ from dexplan.model.collision import pose_to_se3
 from dexplan.model.grasp.halfspace import cannot_be_force_closure
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
-from dexplan.planning.gsn.combinations import Combinations, FingerPool, combine_pools
+from dexplan.planning.gsn.combinations import (
+    Combinations,
+    FingerPool,
+    combine_pools,
+    combine_pools_pairwise,
+)
 from dexplan.planning.gsn.contact_kinds import faces_only_reason
 from dexplan.planning.gsn.finger_reach import fingertip_fits, link_clearance, reach_shell
 from dexplan.planning.gsn.sampler_stats import SamplerStats
@@ -65,6 +70,10 @@ class SamplerSettings:
             for fingers of more than 3 joints, and wherever faces alone
             cannot hold (:mod:`.contact_kinds`; the paper hand holds boxes
             on faces, where edges double the regrasps of a box turn).
+        vertex_contacts: sample fingertips on the object's vertices (box
+            corners) too, ``candidate_vertices`` and ``pool_vertices`` of
+            them; None: wherever faces alone cannot hold (the hands that
+            need edges for their fingers' shape, the Allegro, hold on edges).
         max_attempts: attempts per :meth:`GraspSampler.sample` call before None.
         tip_clearance: minimum gap between two fingertip spheres (m).
         min_facing: minimum cosine between a candidate's outward normal and
@@ -77,6 +86,10 @@ class SamplerSettings:
         pool_candidates: surface points drawn per finger for a pool.
         pool_edges: edge points (normals inside the edge's cone) drawn with
             them when ``edge_contacts`` is on, on shapes that have edges (boxes).
+        candidate_vertices: vertex points drawn with the ``candidates`` when
+            ``vertex_contacts`` is on (shapes with vertices).
+        pool_vertices: vertex points (normals inside the corner's cone) drawn
+            with the ``pool_candidates`` when ``vertex_contacts`` is on.
         solutions_per_contact: IK solutions (random among those within
             limits) collision-checked per candidate contact.
         combinations: grasps combined from one set of pools and checked
@@ -96,6 +109,12 @@ class SamplerSettings:
             object poses than from a faster sampler, since checking its
             motions costs far more than sampling (with many grasps a pose
             the roadmap planners solve fewer queries in a fixed time).
+        pairwise: combine three contact fingers' pools by the pairwise test
+            of :func:`~dexplan.planning.gsn.combinations.combine_pools_pairwise`
+            (every 2-finger subgrasp's line inside both friction cones, all
+            triples enumerated) instead of random draws; None: wherever faces
+            alone cannot hold with three contact fingers (the cube of a
+            3-finger hand, where random draws rarely meet the narrow bands).
         check_batch: ranked combinations whose force closure is computed in
             one batch; a pose is left after a batch with no valid grasp. The
             normal-balance ranking puts a pose's valid grasps first (a pose
@@ -107,6 +126,7 @@ class SamplerSettings:
     candidates: int = 48
     candidate_edges: int = 12
     edge_contacts: bool | None = None
+    vertex_contacts: bool | None = None
     max_attempts: int = 50
     tip_clearance: float = 0.004
     min_facing: float = -0.3
@@ -115,12 +135,15 @@ class SamplerSettings:
     pool_size: int = 24
     pool_candidates: int = 256
     pool_edges: int = 64
+    candidate_vertices: int = 8
+    pool_vertices: int = 64
     solutions_per_contact: int = 3
     combinations: int | None = None
     combination_draws: int = 4000
     joint_margin: float = 0.03
     grasps_per_pose: int | None = None
     check_batch: int = 24
+    pairwise: bool | None = None
 
 
 def _long_fingers(hand: Hand) -> bool:
@@ -156,6 +179,18 @@ def _resolved(
         )
     edges = long or faces_only if settings.edge_contacts is None else settings.edge_contacts
     return filled, combinations, per_pose, edges
+
+
+def _pairwise(settings: SamplerSettings, contacts: int, subgrasps: bool, faces_only: bool) -> bool:
+    """Whether grasps are combined pairwise (:func:`combine_pools_pairwise`).
+
+    Only three contact fingers whose 2-finger subgrasps must hold can be;
+    by default only where faces alone cannot hold (elsewhere, on spheres
+    and the paper hand's boxes, the balance-ranked draws already find valid
+    grasps first, and the plans they give are left as they were).
+    """
+    usable = contacts == 3 and subgrasps
+    return usable and (faces_only if settings.pairwise is None else settings.pairwise)
 
 
 class GraspSampler:
@@ -194,11 +229,20 @@ class GraspSampler:
                 f"sampler check_batch must be >= 1, got {self.settings.check_batch}"
             )
         self.stats = SamplerStats()
+        self._pairwise = _pairwise(
+            self.settings, len(gsn.contact_ids), vs.subgrasps, self.faces_only is not None
+        )
         self._reach = [reach_shell(gsn.hand, i) for i in range(gsn.hand.n_fingers)]
         hand = gsn.hand
         per_finger = self.settings.per_finger
         self.per_finger = bool(per_finger)
         self._edges = (self.settings.candidate_edges, self.settings.pool_edges) if edges else (0, 0)
+        corners = self.faces_only is not None
+        if self.settings.vertex_contacts is not None:
+            corners = self.settings.vertex_contacts
+        self._vertices = (
+            (self.settings.candidate_vertices, self.settings.pool_vertices) if corners else (0, 0)
+        )
         self.stats.screen_reason = "" if edges else self.faces_only or ""
         world = validity.world
         self._finger_pairs = [world.finger_pairs(i) for i in range(hand.n_fingers)]
@@ -269,7 +313,9 @@ class GraspSampler:
         order = list(gsn.contact_ids)
         rng.shuffle(order)
         for i in order:
-            pts, n_out = gsn.obj.sample_contacts(s.candidates, rng, self._edges[0])
+            pts, n_out = gsn.obj.sample_contacts(
+                s.candidates, rng, self._edges[0], self._vertices[0]
+            )
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
             ok[ok] = self._fits(pts[ok], n_out[ok])
@@ -487,7 +533,9 @@ class GraspSampler:
             (world frame), or None when there is none.
         """
         hand, s = self.gsn.hand, self.settings
-        pts, n_out = self.gsn.obj.sample_contacts(s.pool_candidates, self.rng, self._edges[1])
+        pts, n_out = self.gsn.obj.sample_contacts(
+            s.pool_candidates, self.rng, self._edges[1], self._vertices[1]
+        )
         n_w = n_out @ R.T
         tips = (pts + hand.fingertip_radius * n_out) @ R.T + t
         ok = self._in_shell(i, tips, n_w)
@@ -559,6 +607,16 @@ class GraspSampler:
         settings' ``combination_draws``, ``tip_clearance`` and ``combinations``.
         """
         s = self.settings
+        if self._pairwise:
+            return combine_pools_pairwise(
+                pose_xyzquat,
+                pools,
+                self.gsn.hand,
+                self.rng,
+                mu=self.validity.settings.mu,
+                tip_clearance=s.tip_clearance,
+                count=self._combinations,
+            )
         return combine_pools(
             pose_xyzquat,
             pools,
