@@ -29,6 +29,11 @@ from dexplan.planning.gsn.space import GraspSubspace
 from dexplan.planning.gsn.validity import GraspValidity, ValiditySettings, let_go_problem
 from dexplan.planning.local.transitions import Transitions, TransitionSettings
 
+#: Corner points added to a landing search's candidates where faces alone
+#: cannot hold (:attr:`TransitionSettings.landing_vertices`): a third of the
+#: default edge points, about the corners' share of a cube's edge cones.
+LANDING_VERTICES = 100
+
 
 @dataclass
 class PlanningContext:
@@ -203,7 +208,12 @@ def build_context(
         obj,
         world,
         vset,
-        transition_settings or TransitionSettings(contact_motion=scenario.contact_motion),
+        transition_settings
+        or TransitionSettings(
+            contact_motion=scenario.contact_motion,
+            # corners as landings too where faces alone cannot hold, as the sampler draws them
+            landing_vertices=LANDING_VERTICES if sampler.faces_only is not None else 0,
+        ),
         rng_local,
         deadline,
         hold_checker(scenario, hand, obj, vset),

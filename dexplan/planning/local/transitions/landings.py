@@ -165,12 +165,15 @@ class Landings:
 
         ``landing_candidates`` surface points and, on shapes that sample
         their edges (boxes), ``landing_edges`` edge points (normals inside
-        the edge's cone), shuffled together (the landing search takes the
-        first reachable ones in this order). Other shapes draw only the
+        the edge's cone) and ``landing_vertices`` corner points, shuffled
+        together (the landing search takes the first reachable ones in this
+        order). Other shapes draw only the
         surface points, as before.
         """
         s = self.settings
-        return self.obj.sample_contacts(s.landing_candidates, self.rng, s.landing_edges)
+        return self.obj.sample_contacts(
+            s.landing_candidates, self.rng, s.landing_edges, s.landing_vertices
+        )
 
     def landing_pool(
         self, finger: int, pose: FloatArray, future_poses: FloatArray

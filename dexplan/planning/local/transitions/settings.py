@@ -22,6 +22,9 @@ class TransitionSettings:
         landing_edges: edge points (normals inside the edge's cone) added to
             them on shapes with edges (boxes): held on two opposite faces, a
             finger gets onto a third face only by way of an edge.
+        landing_vertices: vertex points (normals inside the corner's cone)
+            added too, on shapes with vertices (boxes); the planning context
+            sets them where faces alone cannot hold.
         landing_reachable: of those, the ones the finger reaches now that
             are scored (the first ``landing_reachable``, in sampling order).
         via_points: random via points tried for a free-finger move.
@@ -61,6 +64,7 @@ class TransitionSettings:
     lift_height: float = 0.008
     landing_candidates: int = 600
     landing_edges: int = 300
+    landing_vertices: int = 0
     via_points: int = 96
     tip_clearance: float = 0.004
     follow_stride: int = 2
