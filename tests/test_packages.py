@@ -134,3 +134,26 @@ def test_verify_package_dir(paper_plan, tmp_path: Path, capfd) -> None:
     other = _workspace(tmp_path / "other", extent=0.02)
     code, _, err = run_cli(capfd, "verify", plan, "--package-dir", other)
     assert_bad_input(code, err, names=["hand.mesh_sha256", URI])
+
+
+def test_plan_of_a_scenario_package_dirs_hand_is_verified(tmp_path: Path) -> None:
+    """The planner's own verification finds the meshes where the scenario's
+    ``package_dirs`` put them (before, it searched only the plan's folder,
+    ROS_PACKAGE_PATH and example-robot-data, and every such plan failed)."""
+    import dexplan
+
+    _workspace(tmp_path / "ws")
+    _urdf(tmp_path / "hands")
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(
+        '[hand]\nurdf = "hands/hand.urdf"\nfingertip_frames = ["f0_tip", "f1_tip", "f2_tip"]\n'
+        'package_dirs = ["ws/src"]\n[object]\nshape = "sphere"\nradius = 0.04\n'
+        '[contact]\nmu = 1.0\nfc_margin = 0.002\nmodel = "soft"\ntorsion = 0.005\n'
+        "[start]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0, 1]\n"
+        # 20 degrees about z: one transfer
+        "[goal]\nobject_pose_xyzquat = [0, 0, 0.1, 0, 0, 0.17364817766693033, 0.984807753012208]\n"
+    )
+    plan = dexplan.plan(load_scenario(scenario), seed=1, quality="none", time_limit=60.0)
+    assert plan.result.solved, plan.result.message
+    table = hand_table(plan.hand)
+    assert URI in table["urdf_xml"] and list(table["mesh_sha256"]) == [URI]
