@@ -44,7 +44,7 @@ from dexplan.model.hand.ik import (
 from dexplan.model.hand.mimic import MimicJoint, mimic_joints
 from dexplan.model.hand.mjcf import mjcf_arguments
 from dexplan.model.hand.packages import mesh_sha256, search_dirs
-from dexplan.model.hand.reach import ReachVoxels, reach_samples
+from dexplan.model.hand.reach import ReachVoxels, grown_voxels, reach_samples
 from dexplan.model.hand.urdf import (
     build_models,
     check_collision_exclude,
@@ -383,16 +383,19 @@ class Hand:
         """Where ``finger``'s fingertip centre can be (built on first use; see :mod:`.reach`)."""
         voxels = self._reach[finger]
         if voxels is None:
-            voxels = self._reach[finger] = ReachVoxels.from_tips(self._reach_tips(finger))
+            chain = self._chains[finger]
+            if chain is None:
+                voxels = ReachVoxels.from_tips(self._reach_tips(finger))
+            else:
+                idx = self.finger_q_index[finger]
+                voxels = grown_voxels(chain.tips, finger, self.lower[idx], self.upper[idx])
+            self._reach[finger] = voxels
         return voxels
 
     def _reach_tips(self, finger: int) -> FloatArray:
-        """Fingertip centres ``(K, 3)`` of random joint values of ``finger`` (fixed seed)."""
+        """Fingertip centres ``(K, 3)`` of random joint values of a finger without a chain."""
         idx = self.finger_q_index[finger]
         qf = reach_samples(finger, self.lower[idx], self.upper[idx])
-        chain = self._chains[finger]
-        if chain is not None:
-            return chain.tips(qf)
         # not a revolute chain: Pinocchio, fewer samples
         q = self.neutral.copy()
         tips = np.empty((2000, 3))
