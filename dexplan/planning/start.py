@@ -17,12 +17,21 @@ from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.grasps import grasp_follow, grasp_from_state
 from dexplan.planning.local.transitions import densify_poses
 
-__all__ = ["START_CANDIDATES", "START_FOLLOW_SHARE", "START_HOLD_CHECKS", "start_state"]
+__all__ = [
+    "START_CANDIDATES",
+    "START_FOLLOW_SHARE",
+    "START_HOLD_CHECKS",
+    "START_MORE_CANDIDATES",
+    "start_state",
+]
 
 
 #: Valid start grasps the planner samples to choose the one it starts from
 #: (1: the first, as the paper).
 START_CANDIDATES = 8
+#: More start grasps drawn when every candidate follows the object's move to
+#: the goal by IK alone but none does with its links and holds checked.
+START_MORE_CANDIDATES = 16
 #: Start grasps whose first blocked finger follows the object's straight move
 #: at least this share of the best one's are ranked by strength.
 START_FOLLOW_SHARE = 0.85
@@ -43,7 +52,10 @@ def start_state(
     A sampled start grasp is chosen among ``candidates`` valid grasps at
     the start pose (the first found, then ``candidates - 1`` more drawn from
     ``rng``): one that follows the object's straight move to the goal pose
-    all the way if any does (a plan without regrasps), else, among those
+    all the way if any does (a plan without regrasps: the first whose
+    transfer, links and holds checked, reaches the goal; when every
+    candidate follows by IK alone but none transfers,
+    :data:`START_MORE_CANDIDATES` more are tried), else, among those
     whose first blocked finger follows at least :data:`START_FOLLOW_SHARE`
     of the farthest one's (:func:`~dexplan.planning.local.grasps.grasp_follow`,
     IK-only), the strongest: the largest least force-closure quality of its
@@ -98,7 +110,12 @@ def start_state(
     follows = [grasp_follow(trans, pose, x[POSE_DIM:], future)[0] for x in pool]
     whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
     if whole:
-        return whole[0]
+        done = _transferable(ctx, pose, future, whole)
+        if done is None and len(whole) == len(pool):
+            # every grasp follows by IK alone, none with its links: more of them
+            more = ctx.sampler.samples_at_pose(pose, START_MORE_CANDIDATES, rng)
+            done = _transferable(ctx, pose, future, more)
+        return whole[0] if done is None else done
     far = max(follows)
     near = [x for x, f in zip(pool, follows, strict=True) if f >= START_FOLLOW_SHARE * far]
     grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
@@ -112,6 +129,27 @@ def start_state(
         if free == ctx.hand.n_fingers:
             break
     return best
+
+
+def _transferable(
+    ctx: PlanningContext, pose: FloatArray, future: FloatArray, states: list[FloatArray]
+) -> FloatArray | None:
+    """The first of ``states`` (at ``pose``) whose transfer along ``future`` reaches its end.
+
+    The IK-only follow (:func:`~dexplan.planning.local.grasps.grasp_follow`)
+    ignores link collisions and holds; the transfer checks them, as the
+    reduction will. On the TriFinger's cube every start grasp follows a
+    quarter turn by IK alone, and about half of them collide on the way.
+    """
+    trans = ctx.transitions
+    for x in states:
+        if ctx.deadline.expired():
+            return None
+        grasp = grasp_from_state(trans, pose, x[POSE_DIM:])
+        done = trans.transfer(future, 0, x[POSE_DIM:], grasp)
+        if done.reason is None and done.reached >= len(future) - 1:
+            return x
+    return None
 
 
 def _onto_gsn(ctx: PlanningContext, x: FloatArray, tol: float = 1e-9) -> FloatArray:
