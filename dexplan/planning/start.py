@@ -110,12 +110,7 @@ def start_state(
     follows = [grasp_follow(trans, pose, x[POSE_DIM:], future)[0] for x in pool]
     whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
     if whole:
-        done = _transferable(ctx, pose, future, whole)
-        if done is None and len(whole) == len(pool):
-            # every grasp follows by IK alone, none with its links: more of them
-            more = ctx.sampler.samples_at_pose(pose, START_MORE_CANDIDATES, rng)
-            done = _transferable(ctx, pose, future, more)
-        return whole[0] if done is None else done
+        return _carrying(ctx, pose, future, whole, len(whole) == len(pool), rng)
     far = max(follows)
     near = [x for x, f in zip(pool, follows, strict=True) if f >= START_FOLLOW_SHARE * far]
     grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
@@ -129,6 +124,27 @@ def start_state(
         if free == ctx.hand.n_fingers:
             break
     return best
+
+
+def _carrying(
+    ctx: PlanningContext,
+    pose: FloatArray,
+    future: FloatArray,
+    whole: list[FloatArray],
+    all_whole: bool,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """Of the grasps ``whole`` that follow ``future`` by IK alone, the first that transfers.
+
+    When every candidate followed by IK (``all_whole``) and none transfers,
+    :data:`START_MORE_CANDIDATES` more are drawn from ``rng`` and tried; when
+    none does either, the first of ``whole`` (the planner may still regrasp).
+    """
+    done = _transferable(ctx, pose, future, whole)
+    if done is None and all_whole:
+        more = ctx.sampler.samples_at_pose(pose, START_MORE_CANDIDATES, rng)
+        done = _transferable(ctx, pose, future, more)
+    return whole[0] if done is None else done
 
 
 def _transferable(
