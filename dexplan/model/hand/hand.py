@@ -383,23 +383,19 @@ class Hand:
         """Where ``finger``'s fingertip centre can be (built on first use; see :mod:`.reach`)."""
         voxels = self._reach[finger]
         if voxels is None:
-            chain = self._chains[finger]
-            if chain is None:
-                voxels = ReachVoxels.from_tips(self._reach_tips(finger))
-            else:
-                idx = self.finger_q_index[finger]
-                voxels = grown_voxels(chain.tips, finger, self.lower[idx], self.upper[idx])
-            self._reach[finger] = voxels
+            idx, chain = self.finger_q_index[finger], self._chains[finger]
+            voxels = self._reach[finger] = (
+                ReachVoxels.from_tips(self._reach_tips(finger))
+                if chain is None
+                else grown_voxels(chain.tips, finger, self.lower[idx], self.upper[idx])
+            )
         return voxels
 
     def _reach_tips(self, finger: int) -> FloatArray:
-        """Fingertip centres ``(K, 3)`` of random joint values of a finger without a chain."""
-        idx = self.finger_q_index[finger]
-        qf = reach_samples(finger, self.lower[idx], self.upper[idx])
-        # not a revolute chain: Pinocchio, fewer samples
-        q = self.neutral.copy()
+        """Fingertip centres ``(2000, 3)`` of a finger without a chain, by Pinocchio."""
+        idx, q = self.finger_q_index[finger], self.neutral.copy()
         tips = np.empty((2000, 3))
-        for k, v in enumerate(qf[:2000]):
+        for k, v in enumerate(reach_samples(finger, self.lower[idx], self.upper[idx])[:2000]):
             q[idx] = v
             tips[k] = self.fingertip_positions(q)[finger]
         return tips
