@@ -88,12 +88,35 @@ def build_hand(scenario: Scenario, *, check_contacts: bool = True) -> Hand:
 
     Raises:
         ScenarioError: with ``check_contacts``, no (n-1)-finger subgrasp can be
-            force closure under the scenario's contact model.
+            force closure under the scenario's contact model, or a finger has
+            1 joint (:func:`check_finger_joints`).
     """
     hand = Hand.from_spec(scenario.hand)
     if check_contacts:
+        check_finger_joints(scenario, hand)
         validity_settings(scenario, hand.n_fingers)
     return hand
+
+
+def check_finger_joints(scenario: Scenario, hand: Hand) -> None:
+    """Refuse fingers of 1 joint: dexplan plans for fingers of 2 joints or more.
+
+    A 1-joint fingertip sweeps a circle and touches an object at isolated
+    points only: it could neither land on a contact nor follow a turning
+    object. (A :class:`Hand` may have such fingers: plans of it can still be
+    checked and shown.) Fingers of 2 joints have their contacts on a curve
+    (:mod:`dexplan.planning.gsn.contact_curve`).
+
+    Raises:
+        ScenarioError: naming the first such finger's tip frame.
+    """
+    for tip, idx in zip(hand.fingertip_frames, hand.finger_q_index, strict=True):
+        if len(idx) < 2:
+            raise ScenarioError(
+                f"scenario {scenario.name!r}: fingertip frame {tip!r} of hand {hand.name!r} "
+                "is moved by 1 joint: dexplan plans for fingers of at least 2 joints "
+                "(a 1-joint fingertip touches an object at isolated points only)"
+            )
 
 
 def validity_settings(scenario: Scenario, n_fingers: int) -> ValiditySettings:
@@ -176,7 +199,8 @@ def build_context(
     Raises:
         ScenarioError: the models cannot be built from the scenario, or no
             (n-1)-finger subgrasp of the hand can be force closure under the
-            scenario's contact model (:func:`let_go_problem`).
+            scenario's contact model (:func:`let_go_problem`), or a finger has
+            1 joint (:func:`check_finger_joints`).
     """
     try:
         hand = hand or build_hand(scenario, check_contacts=False)
@@ -199,6 +223,7 @@ def build_context(
         workspace_center=0.5 * (start_pos + goal_pos),
         workspace_half_extent=0.5 * np.abs(goal_pos - start_pos) + scenario.workspace_half_extent,
     )
+    check_finger_joints(scenario, hand)
     vset = validity_settings(scenario, hand.n_fingers)
     validity = GraspValidity(gsn, world, vset)
     deadline = Deadline()

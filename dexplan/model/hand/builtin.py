@@ -3,11 +3,12 @@
 ``"paper"`` (4 x 3 DOF, after the paper) and ``"three_finger"`` (3 x 3 DOF,
 capsule links) ship with dexplan; ``"trifinger"`` (3 x 3 DOF, the TriFinger
 platform, :mod:`.trifinger`) is built from example-robot-data's finger_edu;
-``"allegro"`` and ``"allegro_left"`` (4 x 4 DOF) are read from the installed
-``example-robot-data`` distribution, given the real hand's joint torque caps
-(:data:`ALLEGRO_EFFORT_LIMITS`) and collision shapes fitted to its visual
-meshes (:data:`ALLEGRO_COLLISION_SHAPES`), and mounted palm-up (see
-:data:`ALLEGRO_MOUNT_RPY`).
+``"dex3"`` (a 3-joint thumb and two 2-joint fingers, :mod:`.dex3`) is cut out
+of example-robot-data's Unitree G1; ``"allegro"`` and ``"allegro_left"``
+(4 x 4 DOF) are read from the installed ``example-robot-data`` distribution,
+given the real hand's joint torque caps (:data:`ALLEGRO_EFFORT_LIMITS`) and
+collision shapes fitted to its visual meshes (:data:`ALLEGRO_COLLISION_SHAPES`),
+and mounted palm-up (see :data:`ALLEGRO_MOUNT_RPY`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Literal
 
 from dexplan.core.errors import DependencyError, InvalidInputError, ModelError, shorten
+from dexplan.model.hand.dex3 import DEX3_MOUNT_RPY, DEX3_TIP_RADIUS, DEX3_TIPS, G1_URDF, dex3_urdf
 from dexplan.model.hand.trifinger import (
     FINGER_EDU_URDF,
     TRIFINGER_TIP_RADIUS,
@@ -166,6 +168,7 @@ class BuiltinHandName(StrEnum):
     ALLEGRO = "allegro"
     ALLEGRO_LEFT = "allegro_left"
     TRIFINGER = "trifinger"
+    DEX3 = "dex3"
 
 
 #: The builtin hands' names.
@@ -210,6 +213,8 @@ def builtin_hand(name: str) -> BuiltinHand:
         return _allegro_hand(left=name == "allegro_left")
     if name == "trifinger":
         return _trifinger_hand()
+    if name == "dex3":
+        return _dex3_hand()
     raise InvalidInputError(
         f"hand.builtin must be one of {[str(h) for h in BUILTIN_HANDS]}, got {shorten(name)}"
     )
@@ -275,15 +280,24 @@ def example_robot_data_file(relative: str) -> Path:
     )
 
 
+def _erd_urdf(relative: str, hand_name: str) -> tuple[str, Path]:
+    """The text and path of the example-robot-data URDF a builtin hand is built from.
+
+    Raises:
+        DependencyError: naming the hand, when example-robot-data or the file is missing.
+    """
+    try:
+        path = example_robot_data_file(relative)
+    except DependencyError as exc:
+        raise DependencyError(f"hand {hand_name!r}: {exc}") from None
+    return urdf_text(path.read_bytes(), f"URDF file {str(path)!r}"), path
+
+
 def _allegro_hand(*, left: bool) -> BuiltinHand:
     """The Allegro right (or left) hand from example-robot-data, mounted palm-up."""
     hand_name = "allegro_left" if left else "allegro"
     side = "left" if left else "right"
-    try:
-        path = example_robot_data_file(f"allegro_hand_description/urdf/allegro_{side}_hand.urdf")
-    except DependencyError as exc:
-        raise DependencyError(f"hand {hand_name!r}: {exc}") from None
-    text = urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
+    text, path = _erd_urdf(f"allegro_hand_description/urdf/allegro_{side}_hand.urdf", hand_name)
     text = with_effort_limits(text, ALLEGRO_EFFORT_LIMITS, what=f"hand {hand_name!r}")
     shapes = {
         link: tuple(s.mirrored() for s in link_shapes) if left else link_shapes
@@ -302,16 +316,24 @@ def _allegro_hand(*, left: bool) -> BuiltinHand:
 
 def _trifinger_hand() -> BuiltinHand:
     """The TriFinger from example-robot-data's finger_edu (:mod:`.trifinger`)."""
-    try:
-        path = example_robot_data_file(FINGER_EDU_URDF)
-    except DependencyError as exc:
-        raise DependencyError(f"hand 'trifinger': {exc}") from None
-    text = urdf_text(path.read_bytes(), f"URDF file {str(path)!r}")
+    text, path = _erd_urdf(FINGER_EDU_URDF, "trifinger")
     return BuiltinHand(
         trifinger_urdf(text),
         TRIFINGER_TIPS,
         TRIFINGER_TIP_RADIUS,
         "trifinger",
+        package_dirs=(str(example_robot_data_share(path)),),
+    )
+
+
+def _dex3_hand() -> BuiltinHand:
+    """The G1's right Dex3 hand from example-robot-data, mounted palm-up (:mod:`.dex3`)."""
+    text, path = _erd_urdf(G1_URDF, "dex3")
+    return BuiltinHand(
+        mount_urdf(dex3_urdf(text), DEX3_MOUNT_RPY),
+        DEX3_TIPS,
+        DEX3_TIP_RADIUS,
+        "dex3",
         package_dirs=(str(example_robot_data_share(path)),),
     )
 

@@ -20,9 +20,9 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.core.errors import InvalidInputError, ModelError
-from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_vector
 from dexplan.model.hand.builtin import builtin_hand
+from dexplan.model.hand.extract import read_urdf
 from dexplan.model.hand.fingertips import fingertip_spheres
 from dexplan.model.hand.frames import (
     finger_joint_indices,
@@ -36,6 +36,7 @@ from dexplan.model.hand.ik import (
     IKResult,
     OffsetFingerIK,
     PlanarFingerIK,
+    PlanarPairIK,
     SplitFingerIK,
     batch_dls,
     branch_solutions,
@@ -121,9 +122,8 @@ class Hand:
         if effort_limits is not None:  # written into the URDF text a plan carries
             self.urdf_xml = with_effort_limits(self.urdf_xml, effort_limits)
         description = parse_urdf(self.urdf_xml, name)
-        #: folders the URDF's mesh files are searched in: ``package_dirs``, then
-        #: ROS_PACKAGE_PATH's and the description wheels' (:mod:`.packages`);
-        #: viewers load the visual meshes there too
+        #: folders the URDF's mesh files are searched in: ``package_dirs``, then ROS_PACKAGE_PATH's
+        #: and the description wheels' (:mod:`.packages`); viewers load the visual meshes there too
         self.package_dirs: tuple[str, ...] = search_dirs(package_dirs)
         self.model, self.geom_model = build_models(description, name, self.package_dirs)
         #: SHA-256 of each collision mesh by URI as the URDF gives it (plan files carry it)
@@ -163,29 +163,28 @@ class Hand:
     def _init_ik(self) -> None:
         """Per-finger IK solvers: closed form where the structure allows it.
 
-        :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint
-        fingers; otherwise the vectorised kinematics of :mod:`dexplan.model.hand.ik`
-        (closed form also for 4-joint fingers, redundancy on a grid, and for
-        3-joint fingers with offset axes; else batched DLS from several seeds).
+        :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint fingers; else the
+        closed forms of :mod:`dexplan.model.hand.ik` (4-joint fingers, a grid for the redundancy;
+        offset 3-joint and planar 2-joint fingers) or batched DLS from several seeds.
         """
+        lo, hi, q0 = self.lower, self.upper, self.neutral
         self._analytic_ik: list[PlanarFingerIK | None] = [
-            PlanarFingerIK.detect(
-                self.model, self.data, idx, fid, self.lower, self.upper, self.neutral
-            )
+            PlanarFingerIK.detect(self.model, self.data, idx, fid, lo, hi, q0)
             for idx, fid in zip(self.finger_q_index, self.tip_frame_ids, strict=True)
         ]
         self._chains: list[FingerChain | None] = [
             FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
         ]
         self._split_ik: list[SplitFingerIK | None] = []
-        # 3-joint fingers with offset axes (the TriFinger's): every branch in closed form
-        self._offset_ik: list[OffsetFingerIK | None] = []
+        # every branch in closed form: offset 3-joint (TriFinger), planar 2-joint (Dex3)
+        self._offset_ik: list[OffsetFingerIK | PlanarPairIK | None] = []
         for i, idx in enumerate(self.finger_q_index):
             lo, hi, chain = self.lower[idx], self.upper[idx], self._chains[i]
             planar = self._analytic_ik[i] is not None
             self._split_ik.append(None if planar else SplitFingerIK.detect(chain, lo, hi))
             other = planar or self._split_ik[i] is not None
-            self._offset_ik.append(None if other else OffsetFingerIK.detect(chain, lo, hi))
+            offset = None if other else OffsetFingerIK.detect(chain, lo, hi)
+            self._offset_ik.append(offset or PlanarPairIK.detect(chain, lo, hi))
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
 
     # ------------------------------------------------------------------ loading
@@ -205,6 +204,7 @@ class Hand:
             collision_exclude=spec.collision_exclude,
             effort_limits=spec.effort_limits,
             package_dirs=[spec.urdf.parent, *spec.package_dirs],
+            root_link=spec.root_link,
         )
 
     @classmethod
@@ -213,17 +213,17 @@ class Hand:
         path: str | Path,
         fingertip_frames: Sequence[str],
         fingertip_radius: float | None = None,
+        root_link: str | None = None,
         **kwargs: object,
     ) -> Hand:
-        """Load a hand from a URDF file; mesh paths resolve in its folder first.
+        """Load a hand from a URDF file (a robot's: below ``root_link``); meshes resolve beside it.
 
         Raises:
-            ModelError: the file is missing, unreadable or not UTF-8 text, or
-                :class:`Hand` rejects it.
+            ModelError: the file is missing, unreadable or not UTF-8 text, an
+                unknown ``root_link``, or :class:`Hand` rejects it.
         """
         path = Path(path)
-        data = read_input_file(path, "URDF", ModelError)
-        text = urdf_text(data, f"URDF file {str(path)!r}")
+        text = read_urdf(path, root_link)
         kwargs.setdefault("name", path.stem)
         kwargs.setdefault("package_dirs", [str(path.parent)])
         # the keyword arguments are Hand's own, checked there

@@ -22,6 +22,7 @@ from dexplan.model.scenario.fields import (
     existing_file,
     fail,
     number,
+    string,
 )
 from dexplan.model.scenario.spec import (
     HAND_BUILTIN_FIELDS,
@@ -155,7 +156,11 @@ def _urdf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:
     fields = _file_hand_fields(h, "urdf")
     urdf = existing_file(h, "urdf", "hand", base_dir)
     check_text_file(urdf, "hand.urdf", MAX_URDF_BYTES)
-    return HandSpec(urdf=urdf, package_dirs=_package_dirs(h, base_dir), **fields)
+    # a whole robot's URDF: the hand is the subtree below this link (checked when built)
+    root_link = string(h, "root_link", "hand") if "root_link" in h else None
+    return HandSpec(
+        urdf=urdf, package_dirs=_package_dirs(h, base_dir), root_link=root_link, **fields
+    )
 
 
 def _mjcf_hand(h: Mapping[str, Any], base_dir: Path) -> HandSpec:

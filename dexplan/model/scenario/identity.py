@@ -51,7 +51,8 @@ def scenario_description(scenario: Scenario, *, models_only: bool = False) -> di
     scenario's name and folder, obstacle names), and so are the planner
     name, seed and time limit (a sweep sets them); files the scenario refers
     to (URDF, meshes) enter by their SHA-256. The contact model and torsion
-    enter when the model is not the default ``point``.
+    enter when the model is not the default ``point``, ``hand.root_link``
+    when it is given.
 
     Args:
         scenario: the scenario.
@@ -67,6 +68,8 @@ def scenario_description(scenario: Scenario, *, models_only: bool = False) -> di
     if doc.get("contact_model", "point") == "point":
         doc.pop("contact_model", None)
         doc.pop("torsion", None)
+    if doc["hand"].get("root_link") is None:  # absent: the hashes of before it existed
+        doc["hand"].pop("root_link", None)
     doc["planner"] = {k: v for k, v in doc["planner"].items() if k in ("params", "space")}
     if scenario.hand.urdf is not None:
         doc["hand"]["urdf"] = _digest_or_mark(Path(scenario.base_dir) / scenario.hand.urdf)

@@ -82,6 +82,7 @@ HAND_URDF_FIELDS = frozenset(
         "collision_exclude",
         "effort_limits",
         "package_dirs",
+        "root_link",
     }
 )
 HAND_MJCF_FIELDS = frozenset(
@@ -148,6 +149,9 @@ class HandSpec:
     mjcf: Path | None = None
     #: ``[hand] locked_joints``: MJCF joint values (rad, m) held fixed, by joint name
     locked_joints: Mapping[str, float] = field(default_factory=dict)
+    #: ``[hand] root_link``: the link the hand hangs from in a whole robot's
+    #: URDF (the rest of the robot is dropped), or None: the URDF's own root
+    root_link: str | None = None
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,9 @@ Grasps are then combined from the pools (spread normals for force closure,
 fingertips apart) and the rest (finger-finger collisions, full validity with
 every (n-1) subgrasp force closure) is checked, several combinations per pose.
 
+A finger of fewer than 3 joints reaches almost no chosen point: in both ways its
+candidate contacts come from its joint space (:mod:`.contact_curve`).
+
 IK puts the fingertips on the surface to solver precision, so the state lies
 on GSk without a projection step. All randomness comes from the
 ``numpy.random.Generator`` given by the caller: same seed, same samples.
@@ -49,6 +52,7 @@ from dexplan.planning.gsn.combinations import (
     combine_pools,
     combine_pools_pairwise,
 )
+from dexplan.planning.gsn.contact_curve import contact_curve_samples, low_dof
 from dexplan.planning.gsn.contact_kinds import faces_only_reason
 from dexplan.planning.gsn.finger_reach import fingertip_fits, link_clearance, reach_shell
 from dexplan.planning.gsn.sampler_settings import (
@@ -181,9 +185,13 @@ class GraspSampler:
         order = list(gsn.contact_ids)
         rng.shuffle(order)
         for i in order:
-            pts, n_out = gsn.obj.sample_contacts(
-                s.candidates, rng, self._edges[0], self._vertices[0]
-            )
+            if low_dof(hand, i):  # contacts from joint space (:mod:`.contact_curve`)
+                curve = contact_curve_samples(hand, gsn.obj, i, R, t, s.candidates, rng)
+                pts, n_out = curve.points, curve.normals_out
+            else:
+                pts, n_out = gsn.obj.sample_contacts(
+                    s.candidates, rng, self._edges[0], self._vertices[0]
+                )
             tips = (pts + r * n_out) @ R.T + t  # candidate tip centres, world frame
             ok = self._in_shell(i, tips, n_out @ R.T)
             ok[ok] = self._fits(pts[ok], n_out[ok])
@@ -371,7 +379,7 @@ class GraspSampler:
         M_obj = pose_to_se3(pose_xyzquat)
         # every finger's candidate contacts first (cheap): a pose where some
         # finger reaches none is dropped before any IK or collision check
-        cands: dict[int, tuple[FloatArray, FloatArray]] = {}
+        cands: dict[int, tuple[FloatArray, FloatArray, FloatArray | None]] = {}
         for i in self.gsn.contact_ids:
             found = self._pool_candidates(i, R, t)
             if found is None:
@@ -390,17 +398,28 @@ class GraspSampler:
 
     def _pool_candidates(
         self, i: int, R: FloatArray, t: FloatArray
-    ) -> tuple[FloatArray, FloatArray] | None:
+    ) -> tuple[FloatArray, FloatArray, FloatArray | None] | None:
         """Finger ``i``'s candidate contacts at object rotation ``R``, position ``t`` (world).
 
         Sampled surface points whose fingertip centre lies in the finger's
         reach shell and voxels, facing the finger, where the fingertip fits.
+        A finger of fewer than 3 joints reaches almost no chosen point: its
+        candidates are its joint values projected onto the contacts it can
+        make (:mod:`.contact_curve`), with the same facing and fit filters.
 
         Returns:
-            ``(tips, normals)``: (C, 3) fingertip centres and outward normals
-            (world frame), or None when there is none.
+            ``(tips, normals, q)``: (C, 3) fingertip centres and outward normals
+            (world frame), and the finger's (C, m) joints for a low-DOF finger
+            (None otherwise: IK gives them); None when there is none.
         """
         hand, s = self.gsn.hand, self.settings
+        if low_dof(hand, i):
+            obj, m = self.gsn.obj, s.joint_margin
+            c = contact_curve_samples(hand, obj, i, R, t, s.pool_candidates, self.rng, m)
+            n_w = c.normals_out @ R.T
+            ok = self._in_shell(i, c.tips, n_w)
+            ok[ok] = self._fits(c.points[ok], c.normals_out[ok])
+            return (c.tips[ok], n_w[ok], c.q[ok]) if ok.any() else None
         pts, n_out = self.gsn.obj.sample_contacts(
             s.pool_candidates, self.rng, self._edges[1], self._vertices[1]
         )
@@ -411,13 +430,14 @@ class GraspSampler:
         ok[ok] = self._fits(pts[ok], n_out[ok])
         if not ok.any():
             return None
-        return tips[ok], n_w[ok]
+        return tips[ok], n_w[ok], None
 
     def _finger_pool(
         self,
         i: int,
         tips: FloatArray,
         n_w: FloatArray,
+        known: FloatArray | None,
         R: FloatArray,
         t: FloatArray,
         q: FloatArray,
@@ -426,14 +446,19 @@ class GraspSampler:
         """One finger's pool from its candidates (:meth:`_pool_candidates`).
 
         ``tips, n_w: (C, 3)`` the candidates' fingertip centres and outward
-        normals (world frame); ``R: (3, 3)``, ``t: (3,)`` the object's rotation and position
-        (world); ``q: (nq,)`` a scratch hand configuration (its other fingers
-        do not matter: only this finger's pairs with the palm, the object and
-        the obstacles are checked). None when no candidate works.
+        normals (world frame), ``known: (C, m)`` their joints when they came
+        from joint space (a low-DOF finger), else None; ``R: (3, 3)``,
+        ``t: (3,)`` the object's rotation and position (world); ``q: (nq,)`` a
+        scratch hand configuration (its other fingers do not matter: only this
+        finger's pairs with the palm, the object and the obstacles are checked).
+        None when no candidate works.
         """
         hand, s, rng = self.gsn.hand, self.settings, self.rng
         world = self.validity.world
-        q_sol, solved = hand.finger_ik_candidates(i, tips)
+        if known is None:
+            q_sol, solved = hand.finger_ik_candidates(i, tips)
+        else:
+            q_sol, solved = known[:, None, :], np.ones((len(tips), 1), dtype=bool)
         idx = hand.finger_q_index[i]
         # off the limits: a finger at a limit cannot follow the object
         m = s.joint_margin

@@ -5,6 +5,8 @@
 - :mod:`.split` (:class:`SplitFingerIK`): the same closed form after fixing
   at most one free joint, vectorised over targets; 4-joint fingers resolve
   the free joint on a grid (see ``docs/hands.md``, "IK and redundancy").
+- :mod:`.offset` (:class:`OffsetFingerIK`): closed form for 3 joints with
+  offset axes; :mod:`.planar_pair` (:class:`PlanarPairIK`): 2 parallel joints.
 - :mod:`.numeric` (:func:`batch_dls`, :func:`finger_dls`): damped least
   squares for any revolute chain, batched or one target with restarts.
 - :mod:`.chain` (:class:`FingerChain`): vectorised forward kinematics and
@@ -20,6 +22,7 @@ from dexplan.model.hand.ik.chain import FingerChain
 from dexplan.model.hand.ik.numeric import IKResult, batch_dls, finger_dls
 from dexplan.model.hand.ik.offset import OffsetFingerIK
 from dexplan.model.hand.ik.planar import PlanarFingerIK, nearest_branch, planar_branches
+from dexplan.model.hand.ik.planar_pair import PlanarPairIK
 from dexplan.model.hand.ik.split import (
     SAMPLE_GRID,
     TRACK_DELTAS,
@@ -38,6 +41,7 @@ __all__ = [
     "IKResult",
     "OffsetFingerIK",
     "PlanarFingerIK",
+    "PlanarPairIK",
     "SplitFingerIK",
     "batch_dls",
     "branch_solutions",

@@ -27,12 +27,11 @@ import numpy as np
 
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.ik.chain import FingerChain
+from dexplan.model.hand.ik.closed_form import matches_fk, nearest_branch_of, planar_2r
 
 __all__ = ["OffsetFingerIK"]
 
 _PARALLEL_TOL = 1e-9
-#: Largest tip error (m) of a branch :meth:`OffsetFingerIK.detect` accepts.
-_CHECK_TOL = 1e-9
 
 
 def _wrap(q: FloatArray) -> FloatArray:
@@ -83,16 +82,7 @@ class OffsetFingerIK:
         solver = cls(chain, lo, hi)
         if min(np.linalg.norm(solver.l1), np.linalg.norm(solver.l2)) < 1e-6:
             return None
-        rng = np.random.default_rng(0)  # fixed: the same hand always gets the same answer
-        q = rng.uniform(solver.lo, solver.hi, (32, 3))
-        targets = chain.tips(q)
-        sol, ok = solver.branches(targets)
-        if not ok.any(axis=1).all():
-            return None
-        err = np.linalg.norm(
-            chain.tips(sol[ok]) - np.repeat(targets, 4, axis=0)[ok.ravel()], axis=1
-        )
-        return solver if float(err.max()) < _CHECK_TOL else None
+        return solver if matches_fk(chain, solver.lo, solver.hi, solver.branches) else None
 
     def branches(self, targets: FloatArray) -> tuple[FloatArray, np.ndarray]:
         """Every branch of many targets.
@@ -113,20 +103,12 @@ class OffsetFingerIK:
         dx = pe - self.e @ (self.o2 - self.o1)
         q = np.zeros((n, 4, 3))
         ok = np.zeros((n, 4), dtype=bool)
-        n1, n2 = np.linalg.norm(self.l1), np.linalg.norm(self.l2)
-        beta = np.arctan2(self.l2[1], self.l2[0]) - np.arctan2(self.l1[1], self.l1[0])
         for side, c in enumerate((cy, -cy)):
             d = np.stack([dx, c - self.c_o2], axis=1)  # fingertip from o2, flexion plane
-            cos = (np.einsum("ij,ij->i", d, d) - n1 * n1 - n2 * n2) / (2.0 * n1 * n2)
-            inside = reach & (np.abs(cos) <= 1.0)
-            acos = np.arccos(np.clip(cos, -1.0, 1.0))
-            for knee, phi in enumerate((acos - beta, -acos - beta)):
-                # the second link at angle phi from the first: D = Rot(q2) (l1 + Rot(phi) l2)
-                cp, sp = np.cos(phi), np.sin(phi)
-                v = self.l1 + np.stack(
-                    [cp * self.l2[0] - sp * self.l2[1], sp * self.l2[0] + cp * self.l2[1]], axis=1
-                )
-                q2 = np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(v[:, 1], v[:, 0])
+            in_annulus, elbows = planar_2r(d, self.l1, self.l2)
+            inside = reach & in_annulus
+            # the second link at angle phi from the first: D = Rot(q2) (l1 + Rot(phi) l2)
+            for knee, (q2, phi) in enumerate(elbows):
                 # the first joint turns (A0, -c) in the (a, b) plane onto the target's
                 q1 = np.arctan2(p @ self.b, p @ self.a) - np.arctan2(-c, self.A0)
                 col = 2 * side + knee
@@ -143,8 +125,4 @@ class OffsetFingerIK:
         Returns:
             ``q: (N, 3)`` and ``ok: (N,)`` (some branch valid).
         """
-        q, ok = self.branches(targets)
-        d = np.sum((q - np.asarray(q_near, dtype=float).reshape(-1, 1, 3)) ** 2, axis=2)
-        best = np.argmin(np.where(ok, d, np.inf), axis=1)
-        rows = np.arange(len(q))
-        return q[rows, best], np.asarray(ok.any(axis=1))
+        return nearest_branch_of(self.branches, targets, q_near)

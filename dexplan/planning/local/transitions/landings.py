@@ -20,6 +20,7 @@ from dexplan.model.grasp.halfspace import cannot_be_force_closure
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
 from dexplan.planning.deadline import Deadline
+from dexplan.planning.gsn.contact_curve import contact_curve_samples, low_dof
 from dexplan.planning.gsn.validity import ValiditySettings
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
@@ -160,17 +161,26 @@ class Landings:
             if found >= limit:
                 return
 
-    def _landing_samples(self) -> tuple[FloatArray, FloatArray]:
+    def _landing_samples(self, finger: int, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Landing candidates: ``(points, normals_out)`` (S, 3) each, object frame.
 
         ``landing_candidates`` surface points and, on shapes that sample
         their edges (boxes), ``landing_edges`` edge points (normals inside
         the edge's cone) and ``landing_vertices`` corner points, shuffled
         together (the landing search takes the first reachable ones in this
-        order). Other shapes draw only the
-        surface points, as before.
+        order). Other shapes draw only the surface points, as before. A finger
+        of fewer than 3 joints reaches almost no sampled point: its candidates
+        are the contacts it makes at the object's ``pose`` from
+        ``landing_candidates`` joint values
+        (:mod:`dexplan.planning.gsn.contact_curve`).
         """
         s = self.settings
+        if low_dof(self.hand, finger):
+            R = self.checks.frames(pose)[0]
+            c = contact_curve_samples(
+                self.hand, self.obj, finger, R, pose[:3], s.landing_candidates, self.rng
+            )
+            return c.points, c.normals_out
         return self.obj.sample_contacts(
             s.landing_candidates, self.rng, s.landing_edges, s.landing_vertices
         )
@@ -190,7 +200,7 @@ class Landings:
             None when there is none.
         """
         s = self.settings
-        pts, nrm = self._landing_samples()
+        pts, nrm = self._landing_samples(finger, pose)
         tip_obj = pts + self.hand.fingertip_radius * nrm
         every = np.arange(len(pts))
         keep = self._first_reachable(finger, pose, tip_obj, every, 2 * s.landing_reachable)
@@ -298,7 +308,7 @@ class Landings:
         """
         s = self.settings
         r = self.hand.fingertip_radius
-        pts, nrm = self._landing_samples()
+        pts, nrm = self._landing_samples(finger, pose)
         if hint is not None:
             pts = np.vstack([hint[0][None], pts])
             nrm = np.vstack([hint[1][None], nrm])

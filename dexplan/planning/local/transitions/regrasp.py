@@ -21,6 +21,7 @@ from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.planning.deadline import Deadline
+from dexplan.planning.gsn.contact_curve import low_dof
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
 from dexplan.planning.local.transitions.counts import LocalCounts
@@ -31,6 +32,9 @@ from dexplan.planning.ompl import plan_joint_path
 _MAX_SUBSTEPS = 200
 #: Release verdicts kept (:meth:`RegraspPlanner.can_release`) before the cache starts over.
 _RELEASE_CACHE = 4096
+#: A low-DOF finger's lift direction, within its reach, must leave the surface
+#: at least this steeply (cosine with the outward normal).
+_MIN_LIFT_COS = 0.2
 
 
 class RegraspPlanner:
@@ -220,8 +224,10 @@ class RegraspPlanner:
         """Configurations moving the tip from ``tip`` off the surface by ``lift_height``.
 
         The direction is the outward normal, or that normal tilted up to 60
-        degrees when the finger cannot move straight out. The first entry is
-        the configuration at ``tip`` (on the surface).
+        degrees when the finger cannot move straight out; for a finger of
+        fewer than 3 joints, those directions within its reach
+        (:meth:`_reachable_directions`). The first entry is the configuration
+        at ``tip`` (on the surface).
         """
         hand, s = self.hand, self.settings
         idx = hand.finger_q_index[finger]
@@ -231,7 +237,10 @@ class RegraspPlanner:
         q0 = q.copy()
         q0[idx] = q_f
         n_steps = max(2, math.ceil(s.lift_height / s.max_step_m))
-        for direction in self._lift_directions(normal):
+        directions = self._lift_directions(normal)
+        if low_dof(hand, finger):
+            directions = self._reachable_directions(finger, q0, normal, directions)
+        for direction in directions:
             qs = [q0]
             ok = True
             for k in range(1, n_steps + 1):
@@ -267,6 +276,31 @@ class RegraspPlanner:
                 d = math.cos(tilt) * n + math.sin(tilt) * (math.cos(phi) * t1 + math.sin(phi) * t2)
                 dirs.append(d)
         return dirs
+
+    def _reachable_directions(
+        self, finger: int, q: FloatArray, normal: FloatArray, directions: list[FloatArray]
+    ) -> list[FloatArray]:
+        """``directions`` projected onto where a finger of fewer than 3 joints can move its tip.
+
+        Such a fingertip moves on a surface (a plane for parallel joints): a
+        straight move along the normal, which leaves it, is not reachable.
+        Each direction is projected onto the span of the finger's Jacobian at
+        ``q: (nq,)`` and kept, normalised, when it still leaves the surface
+        (cosine with ``normal`` at least :data:`_MIN_LIFT_COS`); duplicates dropped.
+        """
+        J = self.hand.fingertip_jacobians(q)[1][finger]
+        P = J @ np.linalg.pinv(J)
+        out: list[FloatArray] = []
+        n = normal / np.linalg.norm(normal)
+        for d in directions:
+            v = P @ d
+            norm = float(np.linalg.norm(v))
+            if norm < 1e-6 or float(v @ n) < _MIN_LIFT_COS * norm:
+                continue
+            v = v / norm
+            if all(float(v @ w) < 1.0 - 1e-9 for w in out):
+                out.append(v)
+        return out
 
     def _subdivide(self, qa: FloatArray, qb: FloatArray) -> list[FloatArray] | None:
         """Joint-space straight line from qa to qb in steps <= max_step_rad (incl. ends)."""

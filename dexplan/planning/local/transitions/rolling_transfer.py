@@ -12,7 +12,10 @@ checked at every waypoint:
 - joint limits (kept :attr:`TransitionSettings.joint_margin` away);
 - link collisions (palm, object, obstacles, other fingers);
 - force closure of the rolled grasp and of every (n-1)-finger subgrasp
-  (:attr:`ValiditySettings.fc_margin`).
+  (:attr:`ValiditySettings.fc_margin`);
+- a finger of 2 joints rolls only under the object motions it can follow
+  (three no-slip equations, two joints): where it would slip, it blocks
+  the transfer with reason ``ik``.
 
 The transfer ends where the rolled grasp stops being valid; the finger
 blamed is the one that failed (limits, collisions), or for force closure
@@ -41,6 +44,9 @@ from dexplan.planning.local.transitions.transfer import TransferResult, Transfer
 
 #: Times a rolling step whose joints change too much is halved before it gives up.
 _MAX_HALVINGS = 4
+#: Slip (m) of one step above which a finger of fewer than 3 joints cannot roll
+#: (the verifier's no-slip rule allows 1e-4 m over a whole transfer).
+LOW_DOF_SLIP = 1e-6
 
 
 class RollingTransferPlanner:
@@ -127,7 +133,9 @@ class RollingTransferPlanner:
         ``state`` and ``wps`` are left at the last valid waypoint (the caller
         drops them when the whole step fails).
         """
-        rolled = self._roll_all(pa, pb, state)
+        rolled, slipped = self._roll_all(pa, pb, state)
+        if slipped is not None:
+            return slipped, TransferStop.IK
         if np.max(np.abs(rolled.q - state.q)) > self.settings.max_step_rad:
             if depth >= _MAX_HALVINGS:
                 jump = int(np.argmax(np.abs(rolled.q - state.q)))
@@ -144,16 +152,29 @@ class RollingTransferPlanner:
         wps.append(state.waypoint(pb))
         return None
 
-    def _roll_all(self, pa: FloatArray, pb: FloatArray, state: _Rolled) -> _Rolled:
-        """Every finger rolled from ``pa`` to ``pb`` (fingers are independent chains)."""
+    def _roll_all(
+        self, pa: FloatArray, pb: FloatArray, state: _Rolled
+    ) -> tuple[_Rolled, int | None]:
+        """Every finger rolled from ``pa`` to ``pb`` (fingers are independent chains).
+
+        Returns the rolled state and the first finger of fewer than 3 joints
+        that cannot roll with the object (None: every finger rolls). Rolling
+        without slipping is three equations: a finger of 3 joints or more
+        solves them exactly, a 2-joint finger only under the object motions
+        its fingertip can follow; elsewhere its least-squares step misses by
+        :attr:`RolledContact.slip`, which would be a slip, not a roll.
+        """
         q = state.q.copy()
         out = _Rolled(q, state.points.copy(), state.normals.copy())
+        slipped = None
         for f in range(self.hand.n_fingers):
             r = self.rolling.roll(f, state.q, pa, pb, state.points[f])
             idx = self.hand.finger_q_index[f]
             q[idx] = r.q[idx]
             out.points[f], out.normals[f] = r.p_obj, r.normal_obj
-        return out
+            if slipped is None and len(idx) < 3 and r.slip > LOW_DOF_SLIP:
+                slipped = f
+        return out, slipped
 
     def _invalid(
         self, pose: FloatArray, rolled: _Rolled, before: _Rolled
