@@ -58,7 +58,7 @@ RULES: dict[str, str] = {
     "contact_matches_fingertip": (
         "the stated contact is the surface point closest to the fingertip centre "
         "(within 1 mm): where the sphere touches; force closure uses it with the normal "
-        "there (at a box edge, the direction from the edge to the centre)"
+        "there (at a box edge or corner, the direction from the edge or corner to the centre)"
     ),
     # collisions and penetration
     "collision": (
