@@ -1,6 +1,7 @@
 """The reduction property edge by edge (bisection) and the planner's reduction choice."""
 
 import copy
+import dataclasses
 import itertools
 
 import numpy as np
@@ -8,6 +9,7 @@ import pytest
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import inverse_transform_points, quat_angle
+from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.scenario import builtin_scenario_path, default_scenario, load_scenario
 from dexplan.planfile import build_plan_document, verify_plan
 from dexplan.planning.context import build_context, build_hand
@@ -23,7 +25,8 @@ from dexplan.planning.start import start_state
 
 @pytest.fixture(scope="module")
 def scenario():
-    return default_scenario()
+    """The builtin scenario with the paper's fixed contacts: the edge-by-edge reduction's model."""
+    return dataclasses.replace(default_scenario(), contact_motion=ContactMotion.FIXED)
 
 
 @pytest.fixture(scope="module")

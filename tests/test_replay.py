@@ -42,10 +42,14 @@ def _turn(seg) -> float:
 
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory, paper_plan):
-    """The first paper_sphere seed whose plan has a regrasp and a first transfer of a big turn."""
+    """The first paper_sphere seed whose plan has a regrasp and a first transfer of a big turn.
+
+    With fixed contacts: the open-loop gap (the tips roll where the plan slides
+    them) is what :func:`test_first_transfer_tracks_only_with_feedback` shows.
+    """
     for seed in SEEDS:
         folder = tmp_path_factory.mktemp(f"replay{seed}")
-        doc = read_plan(paper_plan(seed, folder))
+        doc = read_plan(paper_plan(seed, folder, motion="fixed"))
         kinds = [s["kind"] for s in doc["segments"]]
         if "regrasp" in kinds and _turn(doc["segments"][_first_transfer(doc)]) >= BIG_TURN:
             return folder, doc, hand_from_plan(doc["hand"])

@@ -13,7 +13,16 @@ from dexplan.planfile import hand_from_plan, read_plan
 
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory, paper_plan):
-    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("control")))
+    """paper_sphere seed 1 with fixed contacts (the rigid tips' slide is their gap)."""
+    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("control"), motion="fixed"))
+    return doc, hand_from_plan(doc["hand"])
+
+
+@pytest.fixture(scope="module")
+def rolled(tmp_path_factory, paper_plan):
+    """paper_sphere seed 1 as shipped: rolling contacts."""
+    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("control_rolling")))
+    assert doc["contact_motion"] == "rolling"
     return doc, hand_from_plan(doc["hand"])
 
 

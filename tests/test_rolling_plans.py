@@ -58,7 +58,7 @@ def test_contacts_roll_over_the_object_during_transfers(rolling_doc: dict) -> No
 
 def test_a_fixed_contact_plan_called_rolling_slips(rolling_doc: dict, paper_plan, tmp_path) -> None:
     """The fixed-contact plan slides its fingertips: claimed rolling, only no-slip breaks."""
-    doc = json.loads(paper_plan(1, tmp_path).read_text())
+    doc = json.loads(paper_plan(1, tmp_path, motion="fixed").read_text())
     assert doc["contact_motion"] == "fixed" and verify_plan(doc).ok
     doc["contact_motion"] = "rolling"
     report = verify_plan(doc)
@@ -99,7 +99,7 @@ def test_the_no_slip_tolerance_is_the_documented_one(rolling_doc: dict) -> None:
 
 
 def test_a_format_1_plan_still_verifies(paper_plan, tmp_path) -> None:
-    doc = json.loads(paper_plan(1, tmp_path).read_text())
+    doc = json.loads(paper_plan(1, tmp_path, motion="fixed").read_text())
     doc["format"] = "dexplan-plan/1"
     del doc["contact_motion"]
     for seg in doc["segments"]:

@@ -19,8 +19,12 @@ from dexplan.planfile.verify import RULES
 
 @pytest.fixture(scope="module")
 def real_plan(paper_plan, tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """The builtin scenario's plan of seed 1 (the session's shared run), parsed."""
-    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("tampers")))
+    """The builtin scenario's plan of seed 1 with fixed contacts (the session's shared run), parsed.
+
+    The tampers break fixed-contact rules (``transfer_contact_drift``; a fixed plan
+    called rolling breaks ``transfer_no_slip``).
+    """
+    doc = read_plan(paper_plan(1, tmp_path_factory.mktemp("tampers"), motion="fixed"))
     kinds = {s["kind"] for s in doc["segments"]}
     assert kinds == {"transfer", "regrasp"}, kinds  # the table needs both kinds
     return doc
