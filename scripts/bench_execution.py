@@ -5,22 +5,25 @@
         [--gravity both|on|off] [--max-duration S]
 
 Per seed: plan with ``dexplan plan SCENARIO --seed N`` (in-process CLI; a plan
-file already in ``--out`` is reused), export the trajectory and check its
-limits, then replay it in MuJoCo (actuators at the plan's URDF effort limits)
-closed loop (object-pose feedback) and open loop (the planned joints), with
-gravity (palm up, the plan's mass, 0.1 kg by default) and without. A replay
-reproduces in any process (tests/test_replay_determinism.py), so one process
-runs them all, one at a time. Plans whose execution takes longer than
-``--max-duration`` are not replayed and say so. Prints one line per replay,
-then a markdown table and the totals per loop and gravity: tracked (every
-waypoint within 5 mm and 0.1 rad, no drop), lost track, dropped, and the worst
-waypoint error of the tracked replays.
+file already in ``--out`` is reused), measure the fingertip slip the plan asks
+for (per transfer and finger, the contact's path on the fingertip against its
+path on the object, as ``dexplan verify``'s ``transfer_no_slip`` rule does),
+export the trajectory and check its limits, then replay it in MuJoCo
+(actuators at the plan's effort limits) closed loop (object-pose feedback) and
+open loop (the planned joints), with gravity (palm up, the plan's mass, 0.1 kg
+by default) and without. Every replay runs in a fresh process, one at a time.
+Plans whose execution takes longer than ``--max-duration`` are not replayed
+and say so. Prints one line per replay, then a markdown table and the totals
+per loop and gravity: tracked (every waypoint within 5 mm and 0.1 rad, no
+drop), lost track, dropped, and the worst waypoint error of the tracked
+replays; and the largest fingertip slip of all plans.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing
 import sys
 import time
 from dataclasses import dataclass, field
@@ -34,6 +37,8 @@ from dexplan.execution.replay.result import Loop, ReplayResult
 from dexplan.execution.replay.simulation import replay_plan
 from dexplan.execution.trajectory import build_trajectory
 from dexplan.planfile import hand_from_plan, read_plan
+from dexplan.planfile.document import segments_from_dicts
+from dexplan.planfile.tip_contacts import contact_path_lengths
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "dexplan/data/scenarios"
 
@@ -44,6 +49,8 @@ class SeedRow:
 
     seed: int
     segments: int = 0
+    motion: str = "fixed"
+    slip: float = math.nan
     duration: float = math.nan
     limits: str = ""
     skipped: str = ""
@@ -85,7 +92,8 @@ def _seed_row(
         return None
     doc = read_plan(plan)
     hand = hand_from_plan(doc["hand"])
-    row = SeedRow(seed, segments=len(doc["segments"]))
+    row = SeedRow(seed, segments=len(doc["segments"]), motion=doc.get("contact_motion", "fixed"))
+    row.slip = _max_slip(doc, hand)
     try:
         traj = build_trajectory(doc, hand=hand, base_dir=out)
     except DexplanError as exc:
@@ -100,11 +108,31 @@ def _seed_row(
         return row
     for loop, g in runs:
         t0 = time.perf_counter()
-        r = replay_plan(doc, gravity=g, base_dir=out, hand=hand, feedback=loop == Loop.CLOSED)
+        # a fresh process per replay: nothing of one run can reach the next
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Pool(1) as pool:
+            r = pool.apply(_replay, (str(plan), loop, g, str(out)))
         row.replays[(loop, g)] = r
         print(f"seed {seed} ({time.perf_counter() - t0:.0f} s) " + r.summary().replace("\n", " |"))
         sys.stdout.flush()
     return row
+
+
+def _replay(plan: str, loop: Loop, gravity: bool, out: str) -> ReplayResult:
+    """One replay of a plan file (run in its own process)."""
+    doc = read_plan(plan)
+    return replay_plan(doc, gravity=gravity, base_dir=out, feedback=loop == Loop.CLOSED)
+
+
+def _max_slip(doc: dict, hand: object) -> float:
+    """Largest ``|path on the fingertip - path on the object|`` (m) of any transfer contact."""
+    slips = [
+        abs(on_tip - on_obj)
+        for seg in segments_from_dicts(doc["segments"])
+        if seg.kind == "transfer"
+        for _, on_tip, on_obj in contact_path_lengths(hand, seg)  # type: ignore[arg-type]
+    ]
+    return max(slips, default=0.0)
 
 
 def _cell(r: ReplayResult) -> str:
@@ -127,18 +155,22 @@ def _name(loop: Loop, g: bool) -> str:
 def _table(rows: list[SeedRow], runs: list[tuple[Loop, bool]]) -> None:
     """A markdown table, one row per seed."""
     heads = " | ".join(_name(*k) for k in runs)
-    print(f"| seed | segments | execution s | limits | {heads} |")
-    print("|---" * (4 + len(runs)) + "|")
+    print(f"| seed | contacts | segments | slip mm | execution s | limits | {heads} |")
+    print("|---" * (6 + len(runs)) + "|")
     for row in rows:
         cells = [row.replays[k] for k in runs if k in row.replays]
         body = " | ".join(_cell(r) for r in cells) if cells else row.skipped
-        print(f"| {row.seed} | {row.segments} | {row.duration:.1f} | {row.limits} | {body} |")
+        print(
+            f"| {row.seed} | {row.motion} | {row.segments} | {row.slip * 1e3:.2f} | "
+            f"{row.duration:.1f} | {row.limits} | {body} |"
+        )
 
 
 def _summary(rows: list[SeedRow], runs: list[tuple[Loop, bool]]) -> None:
     """Per loop and gravity: tracked, lost track, dropped, worst tracked waypoint error."""
     n = len(rows)
     print(f"plans: {n}; limits check passed: {sum(r.limits == 'OK' for r in rows)}/{n}")
+    print(f"largest fingertip slip of a transfer contact: {max(r.slip for r in rows) * 1e3:.2f} mm")
     skipped = [r.seed for r in rows if r.skipped]
     if skipped:
         print(f"not replayed: seeds {', '.join(map(str, skipped))}")
@@ -186,6 +218,7 @@ def main() -> int:
     gravities = {"both": [True, False], "on": [True], "off": [False]}[args.gravity]
     runs = [(loop, g) for loop in loops for g in gravities]
     rows = [row for s in seeds if (row := _seed_row(s, args, out, runs)) is not None]
+    print(f"planned: {len(rows)}/{len(seeds)} seeds")
     if not rows:
         return 1
     _table(rows, runs)

@@ -102,11 +102,20 @@ class ObjectFeedback:
         solver: the plan's :class:`~dexplan.model.grasp.grip_forces.GripForceSolver` (the
             replay's gravity): the feed-forward forces are recomputed at the
             measured contacts; None keeps the planned ones.
+        rolling: the plan's contacts roll during transfers (``contact_motion``
+            ``"rolling"``): the holding tips follow the plan's rolling.
     """
 
-    def __init__(self, hand: Hand, traj: Trajectory, solver: GripForceSolver | None = None) -> None:
+    def __init__(
+        self,
+        hand: Hand,
+        traj: Trajectory,
+        solver: GripForceSolver | None = None,
+        *,
+        rolling: bool = False,
+    ) -> None:
         self.hand = hand
-        self.traj, self.solver = traj, solver
+        self.traj, self.solver, self.rolling = traj, solver, rolling
         self.holding = ~np.isnan(traj.forces[:, :, 0])
         self.loaded = self.holding & (np.linalg.norm(np.nan_to_num(traj.forces), axis=2) > 0)
         holding = self.holding
@@ -139,7 +148,6 @@ class ObjectFeedback:
             sim_pose: (7,) the measured object pose, world frame.
         """
         Xp, Xm = pose_se3(planned_pose), pose_se3(sim_pose)
-        T = Xp * Xm.inverse()
         p_sim, J_sim = self.hand.fingertip_jacobians(q_sim)
         p_plan, J_plan = self.hand.fingertip_jacobians(q_plan)
         out = np.array(q_plan, dtype=float)
@@ -152,8 +160,12 @@ class ObjectFeedback:
                 self.lifted[f] = 0.0
             self.was_holding[f] = hold
             keep = 1.0
+            if hold and self.rolling:  # the planned joints roll the tips; correct the object
+                move = Xp.act(Xm.actInv(p_sim[f])) - p_sim[f]
+                out[ix] = q_plan[ix] + _dls(J_plan[f], _clip(move))
+                continue
             if hold:
-                goal = T.act(p_sim[f])
+                goal = Xp.act(Xm.actInv(p_sim[f]))
             else:
                 lift = float(np.linalg.norm(plan_tip - self.release_tip[f]))
                 self.lifted[f] = max(self.lifted[f], lift)

@@ -117,6 +117,8 @@ class ReplayResult:
         goal_tolerances: the plan's ``(position_tol, angle_tol)``.
         contact_losses: (finger, time) of each contact loss.
         slips: (finger, time, distance) of each slip event.
+        max_contact_drift: the farthest a loaded fingertip's contact was from the
+            plan's contact, on the object (m): how far the contacts migrated.
         drop: where and how the object was dropped, or None.
         max_penetration: deepest hand-object penetration (m).
         unbalanced_samples: trajectory samples where no grip forces balance
@@ -149,6 +151,7 @@ class ReplayResult:
     goal_tolerances: tuple[float, float]
     contact_losses: tuple[tuple[int, float], ...]
     slips: tuple[tuple[int, float, float], ...]
+    max_contact_drift: float
     drop: Drop | None
     max_penetration: float
     unbalanced_samples: int
@@ -212,7 +215,8 @@ class ReplayResult:
             lines.append("  goal: not reached")
         lines.append(
             f"  contacts: {len(self.contact_losses)} losses, {len(self.slips)} slips over "
-            f"3 mm; max penetration {_mm(self.max_penetration)}; samples without balancing "
+            f"3 mm, at most {_mm(self.max_contact_drift)} from the planned contacts; "
+            f"max penetration {_mm(self.max_penetration)}; samples without balancing "
             f"grip forces: {self.unbalanced_samples}"
         )
         lines.append("  actuators: " + self._effort_line())

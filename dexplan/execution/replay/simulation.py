@@ -178,7 +178,8 @@ def replay_plan(
     feedback_ctl = None
     if feedback:
         solver = solver_from_plan(doc, settings, hand, base_dir)
-        feedback_ctl = ObjectFeedback(hand, traj, solver)
+        rolling = doc.get("contact_motion", "fixed") == "rolling"
+        feedback_ctl = ObjectFeedback(hand, traj, solver, rolling=rolling)
     run = _Replay(mujoco, m, hand, tips, traj, feedback_ctl)
     run.simulate()
     loop = Loop.CLOSED if feedback else Loop.OPEN
@@ -241,6 +242,7 @@ def _replay_result(
         ),
         contact_losses=tuple(run.losses),
         slips=tuple(run.slips),
+        max_contact_drift=run.max_drift,
         drop=drop,
         max_penetration=run.max_pen,
         unbalanced_samples=int(np.sum(np.isnan(traj.margins))),
@@ -290,6 +292,7 @@ class _Replay:
         losses: (finger, time) of each contact loss.
         slips: (finger, time, distance) of each slip event.
         max_pen: deepest hand-object penetration (m).
+        max_drift: farthest a loaded tip's contact was from the planned one (m).
         drop_sample: the first sample farther than DROP_TOL from the plan, or None.
         lost_sample: the first sample outside the tracking tolerances, or None.
         effort: (nq,) the joints' effort limits (N m), NaN where none.
@@ -331,6 +334,7 @@ class _Replay:
         self.slips: list[tuple[int, float, float]] = []
         self.slipping = np.zeros(n, dtype=bool)
         self.max_pen = 0.0
+        self.max_drift = 0.0
         self.drop_sample: int | None = None
         self.lost_sample: int | None = None
         # the limits the compiled model clamps to (NaN: an unlimited actuator)
@@ -477,6 +481,7 @@ class _Replay:
             if now >= 0.0 and self.loaded[i, f]:
                 p_obj = Rm.T @ (np.asarray(con.pos) - pose_now[:3])
                 dist = float(np.linalg.norm(p_obj - self.traj.contacts[i, f]))
+                self.max_drift = max(self.max_drift, dist)
                 if dist > SLIP_TOL and not self.slipping[f]:
                     self.slips.append((f, now, dist))
                 self.slipping[f] = dist > SLIP_TOL
