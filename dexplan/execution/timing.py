@@ -89,11 +89,18 @@ SAFETY = 0.95
 _STEP_M = 0.01  # normalisation of a step: the verifier's step bounds (m, rad)
 _STEP_RAD = 0.05
 _DUPLICATE = 1e-12  # steps of fewer path units are dropped
+#: A path coordinate whose range is below this (rad or m) does not move.
+_STILL = 1e-9
 #: Times a segment is solved again with tightened limits when toppra's profile
 #: exceeds a limit between its grid points.
 MAX_TIGHTENING = 8
 #: Samples per toppra grid interval at which the limits are checked.
 DENSE = 16
+#: An interior path velocity whose square is below this fraction of the largest
+#: controllable one is a stalled forward pass (:func:`_stalled`), solved again
+#: backward, then on grids of STALL_GRIDS more points.
+STALL_FRACTION = 1e-6
+STALL_GRIDS = (1, 2, 3, 5, 8)
 #: The limits when none are given (module docstring).
 DEFAULT_LIMITS = TimingLimits()
 
@@ -173,12 +180,12 @@ def time_segment(
     c, steps = _rotation_and_steps(q, poses)
     ws = np.cumsum(steps)
     keep = np.concatenate([[True], steps[1:] > 0.0])
-    if keep.sum() < 2:  # nothing moves: a point at rest
+    xs, ss, moving, kinds, path, backward = _toppra_path(q, poses, c, ws, keep)
+    if keep.sum() < 2 or path is None:  # nothing moves: a point at rest
         return SegmentTiming(
             kind, finger, 0.0, ws, np.zeros(K), np.zeros(1), np.zeros(1), np.zeros(1),
             poses, c, nq, q[0].copy(), None, None, None,
         )  # fmt: skip
-    xs, ss, moving, kinds, path = _toppra_path(q, poses, c, ws, keep)
     n_grid = max(2, round(ss[-1] * limits.grid_per_step) + 1)
     grid = np.linspace(0.0, ss[-1], n_grid)
     slow = _approach_slowdown(kind, limits, float(ss[-1]))
@@ -197,7 +204,7 @@ def time_segment(
             fa * np.stack([-alim, alim], axis=1),
             discretization_scheme=DiscretizationType.Collocation,
         )
-        grid, sd, times = _solve([vel, acc], path, grid, name)
+        grid, sd, times = _solve([vel, acc], (path, backward), grid, name)
         seg = SegmentTiming(
             kind, finger, float(times[-1]), ws, _times_at(ws, grid, sd, times), grid, sd, times,
             poses, c, nq, q[0].copy(), xs[0].copy(), moving, path,
@@ -217,7 +224,7 @@ def time_segment(
 
 def _toppra_path(
     q: FloatArray, poses: FloatArray, c: FloatArray, ws: FloatArray, keep: np.ndarray
-) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, Any]:
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, Any, Any]:
     """The spline toppra parameterises, through the waypoints that move.
 
     Args:
@@ -230,19 +237,28 @@ def _toppra_path(
     Returns:
         ``(xs, ss, moving, kinds, path)``: (K', nq + 6) kept waypoint coordinates
         ``[q, position, rotation]``, (K',) their path coordinates, the indices of
-        the coordinates that move, their kinds (0 joint, 1 position, 2 rotation)
-        and the ``toppra.SplineInterpolator`` through them.
+        the coordinates that move, their kinds (0 joint, 1 position, 2 rotation),
+        the ``toppra.SplineInterpolator`` through them (None when nothing moves)
+        and the same path backward (``s -> s_end - s``).
     """
     nq = q.shape[1]
     xs = np.concatenate([q, poses[:, :3], c], axis=1)[keep]
     ss = ws[keep]
     # only the coordinates that move are toppra's path (constant rows would be
     # all-zero constraint rows, on which its seidel solver reports a feasible
-    # instance uncontrollable)
-    moving = np.flatnonzero(np.ptp(xs, axis=0) > 0.0)
+    # instance uncontrollable). A coordinate that moves by round-off only (a
+    # regrasp's object rotation coordinate wobbles by 1e-16 rad) counts as
+    # constant too: its rows are all but zero, and on one Allegro regrasp
+    # seidel then left the path velocity 2e-4 before the end, which timed the
+    # last grid interval at 2726 s.
+    moving = np.flatnonzero(np.ptp(xs, axis=0) > _STILL)
     kinds = np.concatenate([np.zeros(nq), np.ones(3), np.full(3, 2.0)])[moving]
+    if moving.size == 0 or ss.size < 2:
+        return xs, ss, moving, kinds, None, None
     path = SplineInterpolator(ss, xs[:, moving], bc_type="not-a-knot")
-    return xs, ss, moving, kinds, path
+    # a cubic spline through the reversed knots is the same curve run backward
+    backward = SplineInterpolator(ss[-1] - ss[::-1], xs[::-1][:, moving], bc_type="not-a-knot")
+    return xs, ss, moving, kinds, path, backward
 
 
 def _rotation_and_steps(q: FloatArray, poses: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -309,28 +325,80 @@ def _acceleration_limits(nq: int, limits: TimingLimits) -> FloatArray:
 
 
 def _solve(
-    constraints: list[Any], path: Any, grid: FloatArray, name: str
+    constraints: list[Any], paths: tuple[Any, Any], grid: FloatArray, name: str
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Path velocities of toppra on ``grid``, at rest at both ends; (grid, sd, times)."""
+    """Path velocities of toppra on ``grid``, at rest at both ends; (grid, sd, times).
+
+    ``paths`` is the path and the same path backward. Where toppra's forward
+    pass stalls (:func:`_stalled`) the backward path is solved (every limit is
+    symmetric: its profile run backward is a valid forward one), then both on
+    grids of :data:`STALL_GRIDS` more points, until one does not stall; the
+    fastest profile found is kept (each is feasible; a stall only wastes time).
+    """
+    best: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    for extra in (0, *STALL_GRIDS):
+        g = grid if extra == 0 else np.linspace(grid[0], grid[-1], grid.size + extra)
+        for back in (False, True):
+            sd, stalled = _toppra_velocities(constraints, paths[back], g, name, back)
+            found = _profile_times(g, sd, name)
+            if best is None or found[2][-1] < best[2][-1]:
+                best = found
+            if not stalled:
+                return best
+    assert best is not None
+    return best
+
+
+def _toppra_velocities(
+    constraints: list[Any], path: Any, grid: FloatArray, name: str, backward: bool
+) -> tuple[FloatArray, bool]:
+    """The path velocities toppra finds on ``grid`` (forward order) and whether its pass stalled."""
     instance = TOPPRA(constraints, path, gridpoints=grid, solver_wrapper="seidel")
     try:
         instance.compute_parameterization(0.0, 0.0)
     except Exception as exc:  # toppra's own errors
         raise TimingError(f"{name}: toppra failed: {exc}") from exc
     data = instance.problem_data
-    sd = data.sd_vec
-    if data.return_code != ParameterizationReturnCode.Ok or sd is None:
+    if data.return_code != ParameterizationReturnCode.Ok or data.sd_vec is None:
         raise TimingError(f"{name}: no feasible time parameterisation (toppra: {data.return_code})")
-    grid = np.asarray(data.gridpoints, dtype=float)
-    sd = np.maximum(np.asarray(sd, dtype=float), 0.0)
+    sd = np.asarray(data.sd_vec, dtype=float)
+    K = np.asarray(data.K, dtype=float)
     if sd.shape != grid.shape or not np.all(np.isfinite(sd)):
         raise TimingError(f"{name}: toppra returned a non-finite velocity profile")
+    if backward:  # the backward profile on the mirrored uniform grid, in forward order
+        sd, K = sd[::-1].copy(), K[::-1]
+    return sd, _stalled(sd, K)
+
+
+def _profile_times(
+    grid: FloatArray, sd: FloatArray, name: str
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(grid, sd, times) of a profile at rest at both ends (constant acceleration per interval)."""
+    grid = np.asarray(grid, dtype=float)
+    sd = np.maximum(sd, 0.0)
     sd[0] = sd[-1] = 0.0
     vsum = sd[:-1] + sd[1:]
     if np.any(vsum <= 0.0):
         raise TimingError(f"{name}: the path velocity vanishes inside the segment (toppra)")
     times = np.concatenate([[0.0], np.cumsum(2.0 * np.diff(grid) / vsum)])
     return grid, sd, times
+
+
+def _stalled(sd: FloatArray, K: FloatArray) -> bool:
+    """Whether toppra's forward pass all but stopped at an interior grid point.
+
+    Its seidel solver now and then (one Allegro regrasp of 44 grid points)
+    picks a next velocity of nearly zero where the controllable set allows a
+    thousand times more: never time-optimal, and next to the final rest it
+    timed the last grid interval at 2726 s (``2 ds / (sd_a + sd_b)`` with both
+    near zero). The same path solved backward does not meet the degenerate step.
+
+    Args:
+        sd: (N,) the path velocities toppra chose.
+        K: (N, 2) its controllable sets of squared path velocities.
+    """
+    inner = slice(1, sd.size - 1)
+    return bool(np.any(sd[inner] ** 2 < STALL_FRACTION * K[inner, 1]))
 
 
 def _dense_ratios(seg: SegmentTiming, vj: FloatArray, limits: TimingLimits) -> tuple[float, float]:
