@@ -99,3 +99,30 @@ def test_next_hold_times() -> None:
     out = _next_hold_times(t, holding)
     assert np.array_equal(out[:, 0], [0.0, 3.0, 3.0, 3.0])
     assert np.array_equal(out[:, 1], [2.0, 2.0, 2.0, np.inf])
+
+
+def test_a_rolling_plan_holds_with_its_planned_joints_corrected(rolled) -> None:
+    """Rolling contacts: the planned joints roll the tips; the feedback only adds the correction.
+
+    On the plan the targets are the plan; with the object 2 mm behind, every
+    holding tip is aimed 2 mm ahead; with the fingers off their planned joints
+    but the object on the plan, the targets stay the planned joints (they
+    carry the planned rolling), where the fixed-contact feedback carries the
+    measured tips instead.
+    """
+    doc, hand = rolled
+    traj = build_trajectory(_first_transfer(doc), hand=hand)
+    k = traj.t.size // 2
+    q, pose = traj.q[k], traj.object_pose[k]
+    fb = ObjectFeedback(hand, traj, rolling=True)
+    assert fb.holding[k].all()
+    assert np.allclose(fb.targets(k, q, q, pose, pose), q, atol=1e-9)
+    lag = pose.copy()
+    lag[0] -= 0.002
+    out = fb.targets(k, q, q, pose, lag)
+    shift = hand.fingertip_positions(out) - hand.fingertip_positions(q)
+    assert np.allclose(shift, [0.002, 0.0, 0.0], atol=3e-4)
+    off = q + 0.02
+    assert np.allclose(fb.targets(k, q, off, pose, pose), q, atol=1e-9)
+    fixed = ObjectFeedback(hand, traj, rolling=False)
+    assert not np.allclose(fixed.targets(k, q, off, pose, pose), q, atol=1e-3)

@@ -86,3 +86,35 @@ def test_bad_limits_rejected() -> None:
         TimingLimits(object_speed=0.0)
     with pytest.raises(InvalidInputError, match="approach_scale"):
         TimingLimits(approach_scale=2.0)
+
+
+def test_a_stalled_toppra_pass_is_solved_again() -> None:
+    """An Allegro regrasp on which toppra's forward pass all but stopped before the end.
+
+    Seidel picked a path velocity of 2e-4 one grid point before the final rest,
+    where the controllable set allowed 4: the last grid interval took 2727 s.
+    The segment is timed in seconds (no grid interval near a second: the
+    stall can stay at an interior point, where it costs a fraction of one),
+    the limits hold between grid points, and the path run backward takes as long.
+    """
+    import json
+    from pathlib import Path
+
+    from dexplan.execution.timing import time_segment
+    from dexplan.model.hand.hand import Hand
+
+    data = json.loads((Path(__file__).parent / "data/allegro_regrasp_stall.json").read_text())
+    hand = Hand.builtin("allegro")
+    q = np.asarray(data["q"], dtype=float)
+    poses = np.asarray(data["object_pose_xyzquat"], dtype=float)
+    vj = joint_velocity_limits(hand.model)
+    lim = TimingLimits()
+    seg = time_segment("regrasp", data["finger"], q, poses, vj, lim)
+    # 14 steps of about 0.04 rad at up to 7 rad/s, slowed near both ends: seconds
+    assert seg.duration < 10.0
+    assert np.diff(seg.times).max() < 0.5
+    s = _dense(seg)
+    assert np.all(np.abs(s.qd) <= vj * (1 + 1e-9))
+    assert np.all(np.abs(s.qdd) <= lim.max_acceleration * (1 + 1e-9))
+    back = time_segment("regrasp", data["finger"], q[::-1], poses[::-1], vj, lim)
+    assert back.duration == pytest.approx(seg.duration, rel=1e-6)
