@@ -17,6 +17,17 @@ same, every :data:`CONTROL_PERIOD`:
   the transform from the measured to the planned object pose: the finger keeps
   the contact where it actually is on the object (wherever rolling moved it)
   and carries it to where the plan wants the object now;
+- in a plan with rolling contacts (``contact_motion = "rolling"``) the
+  planned joints already roll each tip over the object as MuJoCo's rigid tips
+  roll (the plan's contact kinematics), so a holding finger follows its
+  planned joints plus the same correction, ``T p_tip - p_tip`` mapped to the
+  joints at the planned configuration: the correction moves the object, the
+  planned joints keep the contacts on the plan's rolled contacts. Carrying
+  the measured tip, as for fixed contacts, would hold each tip centre still
+  on the object, which a rolling plan's tips are not: they lag the planned
+  rolling, the contacts migrate and the hold weakens (paper_sphere seed 4
+  lost track that way, by more than 20 degrees, and tracks within 0.5
+  degrees this way);
 - a *free* finger (a regrasp's moving finger) aims at its planned tip moved
   by the inverse transform (it lands on the planned contact of the object
   where the object actually is), plus the offset it had when it let go (the
