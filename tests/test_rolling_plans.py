@@ -111,7 +111,8 @@ def test_a_format_1_plan_still_verifies(paper_plan, tmp_path) -> None:
 def test_scenario_motion_is_validated(tmp_path) -> None:
     text = (SCENARIOS / "paper_sphere.toml").read_text()
     bad = tmp_path / "bad.toml"
-    bad.write_text(text.replace("[contact]", '[contact]\nmotion = "sliding"'))
+    assert 'motion = "rolling"' in text
+    bad.write_text(text.replace('motion = "rolling"', 'motion = "sliding"'))
     with pytest.raises(dexplan.DexplanError, match=r'contact\.motion must be "fixed" or "rolling"'):
         load_scenario(bad)
 
