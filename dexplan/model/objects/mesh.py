@@ -41,6 +41,7 @@ import trimesh
 from dexplan.core.errors import InvalidInputError, MeshError
 from dexplan.core.files import read_input_file
 from dexplan.core.typing import FloatArray, IntArray, as_points, as_positive
+from dexplan.model.objects.mesh_features import SharpFeatures, sharp_features
 from dexplan.model.objects.mesh_surface import closed_surface, face_indices, pseudo_normals
 from dexplan.model.objects.shape import SCALAR_LOOP_MAX, Shape, ShapeKind, check_sample_args
 from dexplan.model.objects.triangles import (
@@ -149,6 +150,7 @@ class Mesh(Shape):
         self._req = coal.DistanceRequest()
         self._res = coal.DistanceResult()
         self._dist_fn: Any = None
+        self._sharp: SharpFeatures | None = None
 
     # ------------------------------------------------------------ construction
     @classmethod
@@ -515,3 +517,28 @@ class Mesh(Shape):
         t = self._tris[tri]
         p = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
         return p, self._fn[tri]
+
+    def _sharp_features(self) -> SharpFeatures:
+        """The sharp convex edges and vertices (found once, on first use)."""
+        if self._sharp is None:
+            self._sharp = sharp_features(self._v, self._f, self._vpn)
+        return self._sharp
+
+    def sample_edges(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points on the sharp convex edges, normals between the two faces' normals.
+
+        See :meth:`~dexplan.model.objects.mesh_features.SharpFeatures.sample_edges`:
+        edges whose faces' normals differ by at least 20 degrees, on the convex
+        side; a smooth mesh has none and returns empty arrays.
+        """
+        n = check_sample_args(n, rng)
+        return self._sharp_features().sample_edges(n, rng)
+
+    def sample_vertices(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """Points at the sharp convex vertices, normals inside the incident faces' cone.
+
+        See :meth:`~dexplan.model.objects.mesh_features.SharpFeatures.sample_vertices`;
+        a smooth mesh has none and returns empty arrays.
+        """
+        n = check_sample_args(n, rng)
+        return self._sharp_features().sample_vertices(n, rng)
