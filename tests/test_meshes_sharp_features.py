@@ -5,14 +5,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 import trimesh
 
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Box, Mesh
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.model.objects.mesh import BUILTIN_MESH_DIR
-from dexplan.model.objects.mesh_features import SHARP_EDGE_MIN
 from dexplan.model.objects.primitives import EDGE_NORMAL_MIN
 from dexplan.planning.gsn.contact_kinds import face_normals, faces_only_reason
 from dexplan.planning.gsn.sampler_settings import (
@@ -127,8 +125,6 @@ def test_smooth_meshes_have_no_sharp_features_and_keep_their_stream() -> None:
     assert bean.sample_vertices(10, rng)[0].shape == (0, 3)
     assert rng.random() == np.random.default_rng(9).random()
     assert face_normals(bean) is None
-    # a flat dihedral (the cube's face diagonals) is no edge
-    assert SHARP_EDGE_MIN > 0.0
 
 
 def test_gsn_sampler_treats_a_cube_mesh_like_a_box() -> None:

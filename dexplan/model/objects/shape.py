@@ -305,9 +305,10 @@ class Shape(ABC):
         A fingertip sphere on an edge pushes along any direction between the
         normals of the faces that meet there; such contacts are landings no
         face point offers (on a box held on two opposite faces, the way onto
-        a third one). Only :class:`~dexplan.model.objects.primitives.Box` samples
-        its edges so far (a cylinder's rims and a mesh's edges are not): the
-        others return empty arrays and leave ``rng`` untouched.
+        a third one). :class:`~dexplan.model.objects.primitives.Box` samples its
+        12 edges, :class:`~dexplan.model.objects.mesh.Mesh` its sharp convex
+        edges (none on a smooth mesh); the others (a cylinder's rims too)
+        return empty arrays, and ``n == 0`` or no edges leaves ``rng`` untouched.
 
         Args:
             n: number of samples (>= 0).
@@ -326,9 +327,10 @@ class Shape(ABC):
         A fingertip sphere on a vertex (a box corner) pushes along any
         direction inside the cone spanned by the normals of the faces that
         meet there: the direction from the vertex to the fingertip centre.
-        Only :class:`~dexplan.model.objects.primitives.Box` samples its
-        vertices so far: the others return empty arrays and leave ``rng``
-        untouched.
+        :class:`~dexplan.model.objects.primitives.Box` samples its 8 corners,
+        :class:`~dexplan.model.objects.mesh.Mesh` its sharp convex vertices
+        (none on a smooth mesh); the others return empty arrays, and
+        ``n == 0`` or no vertices leaves ``rng`` untouched.
 
         Args:
             n: number of samples (>= 0).
