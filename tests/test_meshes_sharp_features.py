@@ -142,3 +142,11 @@ def test_gsn_sampler_treats_a_cube_mesh_like_a_box() -> None:
     assert combines_pairwise(SamplerSettings(), 3, True, reason is not None)
     # four fingers may hold a cube on faces: no screen, as for a Box
     assert faces_only_reason(CUBE, hand, 4, 0.8) is None
+
+
+def test_vertices_of_no_face_are_no_corners() -> None:
+    box = trimesh.creation.box([2 * A, 2 * A, 2 * A])
+    mesh = Mesh(np.vstack([box.vertices, [[1.0, 1.0, 1.0]]]), box.faces)
+    pts, _ = mesh.sample_vertices(200, np.random.default_rng(10))
+    np.testing.assert_allclose(np.abs(pts), A, atol=1e-12)
+    assert len(np.unique(np.sign(pts), axis=0)) == 8

@@ -137,20 +137,24 @@ def sharp_features(vertices: FloatArray, faces: IntArray, vertex_pn: FloatArray)
     ends = tm.face_adjacency_edges[sharp]
     fn = tm.face_normals
     low = math.sin(EDGE_NORMAL_MIN)
-    keep: list[int] = []
+    # a vertex is a corner when its pseudo-normal points at least EDGE_NORMAL_MIN
+    # beyond a right angle from every incident edge (flat and edge-line vertices
+    # have an edge at a right angle, concave ones one at an acute angle)
+    ij = tm.edges_unique
+    d = vertices[ij[:, 1]] - vertices[ij[:, 0]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    worst = np.full(len(vertices), -np.inf)
+    np.maximum.at(worst, ij[:, 0], np.einsum("ij,ij->i", d, vertex_pn[ij[:, 0]]))
+    np.maximum.at(worst, ij[:, 1], -np.einsum("ij,ij->i", d, vertex_pn[ij[:, 1]]))
+    worst[np.setdiff1d(np.arange(len(vertices)), ij)] = np.inf  # vertices of no face
+    idx = np.flatnonzero(worst <= -low)
     cones: list[FloatArray] = []
     dirs: list[FloatArray] = []
-    for k, nbrs in enumerate(tm.vertex_neighbors):
-        if not nbrs:
-            continue
-        d = vertices[nbrs] - vertices[k]
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        if np.all(d @ vertex_pn[k] <= -low):
-            keep.append(k)
-            around = tm.vertex_faces[k]
-            cones.append(np.unique(np.round(fn[around[around >= 0]], 12), axis=0))
-            dirs.append(d)
-    idx = np.asarray(keep, dtype=np.int64)
+    for k in idx.tolist():
+        out = vertices[tm.vertex_neighbors[k]] - vertices[k]
+        dirs.append(out / np.linalg.norm(out, axis=1, keepdims=True))
+        around = tm.vertex_faces[k]
+        cones.append(np.unique(np.round(fn[around[around >= 0]], 12), axis=0))
     return SharpFeatures(
         edge_a=np.asarray(vertices[ends[:, 0]], dtype=np.float64),
         edge_b=np.asarray(vertices[ends[:, 1]], dtype=np.float64),
