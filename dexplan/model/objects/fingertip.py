@@ -2,10 +2,10 @@
 
 The plan verifier, the viewer and the grip forces (:mod:`dexplan.model.grasp.grip_forces`) read a
 stated contact and the fingertip centre the same way: on a face, the stated
-contact's own normal; at a box edge or corner, the direction from the edge to
-the fingertip centre (a fingertip on an edge pushes along any direction
-between the two faces' normals, and the closest point of the contact itself
-would give one face's normal).
+contact's own normal; at an edge or corner (of a box, or a mesh's sharp convex
+one), the direction from the edge to the fingertip centre (a fingertip on an
+edge pushes along any direction between the two faces' normals, and the
+closest point of the contact itself would give one face's normal).
 """
 
 from __future__ import annotations
@@ -33,8 +33,9 @@ def fingertip_contact(
     The fingertip sphere touches the surface at the closest point to its
     centre, pushing along the normal there. On a face that is the stated
     contact's own normal (exact per contact, so equal contacts give equal
-    answers); at a box edge or corner, the direction from the edge to the
-    fingertip centre. The verifier and the viewer both read contacts this way.
+    answers); at an edge or corner (a box's, a mesh's sharp convex one), the
+    direction from the edge to the fingertip centre. The verifier and the
+    viewer both read contacts this way.
 
     Args:
         obj: the object shape.
