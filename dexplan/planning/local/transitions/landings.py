@@ -164,9 +164,9 @@ class Landings:
     def _landing_samples(self, finger: int, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Landing candidates: ``(points, normals_out)`` (S, 3) each, object frame.
 
-        ``landing_candidates`` surface points and, on shapes that sample
-        their edges (boxes), ``landing_edges`` edge points (normals inside
-        the edge's cone) and ``landing_vertices`` corner points, shuffled
+        ``landing_candidates`` surface points and, on shapes with edges
+        (boxes, meshes with sharp convex edges), ``landing_edges`` edge points
+        (normals inside the edge's cone) and ``landing_vertices`` corner points, shuffled
         together (the landing search takes the first reachable ones in this
         order). Other shapes draw only the surface points, as before. A finger
         of fewer than 3 joints reaches almost no sampled point: its candidates
