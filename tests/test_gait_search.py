@@ -105,8 +105,11 @@ def test_a_finger_that_cannot_be_let_go_where_it_blocks_is_regrasped_before(
         return real(self, finger, pose, q, g)
 
     monkeypatch.setattr(type(trans), "can_release", can_release)
-    state = gait_search._State(0, x0[POSE_DIM:], grasp, (0,) * ctx.hand.n_fingers, (), 0, 0.0)
-    kids = gait_search._children(trans, poses, state, tr, 3, 0.85)
+    start = gait_search._State(0, x0[POSE_DIM:], grasp, (0,) * ctx.hand.n_fingers, (), 0, 0.0)
+    (state,) = gait_search._evaluate(trans, poses, [start])  # its transfer, where it can let go
+    assert state.transfer is not None and state.transfer.reached == tr.reached
+    assert not state.viable
+    kids = gait_search._children(trans, poses, state, state.transfer, 3, 0.85)
     assert kids
     for kid in kids:
         assert len(kid.segments) == 2, (tr.reached, kid.idx)

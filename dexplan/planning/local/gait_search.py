@@ -267,46 +267,46 @@ def _children(
     """The regrasps after transfer ``tr`` from ``state`` (see the module, step 2)."""
     f = tr.blocking
     assert f is not None
-    cover = list(state.cover)
-    cover[f] = min(cover[f], tr.reached)  # it blocked there, whatever the estimate said
-    for at in _release_steps(trans, poses, state, tr, f):
-        kids = _regrasps_of(
-            trans, poses, state, tr, at, f, tuple(cover), branching, None, tolerance
-        )
+    # state.cover already ends f's stroke where it blocked, and state.viable
+    # says whether it can be let go there (:func:`_evaluate`)
+    cover = state.cover
+    at = _release_step(trans, poses, state, tr, f)
+    if at is not None:
+        kids = _regrasps_of(trans, poses, state, tr, at, f, cover, branching, None, tolerance)
         if kids:
             return kids
     # the finger cannot be regrasped: move another where it blocks, one that
     # gains stroke or makes the hold that lets the blocked finger go
-    k, j = at_block = (len(tr.waypoints) - 1, tr.reached)
-    held = trans.can_release(f, poses[j], tr.waypoints[k].q, tr.grasp)
+    at_block = (len(tr.waypoints) - 1, tr.reached)
     out: list[_State] = []
     others = sorted((g for g in range(trans.hand.n_fingers) if g != f), key=lambda g: cover[g])
     for g in others:
         out.extend(
             _regrasps_of(
-                trans, poses, state, tr, at_block, g, tuple(cover), 1, (f, held), tolerance
+                trans, poses, state, tr, at_block, g, cover, 1, (f, state.viable), tolerance
             )
         )
     return out
 
 
-def _release_steps(
+def _release_step(
     trans: Transitions, poses: FloatArray, state: _State, tr: TransferResult, finger: int
-) -> list[tuple[int, int]]:
-    """Where ``finger`` is regrasped, as ``(waypoint of tr, trajectory step)``.
+) -> tuple[int, int] | None:
+    """Where ``finger`` is regrasped, as ``(waypoint of tr, trajectory step)``, or None.
 
-    Where it blocks when the others hold the object there without it;
-    otherwise the latest earlier trajectory pose of the transfer (every
-    :data:`_RELEASE_STRIDE`-th, at most :data:`_RELEASE_TRIES`) where they do.
+    Where it blocks when the others hold the object there without it
+    (``state.viable``); otherwise the latest earlier trajectory pose of the
+    transfer (every :data:`_RELEASE_STRIDE`-th, at most :data:`_RELEASE_TRIES`)
+    where they do.
     """
     steps = _pose_waypoints(poses, state.idx, tr)
-    for tries, (k, j) in enumerate(steps[::-_RELEASE_STRIDE]):
-        if tries >= _RELEASE_TRIES:
-            break
+    if state.viable:
+        return steps[-1]
+    for k, j in steps[-1 - _RELEASE_STRIDE :: -_RELEASE_STRIDE][: _RELEASE_TRIES - 1]:
         g = _grasp_at(trans, poses, tr, k, j)
         if trans.can_release(finger, poses[j], tr.waypoints[k].q, g):
-            return [(k, j)]
-    return []
+            return k, j
+    return None
 
 
 def _pose_waypoints(poses: FloatArray, start: int, tr: TransferResult) -> list[tuple[int, int]]:
