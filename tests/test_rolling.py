@@ -143,3 +143,27 @@ def test_bad_inputs_raise_clear_errors(paper_grasp) -> None:
         roll.roll(7, q, pose, pose, contacts[0])
     with pytest.raises(InvalidInputError, match="max_substep_rad"):
         RollSettings(max_substep_rad=0.0)
+
+
+def test_a_redundant_finger_keeps_away_from_its_joint_limits_while_it_rolls() -> None:
+    """The null-space step moves the joints towards mid-range and leaves the rolling exact."""
+    roll, q0, pose, contacts = _grasp("allegro_sphere", seed=2)
+    plain = FingertipRolling(roll.hand, roll.obj, RollSettings(limit_gain=0.0))
+    lo, hi = roll.hand.lower, roll.hand.upper
+    gained = []
+    for f in range(roll.hand.n_fingers):
+        idx = roll.hand.finger_q_index[f]
+        worst = []
+        for model in (roll, plain):
+            q, p, a = q0.copy(), contacts[f], pose
+            for k in range(1, 11):  # 20 degrees about the palm normal, in 2 degree steps
+                b = _turned(pose, np.array([0.0, 0.0, 1.0]), np.radians(2.0 * k))
+                r = model.roll(f, q, a, b, p)
+                assert r.slip < 1e-6
+                assert abs(r.arc_tip - r.arc_obj) <= 0.005 * r.arc_obj + 1e-7
+                q, p, a = r.q, r.p_obj, b
+            offset = np.abs(q[idx] - 0.5 * (lo[idx] + hi[idx])) / (0.5 * (hi[idx] - lo[idx]))
+            worst.append(float(np.max(offset)))
+        assert worst[0] <= worst[1] + 1e-9
+        gained.append(worst[1] - worst[0])
+    assert max(gained) > 0.01

@@ -17,8 +17,14 @@ Jacobian) and ``dp_obj`` the displacement of the object's material point
 there:
 
 - a 3-joint finger is determined (``J_p`` is square);
-- a redundant finger takes the least-norm joint step (the smallest joint
-  motion that rolls; the joints' own posture is otherwise free);
+- a redundant finger takes the least-norm joint step plus a step in the
+  null space of ``J_p`` (which leaves the rolling untouched) away from its
+  joint limits: the joints' offsets from mid-range (-1 at the lower limit,
+  +1 at the upper) projected onto that null space, times
+  :attr:`RollSettings.limit_gain` per radian of object rotation (or per
+  10 cm of translation). Least-norm steps alone
+  drift a 4-joint finger into a joint limit it could have kept away from,
+  which ends the transfer there;
 - a finger with fewer joints cannot follow every motion: the least-squares
   step leaves a residual, reported as :attr:`RolledContact.slip`.
 
@@ -94,18 +100,26 @@ class RollSettings:
             second order in the substep; one or two remove it to 1e-9 m).
         damping: Tikhonov damping of the joint solves (near singular
             postures take a bounded step instead of a huge one).
+        limit_gain: how far (rad per rad of object rotation) a redundant
+            finger's null-space step moves its joints away from their
+            limits; 0: the least-norm step alone.
     """
 
-    max_substep_rad: float = 0.01
+    max_substep_rad: float = 0.02
     max_substep_m: float = 0.001
     normal_iterations: int = 2
     damping: float = 1e-9
+    limit_gain: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("max_substep_rad", "max_substep_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise InvalidInputError(f"{name} must be a positive number, got {v!r}")
+        if not (math.isfinite(self.limit_gain) and self.limit_gain >= 0.0):
+            raise InvalidInputError(
+                f"limit_gain must be a finite number >= 0, got {self.limit_gain!r}"
+            )
         if self.normal_iterations < 0 or not (self.damping >= 0.0):
             raise InvalidInputError(
                 "normal_iterations must be >= 0 and damping >= 0, got "
@@ -287,12 +301,34 @@ class FingertipRolling:
         move = (x_b + R_b @ p_m) - (x_a + R_a @ p_m)
         J_m = point_jacobian(J6_m, x_m + R_m @ p_m, c_m)
         dq = _solve(J_m, move, damping)
+        if len(idx) > 3 and self.settings.limit_gain > 0.0:
+            dq += self._away_from_limits(idx, q_mid, J_m, frame_a, frame_b)
         q = q.copy()
         q[idx] += dq
         slip = float(np.linalg.norm(J_m @ dq - move))
         for _ in range(self.settings.normal_iterations):
             q = self._onto_surface(finger, q, frame_b)
         return q, slip
+
+    def _away_from_limits(
+        self, idx: Any, q: FloatArray, J: FloatArray, frame_a: _Frame, frame_b: _Frame
+    ) -> FloatArray:
+        """A redundant finger's null-space step away from its joint limits, ``(len(idx),)``.
+
+        ``J``: (3, m) the material point's Jacobian at ``q`` (the middle of
+        the substep). The step is the cost gradient projected onto the null
+        space of ``J`` (so the tip's material point does not move), scaled
+        to ``limit_gain`` times the substep's object motion in radians.
+        """
+        lo, hi = self.hand.lower[idx], self.hand.upper[idx]
+        # each joint's offset from mid-range, -1 at the lower limit, +1 at the upper
+        offset = (q[idx] - 0.5 * (lo + hi)) / np.maximum(0.5 * (hi - lo), 1e-6)
+        null = offset - J.T @ np.linalg.solve(J @ J.T + 1e-12 * np.eye(3), J @ offset)
+        (R_a, x_a), (R_b, x_b) = frame_a, frame_b
+        motion = float(np.linalg.norm(pin.log3(R_b @ R_a.T))) + 10.0 * float(
+            np.linalg.norm(x_b - x_a)
+        )
+        return np.asarray(-self.settings.limit_gain * motion * null, dtype=np.float64)
 
     def _onto_surface(self, finger: int, q: FloatArray, frame: _Frame) -> FloatArray:
         """Move the tip's centre along the object's normal until the sphere is tangent."""
