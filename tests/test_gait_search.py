@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from dexplan.core.pose import quat_angle
+from dexplan.core.segments import Segment, SegmentKind
 from dexplan.model.scenario import default_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local import gait_search
 from dexplan.planning.local.grasps import grasp_from_state
-from dexplan.planning.local.transitions import densify_poses
+from dexplan.planning.local.transitions import TransferResult, densify_poses
 from dexplan.planning.start import start_state
 
 
@@ -118,3 +119,35 @@ def test_a_finger_that_cannot_be_let_go_where_it_blocks_is_regrasped_before(
         step = int(np.argmin(np.linalg.norm(poses - first.end.object_pose_xyzquat, axis=1)))
         assert step <= cut and kid.idx == step
         assert cut - step < 2  # the latest such step (every second one is tried)
+
+
+@pytest.mark.parametrize("moved", [False, True])
+def test_a_finger_is_never_regrasped_twice_where_the_object_has_not_moved(
+    problem, monkeypatch, moved
+) -> None:
+    """A blocked finger without a landing makes way for the others, except the one
+    regrasped last when the object has not moved since: two regrasps of one finger
+    there are one regrasp onto the second landing."""
+    sc, x0, poses = problem
+    ctx = build_context(sc, seed=1)
+    trans, q = ctx.transitions, x0[POSE_DIM:]
+    grasp = grasp_from_state(trans, x0[:POSE_DIM], q)
+    tr = trans.transfer(poses, 0, q, grasp)
+    n, blocked, last = ctx.hand.n_fingers, 0, 1
+    wp = tr.waypoints[0]
+    regrasp = Segment(SegmentKind.REGRASP, last, (wp, wp))
+    stop = TransferResult(
+        tr.waypoints[: 3 if moved else 1], 2 if moved else 0, blocked, tr.reason, grasp
+    )
+    state = gait_search._State(0, q, grasp, (len(poses),) * n, (regrasp,), 1, 0.0)
+    asked: list[int] = []
+
+    def regrasps_of(trans, poses, state, tr, at, finger, *rest):
+        asked.append(finger)
+        return []
+
+    monkeypatch.setattr(gait_search, "_release_step", lambda *a: None)
+    monkeypatch.setattr(gait_search, "_regrasps_of", regrasps_of)
+    gait_search._children(trans, poses, state, stop, 2, 0.85)
+    expected = set(range(n)) - {blocked} - (set() if moved else {last})
+    assert set(asked) == expected

@@ -76,8 +76,8 @@ class GaitSettings:
     strength_tolerance: float = 0.85
     reset_steps: int = 6
     strong_quality: float = 0.0
-    beam_width: int = 3
-    branching: int = 3
+    beam_width: int = 2
+    branching: int = 2
     search_states: int = 150
 
     def __post_init__(self) -> None:

@@ -279,7 +279,12 @@ def _children(
     # gains stroke or makes the hold that lets the blocked finger go
     at_block = (len(tr.waypoints) - 1, tr.reached)
     out: list[_State] = []
-    others = sorted((g for g in range(trans.hand.n_fingers) if g != f), key=lambda g: cover[g])
+    # a finger regrasped twice where the object has not moved in between is
+    # one regrasp onto the second landing done twice: never a child
+    last = state.segments[-1].finger if state.segments and tr.reached == state.idx else None
+    others = sorted(
+        (g for g in range(trans.hand.n_fingers) if g not in (f, last)), key=lambda g: cover[g]
+    )
     for g in others:
         out.extend(
             _regrasps_of(
