@@ -14,8 +14,8 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
-from dexplan.planning.local.grasps import grasp_follow, grasp_from_state
-from dexplan.planning.local.transitions import densify_poses
+from dexplan.planning.local.grasps import current_follow, grasp_follow, grasp_from_state
+from dexplan.planning.local.transitions import Transitions, densify_poses
 
 __all__ = [
     "START_CANDIDATES",
@@ -32,8 +32,9 @@ START_CANDIDATES = 8
 #: More start grasps drawn when every candidate follows the object's move to
 #: the goal by IK alone but none does with its links and holds checked.
 START_MORE_CANDIDATES = 16
-#: Start grasps whose first blocked finger follows the object's straight move
-#: at least this share of the best one's are ranked by strength.
+#: Start grasps whose fingers together follow the object's straight move (the
+#: stroke secured, summed over the fingers) at least this share of the best
+#: one's are ranked by strength.
 START_FOLLOW_SHARE = 0.85
 #: Of those, the strongest few whose releases are checked: the grasp kept is
 #: the strongest from which every finger can be let go (the others hold the
@@ -56,9 +57,9 @@ def start_state(
     transfer, links and holds checked, reaches the goal; when every
     candidate follows by IK alone but none transfers,
     :data:`START_MORE_CANDIDATES` more are tried), else, among those
-    whose first blocked finger follows at least :data:`START_FOLLOW_SHARE`
-    of the farthest one's (:func:`~dexplan.planning.local.grasps.grasp_follow`,
-    IK-only), the strongest: the largest least force-closure quality of its
+    whose fingers together follow at least :data:`START_FOLLOW_SHARE` of
+    the best one's stroke (:func:`_stroke_sum`: each finger's own follow,
+    links checked, summed), the strongest: the largest least force-closure quality of its
     (n-1)-finger subgrasps, among the :data:`START_HOLD_CHECKS` strongest the
     first from which every finger can be let go (the holds of its first
     regrasps, :meth:`Transitions.can_release`). Fingers that
@@ -111,8 +112,9 @@ def start_state(
     whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
     if whole:
         return _carrying(ctx, pose, future, whole, len(whole) == len(pool), rng)
-    far = max(follows)
-    near = [x for x, f in zip(pool, follows, strict=True) if f >= START_FOLLOW_SHARE * far]
+    strokes = [_stroke_sum(trans, pose, x, future) for x in pool]
+    far = max(strokes)
+    near = [x for x, f in zip(pool, strokes, strict=True) if f >= START_FOLLOW_SHARE * far]
     grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
     strength = [trans.grasp_quality(g, exact=True) for g in grasps]
     best, most = near[0], -1
@@ -124,6 +126,23 @@ def start_state(
         if free == ctx.hand.n_fingers:
             break
     return best
+
+
+def _stroke_sum(trans: Transitions, pose: FloatArray, x: FloatArray, future: FloatArray) -> int:
+    """The poses of ``future`` the fingers of state ``x`` follow, summed over the fingers.
+
+    Each finger's own follow with its links collision-checked
+    (:func:`~dexplan.planning.local.grasps.current_follow`): a finger whose
+    stroke ends early costs a regrasp there, whichever finger it is, so
+    the sum (the stroke the start grasp secures) ranks start grasps as the
+    gait search ranks its states.
+    """
+    q = x[POSE_DIM:]
+    grasp = grasp_from_state(trans, pose, q)
+    end = len(future) - 1
+    return sum(
+        min(current_follow(trans, f, q, grasp, future), end) for f in range(trans.hand.n_fingers)
+    )
 
 
 def _carrying(
