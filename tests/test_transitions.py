@@ -2,6 +2,7 @@
 
 import dataclasses
 import itertools
+from pathlib import Path
 
 import numpy as np
 
@@ -292,3 +293,48 @@ def test_no_finger_is_let_go_that_the_others_cannot_hold_within_the_effort_limit
         assert heavy.transitions.regrasp(pose, q, grasp, f, point, normal) is None
     assert heavy.transitions.stats["regrasp_attempts"] == 0
     assert heavy.transitions.stats["weak_holds"] == 8
+
+
+def test_rolled_normals_are_read_as_the_verifier_reads_them() -> None:
+    """A rolling transfer judges force closure with the normals the verifier will use.
+
+    On a box edge the tip sphere's closest-point normal (towards its centre)
+    and the stated contact's own normal (a face's) can differ by degrees,
+    enough to flip force closure near its margin: the rolled grasp carries
+    the verifier's (:func:`fingertip_contact`). Fingers are landed on the
+    cube's edges, then the grasp rolls through the quarter turn.
+    """
+    from dexplan.core.pose import inverse_transform_points
+    from dexplan.model.objects.fingertip import fingertip_contact
+    from dexplan.model.scenario.scenario import load_scenario
+    from dexplan.planning.gsn.space import POSE_DIM
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "allegro_cube.toml")
+    ctx = build_context(sc, seed=8)
+    trans, obj, hand = ctx.transitions, ctx.obj, ctx.hand
+    r = hand.fingertip_radius
+    half = 0.5 * np.asarray(sc.object["size"])
+    differ = 0
+    for x in ctx.sampler.samples_at_pose(sc.start.object_pose_xyzquat, 6, np.random.default_rng(1)):
+        pose, q = x[:POSE_DIM], x[POSE_DIM:]
+        grasp = grasp_from_state(trans, pose, q)
+        poses = densify_poses(np.array([pose, sc.goal.object_pose_xyzquat]), 0.008, 0.04)
+        for f in range(hand.n_fingers):
+            for p, n, _ in trans.landing_candidates(f, pose, q, grasp, poses, None, 8):
+                if np.sum(np.abs(np.abs(p) - half) < 1e-6) < 2:
+                    continue  # not on an edge
+                seg = trans.regrasp(pose, q, grasp, f, p, n)
+                if seg is None:
+                    continue
+                tr = trans.transfer(poses, 0, seg.end.q, grasp.replace(f, p, n))
+                end = tr.waypoints[-1]
+                tips = inverse_transform_points(
+                    end.object_pose_xyzquat, hand.fingertip_positions(end.q)
+                )
+                p_end = tr.grasp.points[f]
+                verifier = fingertip_contact(obj, p_end, tips[f], r)[1]
+                np.testing.assert_allclose(tr.grasp.normals_out[f], verifier, atol=1e-12)
+                towards_centre = np.ravel(obj.closest_point(tips[f])[1])
+                differ += int(np.degrees(np.arccos(min(1.0, float(verifier @ towards_centre)))) > 1)
+                break
+    assert differ > 0  # some edge contact where the two readings differ

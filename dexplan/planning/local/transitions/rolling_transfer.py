@@ -30,12 +30,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dexplan.core.pose import interpolate_pose
+from dexplan.core.pose import interpolate_pose, inverse_transform_points
 from dexplan.core.segments import Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.rolling import FingertipRolling
 from dexplan.model.hand.hand import Hand
 from dexplan.model.objects import Shape
+from dexplan.model.objects.fingertip import fingertip_contact
 from dexplan.planning.local.transitions.checks import FingerChecks
 from dexplan.planning.local.transitions.contacts import GraspContacts
 from dexplan.planning.local.transitions.counts import LocalCounts
@@ -74,6 +75,7 @@ class RollingTransferPlanner:
         fc_margin: float,
     ) -> None:
         self.hand = hand
+        self.obj = obj
         self.settings = settings
         self.checks = checks
         self.stats = stats
@@ -171,9 +173,17 @@ class RollingTransferPlanner:
             r = self.rolling.roll(f, state.q, pa, pb, state.points[f])
             idx = self.hand.finger_q_index[f]
             q[idx] = r.q[idx]
-            out.points[f], out.normals[f] = r.p_obj, r.normal_obj
+            out.points[f] = r.p_obj
             if slipped is None and len(idx) < 3 and r.slip > LOW_DOF_SLIP:
                 slipped = f
+        # the normals the fingertips push along, read as the verifier reads
+        # them: on a box edge the rolled contact's own closest-point normal is
+        # a face's, up to a few degrees from the direction to the tip's centre,
+        # and force closure near its margin flips between the two
+        tips = inverse_transform_points(pb, self.hand.fingertip_positions(q))
+        r_tip = self.hand.fingertip_radius
+        for f in range(self.hand.n_fingers):
+            out.normals[f] = fingertip_contact(self.obj, out.points[f], tips[f], r_tip)[1]
         return out, slipped
 
     def _invalid(
