@@ -18,8 +18,11 @@
   ``r (w_object - w_link) x n``, which friction resists and the plan does not
   model (a passive ball at the tip would roll instead, but a free ball
   transmits normal forces only);
-- the object: a free body with the plan's shape and mass (uniform density;
-  meshes from the plan's mesh file), obstacles static;
+- the object: a free body with the plan's shape and mass (uniform density);
+  a mesh (the plan's mesh file) is one geom per convex part
+  (:mod:`dexplan.execution.replay.convex_parts`: MuJoCo collides a mesh geom
+  as its convex hull) with the mass distribution of the mesh itself;
+  obstacles static, meshes split likewise;
 - friction ``mu`` on every geom (MuJoCo takes the larger of a pair); point
   contacts ``condim 3``, soft contacts ``condim 4`` with the torsional friction
   ``torsion`` (m, as in dexplan); elliptic cones, ``impratio`` 10.
@@ -33,16 +36,17 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import quoteattr
 
 import coal
 import numpy as np
 import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
+from dexplan.execution.replay.convex_parts import convex_parts, mass_properties
 from dexplan.model.collision import CollisionWorld
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.mimic import MimicJoint
+from dexplan.model.objects import Mesh, Shape
 from dexplan.planfile import shape_of
 
 __all__ = [
@@ -61,6 +65,11 @@ ARMATURE = 1e-3
 def _f(v: Any) -> str:
     """Numbers as MJCF attribute text: space-separated, 9 significant digits."""
     return " ".join(f"{float(x):.9g}" for x in np.asarray(v, dtype=float).reshape(-1))
+
+
+def _i(v: Any) -> str:
+    """Integers as MJCF attribute text, space-separated."""
+    return " ".join(str(int(x)) for x in np.asarray(v).reshape(-1))
 
 
 def _quat_wxyz(R: FloatArray) -> FloatArray:
@@ -95,23 +104,47 @@ def _geom_xml(geom: Any) -> str | None:
     return f'type="box" size="{_f(np.maximum(h, 1e-4))}" pos="{_f(c)}"'
 
 
-def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[str, str]:
-    """(asset xml, geom attributes) of a plan shape table."""
+def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[list[str], list[str]]:
+    """(asset lines, geom attributes of each geom) of a plan shape table.
+
+    A primitive is one geom. A mesh is one geom per convex part
+    (:func:`dexplan.execution.replay.convex_parts.convex_parts`): MuJoCo
+    collides a mesh geom as its convex hull, so a concave mesh in one piece
+    would be a fuller body than the plan's. The parts' vertices are written
+    inline (object frame, the plan's scale applied).
+    """
     kind = d["shape"]
     if kind == "sphere":
-        return "", f'type="sphere" size="{float(d["radius"]):.9g}"'
+        return [], [f'type="sphere" size="{float(d["radius"]):.9g}"']
     if kind == "box":
-        return "", f'type="box" size="{_f(np.asarray(d["size"], dtype=float) / 2)}"'
+        return [], [f'type="box" size="{_f(np.asarray(d["size"], dtype=float) / 2)}"']
     if kind == "capsule":
-        return "", f'type="capsule" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
+        return [], [f'type="capsule" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"']
     if kind == "cylinder":
-        return "", f'type="cylinder" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"'
-    path = Path(str(d["path"]))
-    if not path.is_absolute():
-        path = base_dir / path
-    scale = float(d.get("scale", 1.0))
-    asset = f'<mesh name="{name}_mesh" file={quoteattr(str(path))} scale="{_f([scale] * 3)}"/>'
-    return asset, f'type="mesh" mesh="{name}_mesh"'
+        return [], [f'type="cylinder" size="{float(d["radius"]):.9g} {float(d["length"]) / 2:.9g}"']
+    mesh = shape_of(d, base_dir, name)
+    assert isinstance(mesh, Mesh)
+    assets, geoms = [], []
+    for k, part in enumerate(convex_parts(mesh.vertices, mesh.faces)):
+        assets.append(
+            f'<mesh name="{name}_part{k}" vertex="{_f(part.vertices)}" face="{_i(part.faces)}"/>'
+        )
+        geoms.append(f'type="mesh" mesh="{name}_part{k}"')
+    return assets, geoms
+
+
+def _object_inertial(obj: Shape, mass: float) -> str:
+    """The object's ``<inertial>``: of the mesh itself (not of its parts), or none.
+
+    A primitive's geom carries the mass (MuJoCo's exact primitive inertia).
+    """
+    if not isinstance(obj, Mesh):
+        return ""
+    mp = mass_properties(obj.vertices, obj.faces, mass)
+    full = mp.inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
+    return (
+        f'<inertial pos="{_f(mp.center_of_mass)}" mass="{mp.mass:.9g}" fullinertia="{_f(full)}"/>'
+    )
 
 
 def build_mjcf(
@@ -125,8 +158,9 @@ def build_mjcf(
     """MJCF text of the plan's hand, object and obstacles; and the fingertip geom ids.
 
     Geoms are named ``hand{k}`` in the order of ``hand.geom_model``, the
-    object ``object``, obstacles ``obstacle{k}``; bodies ``b_<joint>``; position
-    actuators ``a_<joint>`` in ``hand.joint_names`` order.
+    object ``object`` (a concave mesh's further convex parts ``object_part{k}``),
+    obstacles ``obstacle{k}`` (likewise ``obstacle{k}_part{j}``); bodies
+    ``b_<joint>``; position actuators ``a_<joint>`` in ``hand.joint_names`` order.
 
     Args:
         doc: a validated plan.
@@ -148,7 +182,15 @@ def build_mjcf(
         children.setdefault(int(model.parents[j]), []).append(j)
     a_obj, g_obj = _shape_xml(doc["object"], base_dir, "object")
     obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
-    assets = [a_obj, *obstacle_assets]
+    assets = [*a_obj, *obstacle_assets]
+    inertial = _object_inertial(obj, mass)
+    # a mesh's mass is its body's <inertial>; a primitive's is its geom's
+    geom_mass = 0.0 if inertial else mass
+    object_geoms = "\n".join(
+        f'      <geom name="{_part_name("object", k)}" {g} mass="{geom_mass:.9g}" '
+        f'contype="2" conaffinity="3" {contact}/>'
+        for k, g in enumerate(g_obj)
+    )
     start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
     actuators = "\n".join(_actuator_xml(model, n) for n in hand.joint_names)
     palm = "\n".join("    " + g for g in geoms_of.get(0, []))
@@ -173,7 +215,8 @@ def build_mjcf(
 {chr(10).join(obstacles)}
     <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">
       <freejoint name="object"/>
-      <geom name="object" {g_obj} mass="{mass:.9g}" contype="2" conaffinity="3" {contact}/>
+      {inertial}
+{object_geoms}
     </body>
 {tree}
   </worldbody>
@@ -322,18 +365,24 @@ def _obstacles_xml(
         contact: the contact attributes (:func:`_contact_attrs`).
 
     Returns:
-        ``(assets, geoms)``: one asset line per obstacle (empty for a
-        primitive) and one ``<geom name="obstacle{k}" .../>`` line each.
+        ``(assets, geoms)``: the mesh asset lines (one per convex part of a
+        mesh obstacle) and the ``<geom name="obstacle{k}" .../>`` lines.
     """
-    assets = []
+    assets: list[str] = []
     geoms = []
     for k, ob in enumerate(doc.get("obstacles", [])):
         sh = {kk: v for kk, v in ob.items() if kk not in ("pose_xyzquat", "name")}
         a, g = _shape_xml(sh, base_dir, f"obstacle{k}")
-        assets.append(a)
+        assets += a
         p = np.asarray(ob["pose_xyzquat"], dtype=float)
-        geoms.append(
-            f'    <geom name="obstacle{k}" {g} pos="{_f(p[:3])}" quat="{_f(p[[6, 3, 4, 5]])}" '
-            f'contype="2" conaffinity="1" {contact}/>'
-        )
+        geoms += [
+            f'    <geom name="{_part_name(f"obstacle{k}", j)}" {gj} pos="{_f(p[:3])}" '
+            f'quat="{_f(p[[6, 3, 4, 5]])}" contype="2" conaffinity="1" {contact}/>'
+            for j, gj in enumerate(g)
+        ]
     return assets, geoms
+
+
+def _part_name(name: str, k: int) -> str:
+    """Geom name of part ``k`` of a shape: the shape's own name for the first."""
+    return name if k == 0 else f"{name}_part{k}"

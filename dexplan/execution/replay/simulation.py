@@ -315,7 +315,10 @@ class _Replay:
         self.jq = np.array([m.jnt_qposadr[m.joint(n).id] for n in hand.joint_names])
         self.jv = np.array([m.jnt_dofadr[m.joint(n).id] for n in hand.joint_names])
         self.oq = m.jnt_qposadr[m.joint("object").id]
-        self.obj_geom = m.geom("object").id
+        # every geom of the object's body: a concave mesh is several convex parts
+        self.obj_geoms = {
+            int(g) for g in np.flatnonzero(np.asarray(m.geom_bodyid) == m.body("object").id)
+        }
         tip_ids = [m.geom(f"hand{k}").id for k in tips]
         self.tip_of = {gid: i for i, gid in enumerate(tip_ids)}
         self.hand_geoms = {
@@ -462,16 +465,16 @@ class _Replay:
         Returns:
             (n,) whether each fingertip has a MuJoCo contact with the object.
         """
-        d, obj_geom = self.d, self.obj_geom
+        d, obj_geoms = self.d, self.obj_geoms
         touching = np.zeros(self.n, dtype=bool)
         R = pin.Quaternion(pose_now[6], pose_now[3], pose_now[4], pose_now[5]).normalized()
         Rm = R.toRotationMatrix()
         for c in range(d.ncon):
             con = d.contact[c]
             g1, g2 = int(con.geom1), int(con.geom2)
-            if obj_geom not in (g1, g2):
+            if (g1 in obj_geoms) == (g2 in obj_geoms):
                 continue
-            other = g2 if g1 == obj_geom else g1
+            other = g2 if g1 in obj_geoms else g1
             if other in self.hand_geoms:
                 self.max_pen = max(self.max_pen, -float(con.dist))
             f = self.tip_of.get(other)
