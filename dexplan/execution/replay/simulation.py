@@ -3,8 +3,9 @@
 The model is the plan's MJCF (:func:`dexplan.execution.replay.mjcf.build_mjcf`):
 its actuators are limited to the hand's effort limits. :func:`replay_plan`
 times the plan and computes its grip forces
-(:func:`dexplan.execution.trajectory.build_trajectory`; with ``gravity=False`` the forces
-balance no weight and only the least normal force squeezes), then drives the
+(:func:`dexplan.execution.trajectory.build_trajectory`; every loaded contact pressed
+with at least :data:`SQUEEZE` where the effort limits allow; with ``gravity=False``
+the forces balance no weight and only squeeze), then drives the
 fingers along the timed trajectory (targets interpolated linearly between
 samples) with the grip-force feed-forward ``J^T f``: closed loop through the
 object-pose feedback (:class:`dexplan.execution.replay.control.ObjectFeedback`),
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +72,17 @@ LOSS_TIME = 0.02
 SLIP_TOL = 0.003
 #: Still time before the trajectory starts (s), with the start targets and forces.
 SETTLE_TIME = 0.2
+#: Least normal force (N) the replay's grip controller presses every loaded contact
+#: with, where the effort limits allow it (elsewhere the plan's own least force).
+#: The fingers are position servos (gain ``KP``): a grip force is a target offset
+#: of force / stiffness, and the paper hand's fingertips are 650-2300 N/m stiff
+#: along the contact normals. The exporter's least force (0.2 N, what balances
+#: the weight with the least squeeze) is then a 0.1-0.3 mm offset, less than the
+#: object's tracking error: a finger on the side the object has moved away from
+#: lets go (box_roll90's rolling seed 1 dropped the box that way, open and
+#: closed loop). 2 N is a 1-3 mm offset; it stays within the effort limits and
+#: the friction cones, as every grip force of the replay does.
+SQUEEZE = 2.0
 #: An actuator within this fraction of its limit counts as saturated.
 _SATURATED = 0.999
 _PIP = "pip install 'dexplan[sim]' (or: pip install mujoco)"
@@ -167,9 +180,8 @@ def replay_plan(
     if hand is None:
         hand = hand_from_plan(doc["hand"])
     settings, g = _replay_settings(doc, gravity, mass, gravity_vector)
-    traj = build_trajectory(
-        doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
-    )
+    traj = _squeezed_trajectory(doc, rate, settings, base_dir, hand)
+    settings = traj.settings
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
     try:
         m = mujoco.MjModel.from_xml_string(xml)
@@ -184,6 +196,45 @@ def replay_plan(
     run.simulate()
     loop = Loop.CLOSED if feedback else Loop.OPEN
     return _replay_result(doc, gravity, loop, traj, run, base_dir)
+
+
+def _squeezed_trajectory(
+    doc: Mapping[str, Any],
+    rate: float,
+    settings: ForceSettings,
+    base_dir: str | Path,
+    hand: Hand,
+) -> Trajectory:
+    """The timed trajectory whose grip forces press each contact with at least :data:`SQUEEZE`.
+
+    Where no such forces balance the wrench within the effort limits and the
+    friction cones (a weak hold), the sample keeps the forces of ``settings``
+    themselves (or none, :attr:`ReplayResult.unbalanced_samples`).
+
+    Args:
+        doc: a validated plan.
+        rate: trajectory samples per second.
+        settings: the replay's force settings (:func:`_replay_settings`).
+        base_dir: the plan's folder (mesh paths).
+        hand: the plan's hand.
+    """
+    squeezed = replace(settings, min_normal_force=max(settings.min_normal_force, SQUEEZE))
+    traj = build_trajectory(
+        doc, rate=rate, settings=squeezed, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
+    )
+    short = np.isnan(traj.margins)
+    if not short.any() or squeezed == settings:
+        return traj
+    plain = build_trajectory(
+        doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
+    )
+    return replace(
+        traj,
+        forces=np.where(short[:, None, None], plain.forces, traj.forces),
+        torsion=np.where(short[:, None], plain.torsion, traj.torsion),
+        joint_torques=np.where(short[:, None], plain.joint_torques, traj.joint_torques),
+        margins=np.where(short, plain.margins, traj.margins),
+    )
 
 
 def _replay_result(
