@@ -14,9 +14,15 @@ from dexplan.planfile import hand_from_plan, read_plan, write_plan
 
 mujoco = pytest.importorskip("mujoco")
 
+from dexplan.execution.replay.driven_trajectory import (  # noqa: E402
+    SQUEEZE,
+    replay_settings,
+    replay_trajectory,
+)
 from dexplan.execution.replay.mjcf import KP, build_mjcf  # noqa: E402
 from dexplan.execution.replay.result import DROP_TOL, Loop  # noqa: E402
 from dexplan.execution.replay.simulation import replay_plan, require_mujoco  # noqa: E402
+from dexplan.execution.trajectory import Unbalanced, build_trajectory  # noqa: E402
 
 #: Open loop the tips roll instead of sliding and the object turns by a fraction of
 #: the planned turn (about two thirds, docs/trajectory_format.md): a first transfer
@@ -115,6 +121,39 @@ def test_replay_never_exceeds_the_limits_and_reports_saturation(planned) -> None
     assert r.max_effort_ratio <= 1.0 + 1e-9
     assert r.saturated_time > 0.0
     assert "torque limited to the URDF's effort limits (0.02 N m)" in r.summary()
+
+
+def _normal_forces(traj) -> tuple[np.ndarray, np.ndarray]:
+    """(m, n) each contact's normal force (N) and whether it is loaded."""
+    loaded = np.linalg.norm(np.nan_to_num(traj.forces), axis=2) > 0
+    return np.einsum("mfk,mfk->mf", np.nan_to_num(traj.forces), traj.normals), loaded
+
+
+def test_replay_squeezes_every_loaded_contact(planned) -> None:
+    """The replay's grip forces press each loaded contact with at least SQUEEZE newtons."""
+    _, doc, hand = planned
+    short = _short(doc, _first_regrasp(doc))
+    traj = replay_trajectory(short, hand=hand)
+    fn, loaded = _normal_forces(traj)
+    assert loaded.any() and not np.isnan(traj.margins).any()
+    assert fn[loaded].min() >= SQUEEZE - 1e-6
+    assert np.all(np.abs(traj.joint_torques) <= traj.joint_effort[None, :] + 1e-9)
+
+
+def test_a_hand_too_weak_to_squeeze_keeps_the_plans_forces(planned) -> None:
+    """At 0.1 N m the paper hand cannot press 2 N in this hold: the plan's own forces, not none."""
+    _, doc, _ = planned
+    weak = _short(doc, _first_regrasp(doc))
+    weak["hand"] = dict(weak["hand"], urdf_xml=with_effort_limits(weak["hand"]["urdf_xml"], 0.1))
+    hand = hand_from_plan(weak["hand"])
+    traj = replay_trajectory(weak, hand=hand)
+    settings = replay_settings(weak, True, None, None)[0]
+    plain = build_trajectory(weak, settings=settings, hand=hand, unbalanced=Unbalanced.ZERO)
+    fn, loaded = _normal_forces(traj)
+    assert (fn[loaded] < SQUEEZE - 1e-6).any()
+    assert not np.isnan(plain.margins).any() and not np.isnan(traj.margins).any()
+    assert np.allclose(traj.joint_torques, plain.joint_torques)
+    assert np.all(np.abs(traj.joint_torques) <= 0.1 + 1e-9)
 
 
 def test_short_plan_tracks_without_gravity(planned) -> None:

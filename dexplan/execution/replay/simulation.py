@@ -3,9 +3,9 @@
 The model is the plan's MJCF (:func:`dexplan.execution.replay.mjcf.build_mjcf`):
 its actuators are limited to the hand's effort limits. :func:`replay_plan`
 times the plan and computes its grip forces
-(:func:`dexplan.execution.trajectory.build_trajectory`; every loaded contact pressed
-with at least :data:`SQUEEZE` where the effort limits allow; with ``gravity=False``
-the forces balance no weight and only squeeze), then drives the
+(:func:`dexplan.execution.replay.driven_trajectory.replay_trajectory`: every
+loaded contact pressed with at least 2 N where the effort limits allow; with
+``gravity=False`` the forces balance no weight and only squeeze), then drives the
 fingers along the timed trajectory (targets interpolated linearly between
 samples) with the grip-force feed-forward ``J^T f``: closed loop through the
 object-pose feedback (:class:`dexplan.execution.replay.control.ObjectFeedback`),
@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -43,8 +42,9 @@ import pinocchio as pin
 from dexplan.core.errors import DependencyError, PlanFileError
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
-from dexplan.execution.forces import force_settings_from_plan, solver_from_plan
+from dexplan.execution.forces import solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
+from dexplan.execution.replay.driven_trajectory import replay_settings, replay_trajectory
 from dexplan.execution.replay.drops import DropScene, describe_drop, segment_of
 from dexplan.execution.replay.mjcf import KP, TIMESTEP, build_mjcf
 from dexplan.execution.replay.result import (
@@ -55,8 +55,7 @@ from dexplan.execution.replay.result import (
     ReplayReport,
     ReplayResult,
 )
-from dexplan.execution.trajectory import Trajectory, Unbalanced, build_trajectory
-from dexplan.model.grasp.grip_forces import ForceSettings
+from dexplan.execution.trajectory import Trajectory
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan, models_from_document
 
@@ -72,17 +71,6 @@ LOSS_TIME = 0.02
 SLIP_TOL = 0.003
 #: Still time before the trajectory starts (s), with the start targets and forces.
 SETTLE_TIME = 0.2
-#: Least normal force (N) the replay's grip controller presses every loaded contact
-#: with, where the effort limits allow it (elsewhere the plan's own least force).
-#: The fingers are position servos (gain ``KP``): a grip force is a target offset
-#: of force / stiffness, and the paper hand's fingertips are 650-2300 N/m stiff
-#: along the contact normals. The exporter's least force (0.2 N, what balances
-#: the weight with the least squeeze) is then a 0.1-0.3 mm offset, less than the
-#: object's tracking error: a finger on the side the object has moved away from
-#: lets go (box_roll90's rolling seed 1 dropped the box that way, open and
-#: closed loop). 2 N is a 1-3 mm offset; it stays within the effort limits and
-#: the friction cones, as every grip force of the replay does.
-SQUEEZE = 2.0
 #: An actuator within this fraction of its limit counts as saturated.
 _SATURATED = 0.999
 _PIP = "pip install 'dexplan[sim]' (or: pip install mujoco)"
@@ -179,8 +167,16 @@ def replay_plan(
     mujoco = require_mujoco()
     if hand is None:
         hand = hand_from_plan(doc["hand"])
-    settings, g = _replay_settings(doc, gravity, mass, gravity_vector)
-    traj = _squeezed_trajectory(doc, rate, settings, base_dir, hand)
+    settings, g = replay_settings(doc, gravity, mass, gravity_vector)
+    traj = replay_trajectory(
+        doc,
+        gravity=gravity,
+        base_dir=base_dir,
+        rate=rate,
+        mass=mass,
+        gravity_vector=gravity_vector,
+        hand=hand,
+    )
     settings = traj.settings
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
     try:
@@ -196,45 +192,6 @@ def replay_plan(
     run.simulate()
     loop = Loop.CLOSED if feedback else Loop.OPEN
     return _replay_result(doc, gravity, loop, traj, run, base_dir)
-
-
-def _squeezed_trajectory(
-    doc: Mapping[str, Any],
-    rate: float,
-    settings: ForceSettings,
-    base_dir: str | Path,
-    hand: Hand,
-) -> Trajectory:
-    """The timed trajectory whose grip forces press each contact with at least :data:`SQUEEZE`.
-
-    Where no such forces balance the wrench within the effort limits and the
-    friction cones (a weak hold), the sample keeps the forces of ``settings``
-    themselves (or none, :attr:`ReplayResult.unbalanced_samples`).
-
-    Args:
-        doc: a validated plan.
-        rate: trajectory samples per second.
-        settings: the replay's force settings (:func:`_replay_settings`).
-        base_dir: the plan's folder (mesh paths).
-        hand: the plan's hand.
-    """
-    squeezed = replace(settings, min_normal_force=max(settings.min_normal_force, SQUEEZE))
-    traj = build_trajectory(
-        doc, rate=rate, settings=squeezed, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
-    )
-    short = np.isnan(traj.margins)
-    if not short.any() or squeezed == settings:
-        return traj
-    plain = build_trajectory(
-        doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
-    )
-    return replace(
-        traj,
-        forces=np.where(short[:, None, None], plain.forces, traj.forces),
-        torsion=np.where(short[:, None], plain.torsion, traj.torsion),
-        joint_torques=np.where(short[:, None], plain.joint_torques, traj.joint_torques),
-        margins=np.where(short, plain.margins, traj.margins),
-    )
 
 
 def _replay_result(
@@ -301,35 +258,6 @@ def _replay_result(
         max_effort_ratio=run.max_effort_ratio,
         saturated_time=run.saturated_steps * TIMESTEP,
     )
-
-
-def _replay_settings(
-    doc: Mapping[str, Any],
-    gravity: bool,
-    mass: float | None,
-    gravity_vector: FloatArray | None,
-) -> tuple[ForceSettings, FloatArray]:
-    """The force settings of the replay and its gravity vector (zero with gravity off).
-
-    Args:
-        doc: a validated plan.
-        gravity: gravity on or off.
-        mass: object mass (kg) overriding the plan's, or None.
-        gravity_vector: (3,) gravity overriding the plan's, or None.
-
-    Returns:
-        ``(settings, g)``: the :class:`~dexplan.model.grasp.grip_forces.ForceSettings` (their
-        gravity ``g``) and (3,) ``g`` (m/s^2, world frame).
-    """
-    settings = force_settings_from_plan(doc, mass=mass, gravity=gravity_vector)
-    g = np.asarray(settings.gravity, dtype=float) if gravity else np.zeros(3)
-    settings = ForceSettings(
-        mass=settings.mass,
-        gravity=(float(g[0]), float(g[1]), float(g[2])),
-        cone_margin=settings.cone_margin,
-        min_normal_force=settings.min_normal_force,
-    )
-    return settings, g
 
 
 class _Replay:
