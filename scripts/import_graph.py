@@ -49,7 +49,7 @@ CONFINED: dict[str, str] = {
     "mujoco": "dexplan.execution.replay",
 }
 #: Imports allowed inside a function: optional extras, loaded only on use.
-OPTIONAL: tuple[str, ...] = ("rerun", "mujoco", "ray", "matplotlib", "example_robot_data")
+OPTIONAL: tuple[str, ...] = ("rerun", "mujoco", "coacd", "ray", "matplotlib", "example_robot_data")
 #: Other imports allowed inside a function, each for a reason its comment in the code gives.
 ON_USE: frozenset[tuple[str, str]] = frozenset(
     {
