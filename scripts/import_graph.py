@@ -14,7 +14,8 @@ lowest first; a module may import its own folder and the layers below it:
 The plan file and planning know nothing of each other (callers build, write
 and verify plans): an arrow between them either way is a violation, as is any
 arrow to a higher layer. ``ompl`` is imported only in ``dexplan/planning/ompl/``,
-``rerun`` only in ``dexplan/viz/``, ``mujoco`` only in ``dexplan/execution/replay/``.
+``rerun`` only in ``dexplan/viz/``, ``mujoco`` and ``coacd`` only in
+``dexplan/execution/replay/``.
 
     python scripts/import_graph.py          # edges between layers, cycles, violations
     python scripts/import_graph.py --dot    # Graphviz of folder-level edges
@@ -47,6 +48,7 @@ CONFINED: dict[str, str] = {
     "ompl": "dexplan.planning.ompl",
     "rerun": "dexplan.viz",
     "mujoco": "dexplan.execution.replay",
+    "coacd": "dexplan.execution.replay",
 }
 #: Imports allowed inside a function: optional extras, loaded only on use.
 OPTIONAL: tuple[str, ...] = ("rerun", "mujoco", "coacd", "ray", "matplotlib", "example_robot_data")

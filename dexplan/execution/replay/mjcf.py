@@ -133,6 +133,37 @@ def _shape_xml(d: Mapping[str, Any], base_dir: Path, name: str) -> tuple[list[st
     return assets, geoms
 
 
+def _object_xml(
+    doc: Mapping[str, Any], obj: Shape, mass: float, contact: str, base_dir: Path
+) -> tuple[list[str], str]:
+    """The object's mesh assets and its free body at the plan's start pose.
+
+    Args:
+        doc: a validated plan (its ``object`` and ``start``).
+        obj: the plan's object shape.
+        mass: object mass (kg).
+        contact: the contact attributes (:func:`_contact_attrs`).
+        base_dir: the plan's folder (mesh paths).
+    """
+    assets, geoms = _shape_xml(doc["object"], base_dir, "object")
+    inertial = _object_inertial(obj, mass)
+    # a mesh's mass is its body's <inertial>; a primitive's is its geom's
+    geom_mass = 0.0 if inertial else mass
+    start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
+    lines = [
+        f'    <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">',
+        '      <freejoint name="object"/>',
+        *([f"      {inertial}"] if inertial else []),
+        *(
+            f'      <geom name="{_part_name("object", k)}" {g} mass="{geom_mass:.9g}" '
+            f'contype="2" conaffinity="3" {contact}/>'
+            for k, g in enumerate(geoms)
+        ),
+        "    </body>",
+    ]
+    return assets, "\n".join(lines)
+
+
 def _object_inertial(obj: Shape, mass: float) -> str:
     """The object's ``<inertial>``: of the mesh itself (not of its parts), or none.
 
@@ -180,18 +211,9 @@ def build_mjcf(
     children: dict[int, list[int]] = {}
     for j in range(1, model.njoints):
         children.setdefault(int(model.parents[j]), []).append(j)
-    a_obj, g_obj = _shape_xml(doc["object"], base_dir, "object")
+    a_obj, body = _object_xml(doc, obj, mass, contact, base_dir)
     obstacle_assets, obstacles = _obstacles_xml(doc, base_dir, contact)
     assets = [*a_obj, *obstacle_assets]
-    inertial = _object_inertial(obj, mass)
-    # a mesh's mass is its body's <inertial>; a primitive's is its geom's
-    geom_mass = 0.0 if inertial else mass
-    object_geoms = "\n".join(
-        f'      <geom name="{_part_name("object", k)}" {g} mass="{geom_mass:.9g}" '
-        f'contype="2" conaffinity="3" {contact}/>'
-        for k, g in enumerate(g_obj)
-    )
-    start = np.asarray(doc["start"]["object_pose_xyzquat"], dtype=float)
     actuators = "\n".join(_actuator_xml(model, n) for n in hand.joint_names)
     palm = "\n".join("    " + g for g in geoms_of.get(0, []))
     mimic = hand.mimic_joints  # coupled joints follow through a joint equality
@@ -213,11 +235,7 @@ def build_mjcf(
   <worldbody>
 {palm}
 {chr(10).join(obstacles)}
-    <body name="object" pos="{_f(start[:3])}" quat="{_f(start[[6, 3, 4, 5]])}">
-      <freejoint name="object"/>
-      {inertial}
-{object_geoms}
-    </body>
+{body}
 {tree}
   </worldbody>
   <actuator>
