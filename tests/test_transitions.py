@@ -295,14 +295,15 @@ def test_no_finger_is_let_go_that_the_others_cannot_hold_within_the_effort_limit
     assert heavy.transitions.stats["weak_holds"] == 8
 
 
-def test_rolled_normals_are_read_as_the_verifier_reads_them() -> None:
+def test_rolled_grasps_are_judged_with_the_verifiers_normals(monkeypatch) -> None:
     """A rolling transfer judges force closure with the normals the verifier will use.
 
-    On a box edge the tip sphere's closest-point normal (towards its centre)
-    and the stated contact's own normal (a face's) can differ by degrees,
-    enough to flip force closure near its margin: the rolled grasp carries
-    the verifier's (:func:`fingertip_contact`). Fingers are landed on the
-    cube's edges, then the grasp rolls through the quarter turn.
+    On a box edge the tip sphere's closest-point normal (towards its centre,
+    which places the tip) and the stated contact's own normal (a face's, what
+    the verifier reads, :func:`fingertip_contact`) can differ by degrees,
+    enough to flip force closure near its margin. Fingers are landed on the
+    cube's edges, then the grasp rolls through the quarter turn; every force
+    closure check of the transfer must see the verifier's normals.
     """
     from dexplan.core.pose import inverse_transform_points
     from dexplan.model.objects.fingertip import fingertip_contact
@@ -314,6 +315,15 @@ def test_rolled_normals_are_read_as_the_verifier_reads_them() -> None:
     trans, obj, hand = ctx.transitions, ctx.obj, ctx.hand
     r = hand.fingertip_radius
     half = 0.5 * np.asarray(sc.object["size"])
+    rolling = trans.transfers
+    judged: list[tuple[np.ndarray, np.ndarray]] = []
+    quality = rolling.quality
+
+    def recording(grasp):
+        judged.append((grasp.points.copy(), grasp.normals_out.copy()))
+        return quality(grasp)
+
+    monkeypatch.setattr(rolling, "quality", recording)
     differ = 0
     for x in ctx.sampler.samples_at_pose(sc.start.object_pose_xyzquat, 6, np.random.default_rng(1)):
         pose, q = x[:POSE_DIM], x[POSE_DIM:]
@@ -326,15 +336,17 @@ def test_rolled_normals_are_read_as_the_verifier_reads_them() -> None:
                 seg = trans.regrasp(pose, q, grasp, f, p, n)
                 if seg is None:
                     continue
+                judged.clear()
                 tr = trans.transfer(poses, 0, seg.end.q, grasp.replace(f, p, n))
-                end = tr.waypoints[-1]
-                tips = inverse_transform_points(
-                    end.object_pose_xyzquat, hand.fingertip_positions(end.q)
-                )
-                p_end = tr.grasp.points[f]
-                verifier = fingertip_contact(obj, p_end, tips[f], r)[1]
-                np.testing.assert_allclose(tr.grasp.normals_out[f], verifier, atol=1e-12)
-                towards_centre = np.ravel(obj.closest_point(tips[f])[1])
-                differ += int(np.degrees(np.arccos(min(1.0, float(verifier @ towards_centre)))) > 1)
+                for w, (points, normals) in zip(tr.waypoints[1:], judged, strict=False):
+                    tips = inverse_transform_points(
+                        w.object_pose_xyzquat, hand.fingertip_positions(w.q)
+                    )
+                    for g in range(hand.n_fingers):
+                        np.testing.assert_allclose(points[g], w.contacts[g], atol=1e-12)
+                        read = fingertip_contact(obj, points[g], tips[g], r)[1]
+                        np.testing.assert_allclose(normals[g], read, atol=1e-12)
+                        centre = np.ravel(obj.closest_point(tips[g])[1])
+                        differ += int(np.degrees(np.arccos(min(1.0, float(read @ centre)))) > 1)
                 break
     assert differ > 0  # some edge contact where the two readings differ

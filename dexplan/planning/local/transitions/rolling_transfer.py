@@ -173,18 +173,28 @@ class RollingTransferPlanner:
             r = self.rolling.roll(f, state.q, pa, pb, state.points[f])
             idx = self.hand.finger_q_index[f]
             q[idx] = r.q[idx]
-            out.points[f] = r.p_obj
+            out.points[f], out.normals[f] = r.p_obj, r.normal_obj
             if slipped is None and len(idx) < 3 and r.slip > LOW_DOF_SLIP:
                 slipped = f
-        # the normals the fingertips push along, read as the verifier reads
-        # them: on a box edge the rolled contact's own closest-point normal is
-        # a face's, up to a few degrees from the direction to the tip's centre,
-        # and force closure near its margin flips between the two
-        tips = inverse_transform_points(pb, self.hand.fingertip_positions(q))
-        r_tip = self.hand.fingertip_radius
-        for f in range(self.hand.n_fingers):
-            out.normals[f] = fingertip_contact(self.obj, out.points[f], tips[f], r_tip)[1]
         return out, slipped
+
+    def verifier_normals(self, pose: FloatArray, q: FloatArray, points: FloatArray) -> FloatArray:
+        """(n, 3) outward normals, object frame, of contacts as the verifier reads them.
+
+        ``pose: (7,)`` object pose (world frame), ``q: (nq,)`` the joints,
+        ``points: (n, 3)`` the contacts (object frame), every finger touching.
+
+        :func:`~dexplan.model.objects.fingertip.fingertip_contact`: within
+        1 mm, the stated contact's own closest-point normal. On a box edge
+        or a mesh's triangle edge that is a face's normal, degrees from the
+        direction to the tip's centre (the rolled normal, which places the
+        tip), and force closure near its margin flips between the two.
+        """
+        tips = inverse_transform_points(pose, self.hand.fingertip_positions(q))
+        r = self.hand.fingertip_radius
+        return np.array(
+            [fingertip_contact(self.obj, p, t, r)[1] for p, t in zip(points, tips, strict=True)]
+        )
 
     def _invalid(
         self, pose: FloatArray, rolled: _Rolled, before: _Rolled
@@ -197,7 +207,8 @@ class RollingTransferPlanner:
         free, finger = self.checks.collision_finger(rolled.q, pose, self.checks.all_contact)
         if not free:
             return finger, TransferStop.COLLISION
-        if self.quality(GraspContacts(rolled.points, rolled.normals)) <= self.fc_margin:
+        normals = self.verifier_normals(pose, rolled.q, rolled.points)
+        if self.quality(GraspContacts(rolled.points, normals)) <= self.fc_margin:
             moved = np.linalg.norm(rolled.points - before.points, axis=1)
             return int(np.argmax(moved)), TransferStop.FORCE_CLOSURE
         return None
