@@ -316,9 +316,11 @@ class FingertipRolling:
         """A redundant finger's null-space step away from its joint limits, ``(len(idx),)``.
 
         ``J``: (3, m) the material point's Jacobian at ``q`` (the middle of
-        the substep). The step is the cost gradient projected onto the null
-        space of ``J`` (so the tip's material point does not move), scaled
-        to ``limit_gain`` times the substep's object motion in radians.
+        the substep). The step is the joints' offsets from mid-range (-1 at
+        the lower limit, +1 at the upper) projected onto the null space of
+        ``J`` (so the tip's material point does not move), times
+        ``limit_gain`` and the substep's object motion in radians: largest
+        near a limit, none at mid-range.
         """
         lo, hi = self.hand.lower[idx], self.hand.upper[idx]
         # each joint's offset from mid-range, -1 at the lower limit, +1 at the upper
