@@ -64,6 +64,7 @@ class RunRow(TypedDict):
     # dexplan's columns
     seed: int
     plan_status: int | None
+    cpu_time: float | None
     gsn_time: float | None
     reduction_time: float | None
     verify_time: float | None
@@ -163,6 +164,7 @@ def segments_sha256(segments: Sequence[Mapping[str, Any]]) -> str:
 def fill_stats(rec: RunRecord, stats: PlanStats) -> None:
     """Copy the planner's statistics into a record's columns."""
     rec["time"] = stats.time_s
+    rec["cpu_time"] = stats.cpu_time_s
     rec["gsn_time"] = stats.gsn_time_s
     rec["reduction_time"] = stats.reduction_time_s
     rec["graph_states"] = stats.roadmap_nodes

@@ -32,6 +32,7 @@ class SummaryRow(TypedDict):
     success_rate: float
     time_median: float
     time_solved_median: float
+    cpu_time_median: float
     nodes_median: float
     components_median: float
     regrasps_median: float
@@ -95,6 +96,7 @@ def summarize(
                 "success_rate": len(solved) / len(recs),
                 "time_median": _median(r.get("time") for r in recs),
                 "time_solved_median": _median(r.get("time") for r in solved),
+                "cpu_time_median": _median(r.get("cpu_time") for r in recs),
                 "nodes_median": _median(r.get("graph_states") for r in recs),
                 "components_median": _median(r.get("components") for r in recs),
                 "regrasps_median": _median(r.get("regrasps") for r in solved),
@@ -168,7 +170,7 @@ def format_summary(rows: Sequence[SummaryRow], baseline: str | None = None) -> s
     """A fixed-width text table of :func:`summarize` rows (the CLI prints it)."""
     head = (
         f"{'scenario':<16} {'planner':<11} {'runs':>4} {'solved':>7} {'x base':>6} "
-        f"{'time med':>8} {'x base':>6} {'nodes med':>9} {'x base':>6} "
+        f"{'time med':>8} {'x base':>6} {'cpu med':>7} {'nodes med':>9} {'x base':>6} "
         f"{'regrasps':>8} {'transf':>6} {'verify':>6} {'plan/ver':>8} {'MB':>5}"
     )
     lines = [head, "-" * len(head)]
@@ -178,13 +180,15 @@ def format_summary(rows: Sequence[SummaryRow], baseline: str | None = None) -> s
             f"{r['scenario'][:16]:<16} {(r['planner'] + mark)[:11]:<11} {r['runs']:>4} "
             f"{_fmt(100 * r['success_rate'], '6.0f')}% {_fmt(r['success_rate_vs_base'], '6.2f')} "
             f"{_fmt(r['time_median'], '7.2f')}s {_fmt(r['time_median_vs_base'], '6.2f')} "
+            f"{_fmt(r['cpu_time_median'], '6.2f')}s "
             f"{_fmt(r['nodes_median'], '9.0f')} {_fmt(r['nodes_median_vs_base'], '6.2f')} "
             f"{_fmt(r['regrasps_median'], '8.1f')} {_fmt(r['transfers_median'], '6.1f')} "
             f"{r['verify_ok']:>3}/{r['solved']:<2} {_fmt(r['plan_verify_ratio_median'], '8.1f')} "
             f"{_fmt(r['memory_median'], '5.0f')}"
         )
     lines.append(
-        "time and nodes: medians over all runs; regrasps, transfers, plan/verify: over solved "
+        "time (wall clock), cpu (processor time of the same span) and nodes: medians over "
+        "all runs; regrasps, transfers, plan/verify: over solved "
         "runs; verify: plans passing dexplan verify / solved"
         + (f"; x base: ratio to {baseline} (*)" if baseline else "")
     )

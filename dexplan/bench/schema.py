@@ -170,6 +170,7 @@ RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     # dexplan
     ("seed", "INTEGER"),
     ("plan_status", "ENUM"),  # PLAN_STATUSES
+    ("cpu_time", "REAL"),  # processor seconds of the same span as time (load-independent)
     ("gsn_time", "REAL"),
     ("reduction_time", "REAL"),
     ("verify_time", "REAL"),  # dexplan verify, timed separately on the plan

@@ -256,6 +256,7 @@ class QueryRun:
         hand: Hand | None,
     ) -> None:
         self.t0 = time.perf_counter()
+        self.c0 = time.process_time()
         self.scenario, self.planner, self.seed = scenario, planner, seed
         self.roadmap = roadmap
         self.roadmap_given = roadmap
@@ -284,6 +285,7 @@ class QueryRun:
         ctx = self.ctx
         self.note(
             time_s=time.perf_counter() - self.t0,
+            cpu_time_s=time.process_time() - self.c0,
             sampler=ctx.sampler.stats.as_dict(),
             validity=ctx.validity.stats.as_dict(),
         )

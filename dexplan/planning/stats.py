@@ -20,7 +20,10 @@ class PlanStats:
 
     Attributes:
         planner: OMPL planner name. seed: random seed. time_limit: seconds.
-        time_s: the whole query. gsn_time_s: module 1 and 2.
+        time_s: the whole query (wall clock). cpu_time_s: the processor
+            time of the same span (this process's; unlike ``time_s``, it
+            does not grow when other jobs share the cores).
+        gsn_time_s: module 1 and 2.
         reduction_time_s: the reduction to transfers and regrasps.
         verify_time_s: the final verification.
         gsn_status: how module 1 ended (``exact``, ``roadmap``, an OMPL status).
@@ -56,6 +59,7 @@ class PlanStats:
     seed: int
     time_limit: float
     time_s: float = 0.0
+    cpu_time_s: float | None = None
     gsn_time_s: float | None = None
     reduction_time_s: float | None = None
     verify_time_s: float | None = None

@@ -43,7 +43,8 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy.optimize import linprog
+import scipy.sparse as sp
+from scipy.optimize import Bounds, LinearConstraint, milp
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
@@ -313,48 +314,30 @@ def _shared_ratio(blocks: list[_Block]) -> float:
     """``min t`` such that every block is feasible with ``|T_s x_s| <= t effort``; inf if none.
 
     Variables ``(x_1, ..., x_S, t)``; with no limited joint the program only
-    decides feasibility and the ratio is 0.
+    decides feasibility and the ratio is 0. The blocks share only ``t``, so
+    the matrix is block diagonal plus the ``t`` column: sparse, and
+    ``milp`` takes its two-sided rows as they are (a transfer's program has
+    a block per waypoint; a dense matrix of it costs more to build and
+    convert than HiGHS takes to solve it).
     """
-    sizes = [b.A.shape[1] for b in blocks]
-    m = sum(sizes)
-    n_eq = sum(int(np.sum(b.lo == b.hi)) for b in blocks)
-    n_ub = sum(
-        int(np.sum(np.isfinite(b.hi) & (b.lo != b.hi)) + np.sum(np.isfinite(b.lo) & (b.lo != b.hi)))
-        + 2 * len(b.effort)
-        for b in blocks
+    rows, t_col, lo, hi = [], [], [], []
+    for b in blocks:
+        ne = len(b.effort)
+        rows.append(np.vstack([b.A, b.T, -b.T]) if ne else b.A)
+        t_col.append(np.concatenate([np.zeros(b.A.shape[0]), -b.effort, -b.effort]))
+        lo.append(np.concatenate([b.lo, np.full(2 * ne, -np.inf)]))
+        hi.append(np.concatenate([b.hi, np.zeros(2 * ne)]))
+    t = np.concatenate(t_col)[:, None]
+    A: Any = (
+        np.hstack([rows[0], t])
+        if len(rows) == 1
+        else sp.hstack([sp.block_diag(rows, format="csr"), sp.csr_matrix(t)], format="csr")
     )
-    A_eq, b_eq = np.zeros((n_eq, m + 1)), np.zeros(n_eq)
-    A_ub, b_ub = np.zeros((n_ub, m + 1)), np.zeros(n_ub)
-    col = re_ = ru = 0
-    for b, k in zip(blocks, sizes, strict=True):
-        eq = b.lo == b.hi
-        up = np.isfinite(b.hi) & ~eq
-        dn = np.isfinite(b.lo) & ~eq
-        ne, nu, nd = int(eq.sum()), int(up.sum()), int(dn.sum())
-        A_eq[re_ : re_ + ne, col : col + k] = b.A[eq]
-        b_eq[re_ : re_ + ne] = b.hi[eq]
-        A_ub[ru : ru + nu, col : col + k] = b.A[up]
-        b_ub[ru : ru + nu] = b.hi[up]
-        A_ub[ru + nu : ru + nu + nd, col : col + k] = -b.A[dn]
-        b_ub[ru + nu : ru + nu + nd] = -b.lo[dn]
-        ru += nu + nd
-        effort = b.effort
-        if effort.size:
-            ne_ = len(effort)
-            A_ub[ru : ru + ne_, col : col + k] = b.T
-            A_ub[ru + ne_ : ru + 2 * ne_, col : col + k] = -b.T
-            A_ub[ru : ru + 2 * ne_, m] = -np.tile(effort, 2)
-            ru += 2 * ne_
-        re_ += ne
-        col += k
-    lp = linprog(
+    m = A.shape[1] - 1
+    lp = milp(
         np.r_[np.zeros(m), 1.0],
-        A_ub=A_ub,
-        b_ub=b_ub,
-        A_eq=A_eq,
-        b_eq=b_eq,
-        bounds=[(None, None)] * m + [(0.0, None)],
-        method="highs-ds",
+        constraints=LinearConstraint(A, np.concatenate(lo), np.concatenate(hi)),
+        bounds=Bounds(np.r_[np.full(m, -np.inf), 0.0], np.full(m + 1, np.inf)),
         options={"presolve": False},
     )
     if lp.status != 0 or lp.x is None:

@@ -218,6 +218,8 @@ class FingertipRolling:
         pose_a: FloatArray,
         pose_b: FloatArray,
         p_obj: FloatArray,
+        *,
+        check_touch: bool = True,
     ) -> RolledContact:
         """Roll ``finger``'s tip on the object while it moves from ``pose_a`` to ``pose_b``.
 
@@ -227,6 +229,8 @@ class FingertipRolling:
             pose_a: (7,) the object's pose before, world frame, XYZW.
             pose_b: (7,) the object's pose after.
             p_obj: (3,) the contact point at ``pose_a``, object frame.
+            check_touch: check that the tip touches ``p_obj``; a caller
+                chaining rolls (each ends with the tip tangent) skips it.
 
         Returns:
             The :class:`RolledContact` at ``pose_b``.
@@ -239,7 +243,8 @@ class FingertipRolling:
             raise InvalidInputError(f"finger must be in [0, {self.hand.n_fingers}), got {finger}")
         q = np.array(q, dtype=float)
         p_obj = np.asarray(p_obj, dtype=float).reshape(3)
-        self._check_touch(finger, q, pose_a, p_obj)
+        if check_touch:
+            self._check_touch(finger, q, pose_a, p_obj)
         s = self.settings
         angle = quat_angle(pose_a[3:7], pose_b[3:7])
         dist = float(np.linalg.norm(np.asarray(pose_b[:3]) - pose_a[:3]))
@@ -402,9 +407,10 @@ def _mid_rotation(R_a: FloatArray, R_b: FloatArray) -> FloatArray:
 
 def _solve(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
     """Least-norm (damped) solution of ``J x = rhs`` for any shape of ``J``."""
-    m = J.shape[1]
-    if J.shape[0] <= m:
-        x = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
-    else:
-        x = np.linalg.solve(J.T @ J + damping * np.eye(m), J.T @ rhs)
-    return np.asarray(x, dtype=np.float64)
+    if J.shape[0] <= J.shape[1]:
+        A = J @ J.T
+        A.flat[:: A.shape[0] + 1] += damping
+        return np.asarray(J.T @ np.linalg.solve(A, rhs), dtype=np.float64)
+    A = J.T @ J
+    A.flat[:: A.shape[0] + 1] += damping
+    return np.asarray(np.linalg.solve(A, J.T @ rhs), dtype=np.float64)

@@ -170,7 +170,7 @@ class RollingTransferPlanner:
         out = _Rolled(q, state.points.copy(), state.normals.copy())
         slipped = None
         for f in range(self.hand.n_fingers):
-            r = self.rolling.roll(f, state.q, pa, pb, state.points[f])
+            r = self.rolling.roll(f, state.q, pa, pb, state.points[f], check_touch=False)
             idx = self.hand.finger_q_index[f]
             q[idx] = r.q[idx]
             out.points[f], out.normals[f] = r.p_obj, r.normal_obj
