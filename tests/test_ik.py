@@ -38,6 +38,7 @@ def test_chain_forward_kinematics_matches_pinocchio(hand: Hand) -> None:
         qs = _random_q(hand, i, 30, i)
         ref = np.array([_pin_tip(hand, i, q) for q in qs])
         np.testing.assert_allclose(chain.tips(qs), ref, atol=1e-12)
+        np.testing.assert_allclose(chain.forward(qs)[0], ref, atol=1e-12)
 
 
 def test_chain_jacobian_matches_finite_differences(hand: Hand) -> None:

@@ -119,17 +119,10 @@ class FingerChain:
             joint origins and ``axes: (N, n_joints, 3)`` unit joint axes,
             world frame.
         """
-        q = np.asarray(q, dtype=float)
-        n = len(q)
-        theta = q if not self.coupled else q[:, self._var] * self._scale + self._offset
-        nj = self.n_joints
+        n, nj = len(q), self.n_joints
         # every joint's local 4x4 transform at once, then the chain products
-        coef = np.empty((n, nj, 3))
-        coef[..., 0] = 1.0
-        coef[..., 1] = np.sin(theta)
-        coef[..., 2] = 1.0 - np.cos(theta)
         A = np.repeat(self._template[None], n, axis=0)
-        A[..., :3, :3] = (coef[:, :, None, :] @ self._rodrigues).reshape(n, nj, 3, 3)
+        A[..., :3, :3] = self._local_rotations(q)
         T = np.empty((n, nj, 4, 4))
         T[:, 0] = A[:, 0]
         for j in range(1, nj):
@@ -140,8 +133,31 @@ class FingerChain:
         return T[:, -1, :3, :] @ self._tip_h, origins, axes
 
     def tips(self, q: FloatArray) -> FloatArray:
-        """Fingertip centres ``(N, 3)`` of configurations ``q: (N, m)``."""
-        return self.forward(q)[0]
+        """Fingertip centres ``(N, 3)`` of configurations ``q: (N, m)``, world frame.
+
+        The tip point is carried from the last joint to the first, a
+        rotation and a translation per joint: matrix-vector products, a
+        third of the work of :meth:`forward`'s chain of 4x4 products (the
+        reach voxels take tens of thousands of configurations per finger).
+        """
+        R = self._local_rotations(q)
+        t = self._template[:, :3, 3]
+        p = np.broadcast_to(self._tip_h[:3], (len(R), 3))
+        for j in range(self.n_joints - 1, -1, -1):
+            p = np.einsum("nij,nj->ni", R[:, j], p) + t[j]
+        return np.asarray(p, dtype=np.float64)
+
+    def _local_rotations(self, q: FloatArray) -> FloatArray:
+        """Each joint's rotation in its parent's frame ``(N, n_joints, 3, 3)`` at ``q: (N, m)``."""
+        q = np.asarray(q, dtype=float)
+        theta = q if not self.coupled else q[:, self._var] * self._scale + self._offset
+        coef = np.empty((len(q), self.n_joints, 3))
+        coef[..., 0] = 1.0
+        coef[..., 1] = np.sin(theta)
+        coef[..., 2] = 1.0 - np.cos(theta)
+        return np.asarray(
+            (coef[:, :, None, :] @ self._rodrigues).reshape(len(q), self.n_joints, 3, 3)
+        )
 
     def jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Tip centres ``(N, 3)`` and position Jacobians ``(N, 3, m)`` (world frame)."""
