@@ -155,9 +155,9 @@ class FingerChain:
         coef[..., 0] = 1.0
         coef[..., 1] = np.sin(theta)
         coef[..., 2] = 1.0 - np.cos(theta)
-        return np.asarray(
-            (coef[:, :, None, :] @ self._rodrigues).reshape(len(q), self.n_joints, 3, 3)
-        )
+        # optimize: a BLAS product per joint, not a Python-level loop over N small ones
+        rot = np.einsum("njk,jkl->njl", coef, self._rodrigues, optimize=True)
+        return np.asarray(rot.reshape(len(q), self.n_joints, 3, 3))
 
     def jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Tip centres ``(N, 3)`` and position Jacobians ``(N, 3, m)`` (world frame)."""
