@@ -555,6 +555,8 @@ def test_sweep_writes_database_csv_plots(sweep):
     for r in res.records:
         assert r["status_name"] in PLAN_STATUSES and r["status_name"] not in ("error", "crash")
         assert r["time"] is not None and r["time"] > 0
+        # the planner's processor time: the worker's own, so > 0 and finite
+        assert r["cpu_time"] is not None and 0 < r["cpu_time"] < math.inf
         assert r["memory"] > 50  # MB: the worker holds the hand, ompl and the models
         assert r["graph_states"] is not None
         assert r["states_checked"] is not None and r["rejected_collision"] is not None
@@ -579,6 +581,7 @@ def test_sweep_writes_database_csv_plots(sweep):
     assert len(rows) == 4 and {r["planner"] for r in rows} == {"PRM", "RRTConnect"}
     assert [row["planner"] for row in res.summary] == ["PRM", "RRTConnect"]
     assert res.summary[0]["time_median_vs_base"] == 1.0
+    assert res.summary[0]["cpu_time_median"] > 0
     if importlib.util.find_spec("matplotlib") is not None:
         assert sorted(p.name for p in res.plots) == sorted(bench.PLOT_NAMES)
         assert all(p.is_file() for p in res.plots)
