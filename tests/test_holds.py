@@ -32,7 +32,7 @@ def regrasp_holds(tmp_path_factory, paper_plan):
     return m, holds
 
 
-def _checker(m, *, mass=0.1, shift=0.0, hand=None) -> HoldChecker:
+def _checker(m, *, mass=0.1, shift=0.0, hand=None, share=1.0) -> HoldChecker:
     return HoldChecker(
         hand or m.hand,
         m.obj,
@@ -42,6 +42,7 @@ def _checker(m, *, mass=0.1, shift=0.0, hand=None) -> HoldChecker:
         m.torsion,
         ForceSettings(mass=mass, min_normal_force=0.0),
         shift_m=shift,
+        effort_share=share,
     )
 
 
@@ -93,6 +94,28 @@ def test_ratio_scales_with_the_weight_and_the_limits(regrasp_holds) -> None:
         assert 0.0 < r < math.inf
         assert heavy.ratio(q, pose, contacts) == pytest.approx(2 * r, rel=1e-5)
         assert weak.ratio(q, pose, contacts) == pytest.approx(2 * r, rel=1e-5)
+
+
+def test_an_effort_share_is_a_ratio_against_that_share_of_the_limits(regrasp_holds) -> None:
+    """With ``effort_share`` s the ratio is the full-limit ratio over s, so a hold that
+    needs 0.9 of the limits holds at s = 1 and not at s = 0.8 (the planner's headroom)."""
+    m, holds = regrasp_holds
+    full, headroom = _checker(m), _checker(m, share=0.8)
+    for q, pose, contacts in holds:
+        r = full.ratio(q, pose, contacts)
+        assert headroom.ratio(q, pose, contacts) == pytest.approx(r / 0.8, rel=1e-6)
+    # a weight that makes one hold need 0.9 of the limits
+    q, pose, contacts = holds[0]
+    mass = 0.1 * 0.9 / full.ratio(q, pose, contacts)
+    assert _checker(m, mass=mass).holds(q, pose, contacts)
+    assert not _checker(m, mass=mass, share=0.8).holds(q, pose, contacts)
+
+
+@pytest.mark.parametrize("share", [0.0, -0.5, 1.5, math.nan])
+def test_bad_effort_share_is_refused(regrasp_holds, share) -> None:
+    m, _ = regrasp_holds
+    with pytest.raises(InvalidInputError, match="effort share"):
+        _checker(m, share=share)
 
 
 def test_shifted_contacts_never_need_less_than_the_nominal_ones(regrasp_holds) -> None:
@@ -180,3 +203,21 @@ def test_verify_reports_the_holds_and_rejects_a_weight_the_joints_cannot_carry(
     assert {v.rule for v in bad.violations} == {"holds"}
     assert bad.worst_torque_ratio > 10 * report.worst_torque_ratio  # the load grows 50-fold
     assert any("effort limits" in str(v) and "kg" in str(v) for v in bad.violations)
+
+
+def test_the_scenario_effort_share_reaches_the_planners_holds(tmp_path) -> None:
+    """``[contact] hold_effort_share`` is what the local planners' holds use; default 1."""
+    from dexplan.model.objects import shape_from_dict
+    from dexplan.model.scenario import builtin_scenario_path, load_scenario
+    from dexplan.planning.context import build_hand, hold_checker, validity_settings
+
+    text = builtin_scenario_path("paper_sphere").read_text()
+    assert "hold_effort_share" not in text
+    shared = tmp_path / "shared.toml"
+    shared.write_text(text.replace("[contact]", "[contact]\nhold_effort_share = 0.7", 1))
+    for path, share in ((builtin_scenario_path("paper_sphere"), 1.0), (shared, 0.7)):
+        scen = load_scenario(path)
+        hand = build_hand(scen)
+        obj = shape_from_dict(dict(scen.object), scen.base_dir)
+        hc = hold_checker(scen, hand, obj, validity_settings(scen, hand.n_fingers))
+        assert hc.effort_share == share

@@ -281,6 +281,8 @@ def test_friction_edges_bounded(capfd, tmp_path: Path, value) -> None:
         ("seed = 1", "seed = 1.5", ["planner.seed", "1.5"]),
         ("mu = 0.8", "mu = 1e300", ["contact.mu", "1e+300"]),
         ("mu = 0.8", "mu = 0.8\nfc_margin = 5.0", ["contact.fc_margin", "5.0"]),
+        ("mu = 0.8", "mu = 0.8\nhold_effort_share = 0.0", ["contact.hold_effort_share", "0.0"]),
+        ("mu = 0.8", "mu = 0.8\nhold_effort_share = 1.2", ["contact.hold_effort_share", "1.2"]),
         ("radius = 0.04", "radius = 3.0", ["object.radius", "3.0"]),
         ("radius = 0.04", "radius = 1e400", ["object.radius", "inf"]),
         ("radius = 0.04", "radius = " + "9" * 400, ["object.radius", "999"]),

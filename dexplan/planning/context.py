@@ -146,7 +146,8 @@ def hold_checker(scenario: Scenario, hand: Hand, obj: Shape, vset: ValiditySetti
     The scenario's object mass and gravity (the export's defaults where it
     gives none), its friction, contact model and hold shift: the local
     planners let a finger go only where the others hold the object within
-    the hand's effort limits (:meth:`Transitions.can_release`).
+    the scenario's share of the hand's effort limits (``[contact]
+    hold_effort_share``; :meth:`Transitions.can_release`).
     """
     g = scenario.gravity
     settings = ForceSettings(
@@ -162,6 +163,7 @@ def hold_checker(scenario: Scenario, hand: Hand, obj: Shape, vset: ValiditySetti
         vset.torsion,
         settings,
         shift_m=scenario.hold_shift,
+        effort_share=scenario.hold_effort_share,
     )
 
 

@@ -29,6 +29,10 @@ block of force variables per contact set sharing the ratio ``t``:
 ``|T_s x_s| <= t e``. The hold counts iff the ratio is at most 1; it is
 ``inf`` when some contact set cannot balance the wrench at all (not force
 closure). A hand without effort limits has ratio 0 wherever it can hold.
+A checker built with ``effort_share`` s < 1 takes the ratio against s times
+the limits: the planner's holds then leave the hand torque headroom to
+execute the plan with (a servo needs some to correct errors), while the
+verifier checks the limits themselves.
 
 Frames and units as :mod:`dexplan.model.grasp.grip_forces`: contacts and
 normals in the object frame, forces in newtons, torques in N m.
@@ -79,6 +83,10 @@ class HoldChecker:
             (``cone_margin`` is not used: the shifts are the margin); default
             :class:`~dexplan.model.grasp.grip_forces.ForceSettings`.
         shift_m: how far each contact is moved along the surface (m), in [0, 0.05].
+        effort_share: the share of each joint's effort limit a hold may use,
+            in (0, 1]: the ratio is taken against ``effort_share`` times the
+            limits (1: the limits themselves, as the verifier checks them; a
+            planner leaves headroom for execution with less).
     """
 
     def __init__(
@@ -91,6 +99,7 @@ class HoldChecker:
         torsion: float = 0.0,
         forces: ForceSettings | None = None,
         shift_m: float = DEFAULT_HOLD_SHIFT,
+        effort_share: float = 1.0,
     ) -> None:
         if not (
             isinstance(shift_m, int | float)
@@ -105,12 +114,15 @@ class HoldChecker:
         self.soft = contact_model == "soft"
         self.torsion = float(torsion)
         self.forces = forces if forces is not None else ForceSettings()
+        if not (isinstance(effort_share, int | float) and 0.0 < effort_share <= 1.0):
+            raise InvalidInputError(f"effort share must be in (0, 1], got {effort_share!r}")
         self.shift_m = float(shift_m)
+        self.effort_share = float(effort_share)
         self.L = float(obj.characteristic_length)
         self._data = hand.model.createData()
         e = joint_effort_limits(hand.model)
         self._limited = np.flatnonzero(~np.isnan(e))
-        self._effort = e[self._limited]
+        self._effort = self.effort_share * e[self._limited]
         self._memo: dict[bytes, float] = {}
 
     def holds(

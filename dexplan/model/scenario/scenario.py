@@ -214,7 +214,7 @@ def _world(doc: Mapping[str, Any]) -> tuple[float, float, float] | None:
 def _contact(doc: Mapping[str, Any]) -> tuple[float, int, float, ContactModel, float]:
     """``[contact]``: ``mu``, ``friction_edges``, ``fc_margin``, ``model``, ``torsion``.
 
-    ``hold_shift`` is read by :func:`_hold_shift`.
+    ``hold_shift`` and ``hold_effort_share`` are read by :func:`_holds`.
     """
     c = table(doc, "contact", required=False)
     _only(c, "contact", SCENARIO_FIELDS["contact"])
@@ -225,10 +225,16 @@ def _contact(doc: Mapping[str, Any]) -> tuple[float, int, float, ContactModel, f
     return mu, edges, fc_margin, model, torsion
 
 
-def _hold_shift(doc: Mapping[str, Any]) -> float:
-    """``[contact] hold_shift`` (m): how far each contact is moved when a hold is checked."""
+def _holds(doc: Mapping[str, Any]) -> tuple[float, float]:
+    """``[contact] hold_shift`` (m) and ``hold_effort_share``: how holds are checked.
+
+    ``hold_shift``: how far each contact is moved when a hold is checked;
+    ``hold_effort_share``: the share of the effort limits the planner's holds may use.
+    """
     c = table(doc, "contact", required=False)
-    return number(c, "hold_shift", "contact", 0.002, lo=0.0, hi=MAX_HOLD_SHIFT)
+    shift = number(c, "hold_shift", "contact", 0.002, lo=0.0, hi=MAX_HOLD_SHIFT)
+    share = number(c, "hold_effort_share", "contact", 1.0, lo=0.0, hi=1.0, lo_open=True)
+    return shift, share
 
 
 def _contact_motion(doc: Mapping[str, Any]) -> ContactMotion:
@@ -379,7 +385,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
     obj, mass = _object(doc, base_dir)
     gravity = _world(doc)
     mu, edges, fc_margin, model, torsion = _contact(doc)
-    hold_shift = _hold_shift(doc)
+    hold_shift, hold_effort_share = _holds(doc)
     motion = _contact_motion(doc)
     obstacles = _obstacles(doc, base_dir)
     start, goal = _start(doc), _goal(doc)
@@ -403,6 +409,7 @@ def parse_scenario(doc: Mapping[str, Any], base_dir: Path, name: str = "scenario
         object_mass=mass,
         gravity=gravity,
         hold_shift=hold_shift,
+        hold_effort_share=hold_effort_share,
         contact_motion=motion,
     )
 

@@ -118,7 +118,16 @@ SCENARIO_FIELDS: Mapping[str, frozenset[str]] = {
     "hand": HAND_BUILTIN_FIELDS | HAND_URDF_FIELDS | HAND_MJCF_FIELDS,
     "object": ALL_SHAPE_FIELDS | OBJECT_OWN_FIELDS,  # its shape kind's (SHAPE_FIELDS), mass
     "contact": frozenset(
-        {"mu", "friction_edges", "fc_margin", "model", "torsion", "hold_shift", "motion"}
+        {
+            "mu",
+            "friction_edges",
+            "fc_margin",
+            "model",
+            "torsion",
+            "hold_shift",
+            "hold_effort_share",
+            "motion",
+        }
     ),
     "obstacles": ALL_SHAPE_FIELDS | OBSTACLE_OWN_FIELDS,
     "start": frozenset({"object_pose_xyzquat", "q"}),
@@ -211,6 +220,10 @@ class Scenario:
         hold_shift: ``[contact] hold_shift`` (m): a hold counts only if it
             still holds with each contact moved this far along the surface
             (:mod:`dexplan.model.grasp.holds`).
+        hold_effort_share: ``[contact] hold_effort_share``, in (0, 1]: the
+            share of each joint's effort limit a hold may need when the
+            planner lets a finger go (the verifier checks the full limits);
+            below 1 it leaves torque headroom to execute the plan with.
         contact_motion: ``[contact] motion``: during transfers the contacts
             stay ``fixed`` on the object (the paper's; the fingertips slide)
             or the fingertips are ``rolling`` (:mod:`dexplan.model.grasp.rolling`).
@@ -233,4 +246,5 @@ class Scenario:
     object_mass: float | None = None
     gravity: tuple[float, float, float] | None = None
     hold_shift: float = 0.002
+    hold_effort_share: float = 1.0
     contact_motion: ContactMotion = ContactMotion.FIXED
