@@ -46,6 +46,7 @@ the measured object against the plan.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
+from dexplan.execution.replay.handover import HandOvers, loaded_fingers_of
 from dexplan.execution.trajectory import Trajectory
 from dexplan.model.grasp.grip_forces import GripForceError, GripForceSolver
 from dexplan.model.hand.hand import Hand
@@ -115,6 +117,8 @@ class ObjectFeedback:
             measured contacts; None keeps the planned ones.
         rolling: the plan's contacts roll during transfers (``contact_motion``
             ``"rolling"``): the holding tips follow the plan's rolling.
+        handovers: the trajectory's hand-overs
+            (:func:`dexplan.execution.replay.handover.insert_handovers`), or None.
     """
 
     def __init__(
@@ -124,11 +128,15 @@ class ObjectFeedback:
         solver: GripForceSolver | None = None,
         *,
         rolling: bool = False,
+        handovers: HandOvers | None = None,
     ) -> None:
         self.hand = hand
         self.traj, self.solver, self.rolling = traj, solver, rolling
+        self.handovers = handovers
         self.holding = ~np.isnan(traj.forces[:, :, 0])
-        self.loaded = self.holding & (np.linalg.norm(np.nan_to_num(traj.forces), axis=2) > 0)
+        self.loaded = loaded_fingers_of(traj)
+        #: the loaded fingers the feed-forward was last solved for (None: never)
+        self.solved_for: np.ndarray | None = None
         holding = self.holding
         self.idx = [np.asarray(ix, dtype=int) for ix in hand.finger_q_index]
         self.lower, self.upper = np.asarray(hand.lower), np.asarray(hand.upper)
@@ -171,12 +179,15 @@ class ObjectFeedback:
                 self.lifted[f] = 0.0
             self.was_holding[f] = hold
             keep = 1.0
-            if hold and self.rolling:  # the planned joints roll the tips; correct the object
+            if hold:  # carry the measured contact to where the plan wants the object
                 move = Xp.act(Xm.actInv(p_sim[f])) - p_sim[f]
+                start = p_plan[f] if self.rolling else p_sim[f]
+                move = self._press(start, move, p_sim[f], Xm)
+            if hold and self.rolling:  # the planned joints roll the tips; correct the object
                 out[ix] = q_plan[ix] + _dls(J_plan[f], _clip(move))
                 continue
             if hold:
-                goal = Xp.act(Xm.actInv(p_sim[f]))
+                goal = p_sim[f] + move
             else:
                 lift = float(np.linalg.norm(plan_tip - self.release_tip[f]))
                 self.lifted[f] = max(self.lifted[f], lift)
@@ -192,6 +203,40 @@ class ObjectFeedback:
                 null = np.eye(len(ix)) - np.linalg.pinv(J) @ J
                 out[ix] += NULL_GAIN * null @ (q_plan[ix] - q_sim[ix])
         return np.clip(out, self.lower, self.upper)
+
+    def _press(
+        self, start: FloatArray, move: FloatArray, p_tip: FloatArray, Xm: pin.SE3
+    ) -> FloatArray:
+        """A holding finger's tip correction (world frame) that never pulls and keeps it pressing.
+
+        A finger can push an object, not pull it: a correction that carries
+        the object toward the plan by moving a tip out along the contact's
+        outward normal only lifts that tip off (and a just-landed finger,
+        which holds little yet, lets go). So the outward part of ``move`` is
+        dropped, and where the tip would still aim outside the measured
+        object's surface (it has not reached the object, or the object moved
+        away from it) it aims onto the surface: the grip-force feed-forward
+        then presses it on the object, as a guarded approach closes a finger
+        until contact.
+
+        Args:
+            start: (3,) the tip centre the correction is added to, world frame.
+            move: (3,) the correction, world frame (m).
+            p_tip: (3,) the measured tip centre, world frame.
+            Xm: the measured object pose.
+        """
+        if self.solver is None:
+            return move
+        obj, r = self.solver.obj, self.hand.fingertip_radius
+        _, n_obj = obj.closest_point(Xm.actInv(p_tip))
+        n_out = Xm.rotation @ np.reshape(n_obj, 3)
+        move = move - max(0.0, float(np.dot(move, n_out))) * n_out
+        goal = Xm.actInv(start + move)
+        c, n_obj = (np.reshape(v, 3) for v in obj.closest_point(goal))
+        gap = float(np.dot(goal - c, n_obj)) - r
+        if gap > 0.0:
+            move = move - gap * (Xm.rotation @ n_obj)
+        return move
 
     def _clear(self, tip: FloatArray, to_landing: float) -> FloatArray:
         """A free tip centre (object frame) kept :data:`CLEARANCE` off the object until it lands.
@@ -210,6 +255,17 @@ class ObjectFeedback:
             return tip
         return tip + fade * (CLEARANCE - gap) * n_out
 
+    def forces_due(self, i: int) -> bool:
+        """Whether the feed-forward must be solved again at sample ``i``, not only periodically.
+
+        The loaded fingers changed since the last solve (a finger landed or let
+        go: the old forces would load a lifting finger or leave a landed one
+        idle), or a hand-over is under way (its blend moves every sample).
+        """
+        if self.handovers is not None and np.isfinite(self.handovers.blend[i]):
+            return True
+        return self.solved_for is None or not np.array_equal(self.solved_for, self.loaded[i])
+
     def feed_forward(
         self, i: int, q_sim: FloatArray, sim_pose: FloatArray, planned: FloatArray
     ) -> FloatArray:
@@ -218,9 +274,11 @@ class ObjectFeedback:
         The contacts are the object's surface points closest to the measured
         tip centres, the forces those of the plan's solver there (least norm,
         in the margin-shrunk cones, balancing the replay's wrench) for the
-        fingers the plan loads at sample ``i``. The planned torques where the
-        solver has none, the plan has none at ``i`` (a tampered plan) or no
-        forces balance at the measured contacts.
+        fingers the plan loads at sample ``i``; during a hand-over the blend
+        of those of the fingers loaded before and after it (as the planned
+        forces blend). The planned torques where the solver has none, the
+        plan has none at ``i`` (a tampered plan) or no forces balance at the
+        measured contacts.
 
         Args:
             i: the trajectory sample now lies after.
@@ -228,6 +286,7 @@ class ObjectFeedback:
             sim_pose: (7,) the measured object pose, world frame.
             planned: (nq,) the planned feed-forward torques now.
         """
+        self.solved_for = self.loaded[i].copy()
         if self.solver is None or np.isnan(self.traj.margins[i]):
             return planned
         Xm = pose_se3(sim_pose)
@@ -239,11 +298,18 @@ class ObjectFeedback:
                 continue
             c, _ = self.solver.obj.closest_point(Xm.actInv(p_sim[f]))
             contacts.append(np.asarray(c, dtype=float).reshape(3))
+        ho = self.handovers
+        lam = math.nan if ho is None else float(ho.blend[i])
         try:
-            g = self.solver.solve(q_sim, sim_pose, contacts, tuple(self.loaded[i]))
+            if math.isnan(lam):
+                g = self.solver.solve(q_sim, sim_pose, contacts, tuple(self.loaded[i]))
+                return np.asarray(g.joint_torques, dtype=float)
+            assert ho is not None
+            old = self.solver.solve(q_sim, sim_pose, contacts, tuple(ho.loaded_from[i]))
+            new = self.solver.solve(q_sim, sim_pose, contacts, tuple(ho.loaded_to[i]))
         except GripForceError:
             return planned
-        return np.asarray(g.joint_torques, dtype=float)
+        return (1.0 - lam) * np.asarray(old.joint_torques) + lam * np.asarray(new.joint_torques)
 
 
 def planned_tip_slip(doc: Mapping[str, Any], hand: Hand) -> FloatArray:

@@ -127,6 +127,9 @@ class ReplayResult:
             plan's URDF has none (that joint's actuator is unlimited).
         max_effort_ratio: the largest ``|actuator torque| / limit`` of any limited joint.
         saturated_time: time (s) any limited joint's actuator spent at its limit.
+        handovers: hand-overs inserted where the holding fingers change
+            (:mod:`dexplan.execution.replay.handover`).
+        handover_time: the time they add to the plan's execution (s), in ``duration``.
     """
 
     loop: Loop
@@ -158,6 +161,8 @@ class ReplayResult:
     effort_limits: tuple[float, ...]
     max_effort_ratio: float
     saturated_time: float
+    handovers: int = 0
+    handover_time: float = 0.0
 
     @property
     def dropped(self) -> bool:
@@ -200,7 +205,12 @@ class ReplayResult:
         loop = "closed loop (object-pose feedback)" if self.loop == Loop.CLOSED else "open loop"
         lines = [
             f"replay, {loop}, {'gravity' if self.gravity else 'no gravity'}: "
-            f"{self.duration:.2f} s, {self.n_segments} segments",
+            f"{self.duration:.2f} s, {self.n_segments} segments"
+            + (
+                f" ({self.handovers} hand-overs, {self.handover_time:.1f} s of them)"
+                if self.handovers
+                else ""
+            ),
             f"  object error{' before the drop' if self.dropped else ''}: max "
             f"{_mm(self.max_position_error)}, {_deg(self.max_angle_error)}; at waypoints "
             f"({self.waypoints_reached} of {self.waypoints} reached) max "

@@ -46,6 +46,7 @@ from dexplan.execution.forces import solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
 from dexplan.execution.replay.driven_trajectory import replay_settings, replay_trajectory
 from dexplan.execution.replay.drops import DropScene, describe_drop, segment_of
+from dexplan.execution.replay.handover import HANDOVER_TIME, HandOvers, insert_handovers
 from dexplan.execution.replay.mjcf import KP, TIMESTEP, build_mjcf
 from dexplan.execution.replay.result import (
     ANGLE_TOL,
@@ -96,6 +97,7 @@ def replay_loops(
     mass: float | None = None,
     gravity_vector: FloatArray | None = None,
     hand: Hand | None = None,
+    handover: float = HANDOVER_TIME,
 ) -> ReplayReport:
     """Replay the plan once per loop (closed: object-pose feedback; open: the planned joints).
 
@@ -108,6 +110,7 @@ def replay_loops(
         mass: object mass (kg), default the plan's ``object.mass`` or 0.1.
         gravity_vector: (3,) overrides the plan's gravity (world frame).
         hand: the plan's hand (rebuilt from the file when None).
+        handover: each hand-over's time (s), as :func:`replay_plan`.
 
     Raises:
         As :func:`replay_plan`.
@@ -124,6 +127,7 @@ def replay_loops(
             gravity_vector=gravity_vector,
             hand=hand,
             feedback=Loop(loop) == Loop.CLOSED,
+            handover=handover,
         )
         for loop in loops
     )
@@ -140,6 +144,7 @@ def replay_plan(
     gravity_vector: FloatArray | None = None,
     hand: Hand | None = None,
     feedback: bool = True,
+    handover: float = HANDOVER_TIME,
 ) -> ReplayResult:
     """Simulate the plan in MuJoCo and measure how far the object strays from it.
 
@@ -154,6 +159,11 @@ def replay_plan(
         feedback: correct the fingertip targets from the measured object pose
             (:class:`dexplan.execution.replay.control.ObjectFeedback`); False: the
             planned joints open loop.
+        handover: the time (s) of each hand-over
+            (:func:`dexplan.execution.replay.handover.insert_handovers`): where
+            the fingers holding the object change, the hand waits this long
+            while the load passes from the old fingers to the new ones; 0: the
+            plan's timing, the load switched within one sample.
 
     Where no grip forces balance the wrench (a tampered plan) the fingers get
     no feed-forward there and only follow their targets; the result counts
@@ -178,6 +188,8 @@ def replay_plan(
         hand=hand,
     )
     settings = traj.settings
+    solver = solver_from_plan(doc, settings, hand, base_dir)
+    traj, handovers = insert_handovers(traj, solver, handover, rate)
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
     try:
         m = mujoco.MjModel.from_xml_string(xml)
@@ -185,13 +197,12 @@ def replay_plan(
         raise PlanFileError(f"MuJoCo rejects the model built from the plan: {exc}") from exc
     feedback_ctl = None
     if feedback:
-        solver = solver_from_plan(doc, settings, hand, base_dir)
         rolling = doc.get("contact_motion", "fixed") == "rolling"
-        feedback_ctl = ObjectFeedback(hand, traj, solver, rolling=rolling)
+        feedback_ctl = ObjectFeedback(hand, traj, solver, rolling=rolling, handovers=handovers)
     run = _Replay(mujoco, m, hand, tips, traj, feedback_ctl)
     run.simulate()
     loop = Loop.CLOSED if feedback else Loop.OPEN
-    return _replay_result(doc, gravity, loop, traj, run, base_dir)
+    return _replay_result(doc, gravity, loop, traj, run, base_dir, handovers)
 
 
 def _replay_result(
@@ -201,6 +212,7 @@ def _replay_result(
     traj: Trajectory,
     run: _Replay,
     base_dir: str | Path,
+    handovers: HandOvers,
 ) -> ReplayResult:
     """The errors of a finished simulation against the plan's trajectory and goal.
 
@@ -211,6 +223,7 @@ def _replay_result(
         traj: the sampled trajectory (:class:`dexplan.execution.trajectory.Trajectory`).
         run: the finished simulation (its samples end at the drop, if any).
         base_dir: the plan's folder (mesh paths).
+        handovers: the hand-overs inserted into ``traj``.
     """
     k = run.rec_idx
     sim_pose, planned = run.sim_pose[:k], traj.object_pose[:k]
@@ -257,6 +270,8 @@ def _replay_result(
         effort_limits=tuple(float(e) for e in run.effort),
         max_effort_ratio=run.max_effort_ratio,
         saturated_time=run.saturated_steps * TIMESTEP,
+        handovers=handovers.count,
+        handover_time=handovers.added_time,
     )
 
 
@@ -350,7 +365,7 @@ class _Replay:
             elif step % every == 0:
                 q_sim = d.qpos[self.jq]
                 target = self.feedback.targets(i, planned, q_sim, planned_pose, pose_now)
-                if step % (every * FORCE_EVERY) == 0:
+                if step % (every * FORCE_EVERY) == 0 or self.feedback.forces_due(i):
                     ff_now = self.feedback.feed_forward(i, q_sim, pose_now, ff)
             if self.feedback is not None:
                 ff = ff_now
