@@ -56,6 +56,7 @@ import pinocchio as pin
 
 from dexplan.core.typing import FloatArray
 from dexplan.execution.replay.handover import HandOvers, loaded_fingers_of
+from dexplan.execution.replay.squeeze import SqueezeSolver
 from dexplan.execution.trajectory import Trajectory
 from dexplan.model.grasp.grip_forces import GripForceError, GripForceSolver
 from dexplan.model.hand.hand import Hand
@@ -112,9 +113,11 @@ class ObjectFeedback:
     Args:
         hand: the plan's :class:`~dexplan.model.hand.hand.Hand`.
         traj: the sampled trajectory (:class:`dexplan.execution.trajectory.Trajectory`).
-        solver: the plan's :class:`~dexplan.model.grasp.grip_forces.GripForceSolver` (the
-            replay's gravity): the feed-forward forces are recomputed at the
-            measured contacts; None keeps the planned ones.
+        solver: the replay's grip forces
+            (:class:`~dexplan.execution.replay.squeeze.SqueezeSolver`, or the
+            plan's :class:`~dexplan.model.grasp.grip_forces.GripForceSolver`): the
+            feed-forward forces are recomputed at the measured contacts; None
+            keeps the planned ones.
         rolling: the plan's contacts roll during transfers (``contact_motion``
             ``"rolling"``): the holding tips follow the plan's rolling.
         handovers: the trajectory's hand-overs
@@ -125,7 +128,7 @@ class ObjectFeedback:
         self,
         hand: Hand,
         traj: Trajectory,
-        solver: GripForceSolver | None = None,
+        solver: GripForceSolver | SqueezeSolver | None = None,
         *,
         rolling: bool = False,
         handovers: HandOvers | None = None,
@@ -148,6 +151,14 @@ class ObjectFeedback:
         self.lifted = np.zeros(n)
         self.was_holding = holding[0].copy()
         self.landing = _next_hold_times(traj.t, holding)
+        #: (m,) samples where the plan rolls the holding tips: transfers (a
+        #: regrasp and a hand-over hold the object still)
+        self.rolls = np.zeros(traj.t.size, dtype=bool)
+        if rolling:
+            for kind, _, first, last in traj.segments:
+                self.rolls[first : last + 1] |= kind == "transfer"
+            if handovers is not None:
+                self.rolls &= np.isnan(handovers.blend)
 
     def targets(
         self,
@@ -179,11 +190,11 @@ class ObjectFeedback:
                 self.lifted[f] = 0.0
             self.was_holding[f] = hold
             keep = 1.0
+            rolls = hold and bool(self.rolls[i])
             if hold:  # carry the measured contact to where the plan wants the object
                 move = Xp.act(Xm.actInv(p_sim[f])) - p_sim[f]
-                start = p_plan[f] if self.rolling else p_sim[f]
-                move = self._press(start, move, p_sim[f], Xm)
-            if hold and self.rolling:  # the planned joints roll the tips; correct the object
+                move = self._press(p_plan[f] if rolls else p_sim[f], move, p_sim[f], Xm)
+            if rolls:  # the planned joints roll the tips; correct the object
                 out[ix] = q_plan[ix] + _dls(J_plan[f], _clip(move))
                 continue
             if hold:

@@ -1,10 +1,11 @@
 """The trajectory a physics replay drives: the plan timed, with its grip controller's forces.
 
-:func:`replay_trajectory` times the plan and computes the grip forces
-(:func:`dexplan.execution.trajectory.build_trajectory`) the replay's fingers
-feed forward, every loaded contact pressed with at least :data:`SQUEEZE`
-where the effort limits allow it. The simulation is
-:mod:`dexplan.execution.replay.simulation`.
+:func:`replay_trajectory` times the plan
+(:func:`dexplan.execution.trajectory.build_trajectory`) and gives every sample
+the grip forces the replay's fingers feed forward: those of
+:class:`dexplan.execution.replay.squeeze.SqueezeSolver`, which presses each
+loaded contact harder than the plan's least forces where the hold allows it.
+The simulation is :mod:`dexplan.execution.replay.simulation`.
 """
 
 from __future__ import annotations
@@ -18,24 +19,13 @@ import numpy as np
 
 from dexplan.core.typing import FloatArray
 from dexplan.execution.forces import force_settings_from_plan
+from dexplan.execution.replay.squeeze import SqueezeSolver
 from dexplan.execution.trajectory import Trajectory, Unbalanced, build_trajectory
-from dexplan.model.grasp.grip_forces import ForceSettings
+from dexplan.model.grasp.grip_forces import ForceSettings, GripForceError
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan
 
-__all__ = ["SQUEEZE", "replay_settings", "replay_trajectory"]
-
-#: Least normal force (N) the replay's grip controller presses every loaded contact
-#: with, where the effort limits allow it (elsewhere the plan's own least force).
-#: The fingers are position servos (gain ``KP``): a grip force is a target offset
-#: of force / stiffness, and the paper hand's fingertips are 650-2300 N/m stiff
-#: along the contact normals. The exporter's least force (0.2 N, what balances
-#: the weight with the least squeeze) is then a 0.1-0.3 mm offset, less than the
-#: object's tracking error: a finger on the side the object has moved away from
-#: lets go (box_roll90's rolling seed 1 dropped the box that way, open and
-#: closed loop). 2 N is a 1-3 mm offset; it stays within the effort limits and
-#: the friction cones, as every grip force of the replay does.
-SQUEEZE = 2.0
+__all__ = ["replay_settings", "replay_trajectory"]
 
 
 def replay_trajectory(
@@ -48,13 +38,13 @@ def replay_trajectory(
     gravity_vector: FloatArray | None = None,
     hand: Hand | None = None,
 ) -> Trajectory:
-    """The timed trajectory a replay drives: grip forces pressing each contact with >= SQUEEZE.
+    """The timed trajectory a replay drives, with the squeezing grip forces.
 
-    Where no such forces balance the wrench within the effort limits and the
-    friction cones (a weak hold), the sample keeps the forces with the plan's
-    own least normal force (or none, which the replay counts:
-    :attr:`~dexplan.execution.replay.result.ReplayResult.unbalanced_samples`).
-    Its ``settings`` are the squeezing ones.
+    Each sample's forces are :class:`~dexplan.execution.replay.squeeze.SqueezeSolver`'s
+    for the fingers the plan loads there; where no forces balance the wrench
+    (a tampered plan) the sample has none, which the replay counts
+    (:attr:`~dexplan.execution.replay.result.ReplayResult.unbalanced_samples`).
+    Its ``settings`` are the replay's (the plan's least normal force).
 
     Args:
         doc: a validated plan.
@@ -71,23 +61,24 @@ def replay_trajectory(
     if hand is None:
         hand = hand_from_plan(doc["hand"])
     settings, _ = replay_settings(doc, gravity, mass, gravity_vector)
-    squeezed = replace(settings, min_normal_force=max(settings.min_normal_force, SQUEEZE))
     traj = build_trajectory(
-        doc, rate=rate, settings=squeezed, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
-    )
-    short = np.isnan(traj.margins)
-    if not short.any() or squeezed == settings:
-        return traj
-    plain = build_trajectory(
         doc, rate=rate, settings=settings, base_dir=base_dir, hand=hand, unbalanced=Unbalanced.ZERO
     )
-    return replace(
-        traj,
-        forces=np.where(short[:, None, None], plain.forces, traj.forces),
-        torsion=np.where(short[:, None], plain.torsion, traj.torsion),
-        joint_torques=np.where(short[:, None], plain.joint_torques, traj.joint_torques),
-        margins=np.where(short, plain.margins, traj.margins),
-    )
+    solver = SqueezeSolver(doc, settings, hand, base_dir)
+    forces, torsion = traj.forces.copy(), traj.torsion.copy()
+    torques, margins = traj.joint_torques.copy(), traj.margins.copy()
+    holding = ~np.isnan(traj.forces[:, :, 0])
+    loaded = holding & (np.linalg.norm(np.nan_to_num(traj.forces), axis=2) > 0)
+    for k in np.flatnonzero(~np.isnan(traj.margins)):
+        contacts = [c if h else None for c, h in zip(traj.contacts[k], holding[k], strict=True)]
+        try:
+            g = solver.solve(traj.q[k], traj.object_pose[k], contacts, tuple(loaded[k]))
+        except GripForceError:  # the plan's own forces balanced here: keep them
+            continue
+        forces[k] = np.where(holding[k][:, None], g.forces, np.nan)
+        torsion[k] = np.where(holding[k], g.torsion, np.nan)
+        torques[k], margins[k] = g.joint_torques, g.margin
+    return replace(traj, forces=forces, torsion=torsion, joint_torques=torques, margins=margins)
 
 
 def replay_settings(

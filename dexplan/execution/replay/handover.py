@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from dexplan.core.typing import FloatArray
+from dexplan.execution.replay.squeeze import SqueezeSolver
 from dexplan.execution.trajectory import Trajectory
 from dexplan.model.grasp.grip_forces import GripForceError, GripForceSolver
 
@@ -68,7 +69,7 @@ def loaded_fingers_of(traj: Trajectory) -> np.ndarray:
 
 def insert_handovers(
     traj: Trajectory,
-    solver: GripForceSolver,
+    solver: GripForceSolver | SqueezeSolver,
     duration: float = HANDOVER_TIME,
     rate: float = 100.0,
 ) -> tuple[Trajectory, HandOvers]:
@@ -148,7 +149,7 @@ _COLUMNS = (
 
 
 def _old_forces(
-    traj: Trajectory, solver: GripForceSolver, b: int, loaded_old: np.ndarray
+    traj: Trajectory, solver: GripForceSolver | SqueezeSolver, b: int, loaded_old: np.ndarray
 ) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     """The forces of the fingers loaded before boundary ``b``, at ``b``'s configuration.
 

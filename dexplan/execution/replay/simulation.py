@@ -42,7 +42,6 @@ import pinocchio as pin
 from dexplan.core.errors import DependencyError, PlanFileError
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
-from dexplan.execution.forces import solver_from_plan
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
 from dexplan.execution.replay.driven_trajectory import replay_settings, replay_trajectory
 from dexplan.execution.replay.drops import DropScene, describe_drop, segment_of
@@ -56,6 +55,7 @@ from dexplan.execution.replay.result import (
     ReplayReport,
     ReplayResult,
 )
+from dexplan.execution.replay.squeeze import SqueezeSolver
 from dexplan.execution.trajectory import Trajectory
 from dexplan.model.hand.hand import Hand
 from dexplan.planfile import hand_from_plan, models_from_document
@@ -188,7 +188,7 @@ def replay_plan(
         hand=hand,
     )
     settings = traj.settings
-    solver = solver_from_plan(doc, settings, hand, base_dir)
+    solver = SqueezeSolver(doc, settings, hand, base_dir)
     traj, handovers = insert_handovers(traj, solver, handover, rate)
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
     try:
