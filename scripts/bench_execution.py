@@ -2,7 +2,7 @@
 
     python scripts/bench_execution.py [--scenario NAME|TOML] [--seeds 20] [--first-seed 1]
         [--seed-list 3,9,16] [--time-limit S] [--out DIR] [--loop both|closed|open]
-        [--gravity both|on|off] [--max-duration S]
+        [--gravity both|on|off] [--max-duration S] [--handover S]
 
 Per seed: plan with ``dexplan plan SCENARIO --seed N`` (in-process CLI; a plan
 file already in ``--out`` is reused), measure the fingertip slip the plan asks
@@ -13,7 +13,8 @@ export the trajectory and check its limits, then replay it in MuJoCo
 open loop (the planned joints), with gravity (palm up, the plan's mass, 0.1 kg
 by default) and without. Every replay runs in a fresh process, one at a time.
 Plans whose execution takes longer than ``--max-duration`` are not replayed
-and say so. Prints one line per replay, then a markdown table and the totals
+and say so. ``--handover`` sets each hand-over's time (0: none; the replay's
+default otherwise). Prints one line per replay, then a markdown table and the totals
 per loop and gravity: tracked (every waypoint within 5 mm and 0.1 rad, no
 drop), lost track, dropped, and the worst waypoint error of the tracked
 replays; and the largest fingertip slip of all plans.
@@ -33,6 +34,7 @@ from dexplan.cli import main as cli
 from dexplan.core.errors import DexplanError
 from dexplan.execution.check import check_trajectory
 from dexplan.execution.export import trajectory_document
+from dexplan.execution.replay.handover import HANDOVER_TIME
 from dexplan.execution.replay.result import Loop, ReplayResult
 from dexplan.execution.replay.simulation import replay_plan
 from dexplan.execution.trajectory import build_trajectory
@@ -111,17 +113,19 @@ def _seed_row(
         # a fresh process per replay: nothing of one run can reach the next
         ctx = multiprocessing.get_context("spawn")
         with ctx.Pool(1) as pool:
-            r = pool.apply(_replay, (str(plan), loop, g, str(out)))
+            r = pool.apply(_replay, (str(plan), loop, g, str(out), args.handover))
         row.replays[(loop, g)] = r
         print(f"seed {seed} ({time.perf_counter() - t0:.0f} s) " + r.summary().replace("\n", " |"))
         sys.stdout.flush()
     return row
 
 
-def _replay(plan: str, loop: Loop, gravity: bool, out: str) -> ReplayResult:
+def _replay(plan: str, loop: Loop, gravity: bool, out: str, handover: float) -> ReplayResult:
     """One replay of a plan file (run in its own process)."""
     doc = read_plan(plan)
-    return replay_plan(doc, gravity=gravity, base_dir=out, feedback=loop == Loop.CLOSED)
+    return replay_plan(
+        doc, gravity=gravity, base_dir=out, feedback=loop == Loop.CLOSED, handover=handover
+    )
 
 
 def _max_slip(doc: dict, hand: object) -> float:
@@ -171,6 +175,14 @@ def _summary(rows: list[SeedRow], runs: list[tuple[Loop, bool]]) -> None:
     n = len(rows)
     print(f"plans: {n}; limits check passed: {sum(r.limits == 'OK' for r in rows)}/{n}")
     print(f"largest fingertip slip of a transfer contact: {max(r.slip for r in rows) * 1e3:.2f} mm")
+    replays = [r for row in rows for r in row.replays.values()]
+    if any(r.handovers for r in replays):
+        added = [r.handover_time for r in replays]
+        share = max(r.handover_time / r.duration for r in replays)
+        print(
+            f"hand-overs add {min(added):.1f}-{max(added):.1f} s to a plan's execution "
+            f"(at most {share:.0%} of it)"
+        )
     skipped = [r.seed for r in rows if r.skipped]
     if skipped:
         print(f"not replayed: seeds {', '.join(map(str, skipped))}")
@@ -206,6 +218,12 @@ def main() -> int:
     ap.add_argument("--gravity", choices=["both", "on", "off"], default="both")
     ap.add_argument(
         "--max-duration", type=float, default=300.0, help="skip plans executing longer (s)"
+    )
+    ap.add_argument(
+        "--handover",
+        type=float,
+        default=HANDOVER_TIME,
+        help=f"each hand-over's time (s), 0: none (default {HANDOVER_TIME:g})",
     )
     args = ap.parse_args()
     out = Path(args.out)

@@ -140,6 +140,7 @@ class ObjectFeedback:
         self.loaded = loaded_fingers_of(traj)
         #: the loaded fingers the feed-forward was last solved for (None: never)
         self.solved_for: np.ndarray | None = None
+        self.solved_at = -1
         holding = self.holding
         self.idx = [np.asarray(ix, dtype=int) for ix in hand.finger_q_index]
         self.lower, self.upper = np.asarray(hand.lower), np.asarray(hand.upper)
@@ -271,10 +272,11 @@ class ObjectFeedback:
 
         The loaded fingers changed since the last solve (a finger landed or let
         go: the old forces would load a lifting finger or leave a landed one
-        idle), or a hand-over is under way (its blend moves every sample).
+        idle), or a hand-over is under way and ``i`` is a sample not solved
+        for yet (the blend moves every sample).
         """
         if self.handovers is not None and np.isfinite(self.handovers.blend[i]):
-            return True
+            return i != self.solved_at
         return self.solved_for is None or not np.array_equal(self.solved_for, self.loaded[i])
 
     def feed_forward(
@@ -297,7 +299,7 @@ class ObjectFeedback:
             sim_pose: (7,) the measured object pose, world frame.
             planned: (nq,) the planned feed-forward torques now.
         """
-        self.solved_for = self.loaded[i].copy()
+        self.solved_for, self.solved_at = self.loaded[i].copy(), i
         if self.solver is None or np.isnan(self.traj.margins[i]):
             return planned
         Xm = pose_se3(sim_pose)
