@@ -39,11 +39,12 @@ def fingerprint(report) -> str:
 
 @pytest.fixture(scope="module")
 def piece(tmp_path_factory, paper_plan) -> Path:
-    """paper_sphere seed 1 cut to its first segment (cheap: the whole plan replays likewise)."""
+    """paper_sphere seed 1 cut to its first two segments, a hand-over between them (cheap:
+    the whole plan replays likewise)."""
     folder = tmp_path_factory.mktemp("determinism")
     doc = read_plan(paper_plan(1, folder))
     d = copy.deepcopy(doc)
-    d["segments"] = d["segments"][:1]
+    d["segments"] = d["segments"][:2]
     last = d["segments"][-1]["waypoints"][-1]
     d["goal"] = dict(d["goal"], object_pose_xyzquat=last["object_pose_xyzquat"])
     path = folder / "piece.json"
@@ -54,6 +55,7 @@ def piece(tmp_path_factory, paper_plan) -> Path:
 def test_same_report_twice_in_one_process_and_in_a_fresh_one(piece: Path) -> None:
     doc = read_plan(piece)
     first = fingerprint(replay_loops(doc, base_dir=piece.parent))
+    assert "hand-overs" in first
     again = fingerprint(replay_loops(doc, base_dir=piece.parent))
     assert again == first
     fresh = subprocess.run(
