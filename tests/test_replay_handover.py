@@ -32,9 +32,7 @@ def _rows(ho):
 def test_a_handover_at_every_change_of_the_loaded_fingers(stretched) -> None:
     _, _, traj, out, ho, _ = stretched
     loaded = loaded_fingers_of(traj)
-    changes = sum(
-        not np.array_equal(loaded[z - 1], loaded[z]) for _, _, _, z in traj.segments[:-1]
-    )
+    changes = sum(not np.array_equal(loaded[z - 1], loaded[z]) for _, _, _, z in traj.segments[:-1])
     assert ho.count == changes > 0
     assert ho.added_time == pytest.approx(ho.count * HANDOVER_TIME)
     assert out.duration == pytest.approx(traj.duration + ho.added_time)
@@ -52,7 +50,7 @@ def test_the_load_ramps_at_rest_and_balances_throughout(stretched) -> None:
     """In a hand-over the hand is still, every force set balances the weight, and the
     load moves in even steps: no finger's force changes by more than 1/N of its
     whole change between two samples (the old set's step was all of it at once)."""
-    doc, _, _, out, ho, solver = stretched
+    _, _, _, out, ho, solver = stretched
     weight = solver.settings.mass * np.asarray(solver.settings.gravity)
     for rows in _rows(ho):
         assert np.ptp(out.q[rows], axis=0).max() == 0.0
