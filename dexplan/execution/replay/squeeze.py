@@ -96,13 +96,21 @@ class SqueezeSolver:
         Raises:
             GripForceError: not even the plan's own forces balance there.
         """
-        base = self.plain.solve(q, object_pose, contacts, loaded)
-        cap = max(TORQUE_HEADROOM, self._ratio(base))
+        full = self.settings.cone_margin
+        base: GripForces | None = None  # the plan's own forces, solved only when needed
         for solver in self.squeezed:
             try:
                 g = solver.solve(q, object_pose, contacts, loaded)
             except GripForceError:
                 continue
-            if g.margin >= base.margin - 1e-12 and self._ratio(g) <= cap + 1e-12:
+            ratio = self._ratio(g)
+            # the full margin within the headroom passes whatever the plan's forces are
+            # (their margin is at most the full one): no need to solve them
+            if g.margin >= full - 1e-12 and ratio <= TORQUE_HEADROOM + 1e-12:
                 return g
-        return base
+            if base is None:
+                base = self.plain.solve(q, object_pose, contacts, loaded)
+            cap = max(TORQUE_HEADROOM, self._ratio(base))
+            if g.margin >= base.margin - 1e-12 and ratio <= cap + 1e-12:
+                return g
+        return self.plain.solve(q, object_pose, contacts, loaded) if base is None else base
