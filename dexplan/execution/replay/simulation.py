@@ -43,7 +43,7 @@ from dexplan.core.errors import DependencyError, PlanFileError
 from dexplan.core.pose import quat_angle
 from dexplan.core.typing import FloatArray
 from dexplan.execution.replay.control import CONTROL_PERIOD, FORCE_EVERY, ObjectFeedback
-from dexplan.execution.replay.driven_trajectory import replay_settings, replay_trajectory
+from dexplan.execution.replay.driven_trajectory import replay_trajectory
 from dexplan.execution.replay.drops import DropScene, describe_drop, segment_of
 from dexplan.execution.replay.handover import HANDOVER_TIME, HandOvers, insert_handovers
 from dexplan.execution.replay.mjcf import KP, TIMESTEP, build_mjcf
@@ -177,7 +177,6 @@ def replay_plan(
     mujoco = require_mujoco()
     if hand is None:
         hand = hand_from_plan(doc["hand"])
-    settings, g = replay_settings(doc, gravity, mass, gravity_vector)
     traj = replay_trajectory(
         doc,
         gravity=gravity,
@@ -188,6 +187,8 @@ def replay_plan(
         hand=hand,
     )
     settings = traj.settings
+    # replay_settings gave the trajectory its gravity, already zero with gravity off
+    g = np.asarray(settings.gravity, dtype=float)
     solver = SqueezeSolver(doc, settings, hand, base_dir)
     traj, handovers = insert_handovers(traj, solver, handover, rate)
     xml, tips = build_mjcf(doc, hand, mass=settings.mass, gravity=g, base_dir=base_dir)
