@@ -132,6 +132,24 @@ def test_rolling_on_a_mesh_reads_the_contact_on_the_surface() -> None:
         assert abs(roll.obj.signed_distance(R_b.T @ (c - b[:3])) - roll.radius) < 1e-6
 
 
+@pytest.mark.parametrize("name", ["paper_sphere", "allegro_mesh"])
+def test_fingers_rolled_together_roll_as_each_alone(name: str) -> None:
+    """The fingers are independent chains: rolling them in one pass changes nothing."""
+    roll, q, pose, contacts = _grasp(name, seed=1)
+    b = _turned(pose, np.array([0.3, 0.2, 1.0]), np.radians(3.0))
+    fingers = list(range(roll.hand.n_fingers))
+    together = roll.roll_fingers(fingers, q, pose, b, contacts)
+    for f, r in zip(fingers, together, strict=True):
+        alone = roll.roll(f, q, pose, b, contacts[f])
+        idx = roll.hand.finger_q_index[f]
+        np.testing.assert_allclose(r.q[idx], alone.q[idx], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(r.p_obj, alone.p_obj, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(r.p_tip, alone.p_tip, rtol=0.0, atol=1e-12)
+        assert abs(r.arc_obj - alone.arc_obj) < 1e-12 and abs(r.arc_tip - alone.arc_tip) < 1e-12
+    with pytest.raises(InvalidInputError, match="must not repeat"):
+        roll.roll_fingers([0, 0], q, pose, b, contacts[[0, 0]])
+
+
 def test_bad_inputs_raise_clear_errors(paper_grasp) -> None:
     roll, q, pose, contacts = paper_grasp
     n = contacts[0] / np.linalg.norm(contacts[0])  # the ball is centred on its frame

@@ -239,29 +239,74 @@ class FingertipRolling:
             InvalidInputError: a bad finger index, or the tip does not touch the
                 object at ``p_obj`` (farther than 1 mm from tangency there).
         """
-        if not 0 <= finger < self.hand.n_fingers:
-            raise InvalidInputError(f"finger must be in [0, {self.hand.n_fingers}), got {finger}")
+        points = np.asarray(p_obj, dtype=float).reshape(1, 3)
+        return self.roll_fingers([finger], q, pose_a, pose_b, points, check_touch=check_touch)[0]
+
+    def roll_fingers(
+        self,
+        fingers: Sequence[int],
+        q: FloatArray,
+        pose_a: FloatArray,
+        pose_b: FloatArray,
+        points: FloatArray,
+        *,
+        check_touch: bool = True,
+    ) -> list[RolledContact]:
+        """Roll several fingertips at once: :meth:`roll` of each, in one pass.
+
+        The fingers are independent chains, so each rolls exactly as it
+        would alone; rolling them together shares the hand's kinematics and
+        the linear solves of every substep between them.
+
+        Args:
+            fingers: the fingers, each once.
+            q: (nq,) the hand's joints at ``pose_a``, each tip touching its contact.
+            pose_a: (7,) the object's pose before, world frame, XYZW.
+            pose_b: (7,) the object's pose after.
+            points: (len(fingers), 3) the contacts at ``pose_a``, object frame.
+            check_touch: check that each tip touches its contact.
+
+        Returns:
+            Per finger, its :class:`RolledContact` at ``pose_b``; their ``q``
+            are the same joints, every rolled finger's changed.
+
+        Raises:
+            InvalidInputError: a bad or repeated finger index, or a tip that
+                does not touch the object at its contact.
+        """
+        fs = list(fingers)
+        for f in fs:
+            if not 0 <= f < self.hand.n_fingers:
+                raise InvalidInputError(f"finger must be in [0, {self.hand.n_fingers}), got {f}")
+        if len(set(fs)) != len(fs):
+            raise InvalidInputError(f"fingers must not repeat, got {fs}")
         q = np.array(q, dtype=float)
-        p_obj = np.asarray(p_obj, dtype=float).reshape(3)
+        P = np.array(points, dtype=float).reshape(len(fs), 3)
         if check_touch:
-            self._check_touch(finger, q, pose_a, p_obj)
+            for f, p in zip(fs, P, strict=True):
+                self._check_touch(f, q, pose_a, p)
         s = self.settings
         angle = quat_angle(pose_a[3:7], pose_b[3:7])
         dist = float(np.linalg.norm(np.asarray(pose_b[:3]) - pose_a[:3]))
         k = max(1, math.ceil(max(angle / s.max_substep_rad, dist / s.max_substep_m)))
-        p_tip = self.tip_point(finger, q, pose_a, p_obj)
-        normal = self.obj.closest_point(p_obj)[1]
-        arc_obj = arc_tip = slip = 0.0
         prev = _pose(pose_a)
+        R_t, c = self._placements(fs, q)
+        T = np.array([R_t[i].T @ (prev[1] + prev[0] @ P[i] - c[i]) for i in range(len(fs))])
+        normals = self.obj.closest_point(P)[1]
+        arc_obj, arc_tip, slip = [0.0] * len(fs), [0.0] * len(fs), [0.0] * len(fs)
         for j in range(1, k + 1):
             frame = _pose(interpolate_pose(pose_a, pose_b, j / k))
-            q, moved_slip = self._substep(finger, q, prev, frame, p_obj)
-            p_new, normal, tip_new = self._contact(finger, q, frame)
-            arc_obj += float(np.linalg.norm(p_new - p_obj))
-            arc_tip += float(np.linalg.norm(tip_new - p_tip))
-            slip += moved_slip
-            p_obj, p_tip, prev = p_new, tip_new, frame
-        return RolledContact(q, p_obj, normal, p_tip, arc_obj, arc_tip, slip)
+            q, moved = self._substep(fs, q, prev, frame, P)
+            P_new, normals, T_new = self._contacts(fs, q, frame)
+            for i in range(len(fs)):
+                arc_obj[i] += _norm(P_new[i] - P[i])
+                arc_tip[i] += _norm(T_new[i] - T[i])
+                slip[i] += moved[i]
+            P, T, prev = P_new, T_new, frame
+        return [
+            RolledContact(q.copy(), P[i], normals[i], T[i], arc_obj[i], arc_tip[i], slip[i])
+            for i in range(len(fs))
+        ]
 
     def _check_touch(self, finger: int, q: FloatArray, pose: FloatArray, p_obj: FloatArray) -> None:
         """Raise unless the tip sphere at ``q`` touches the object at ``p_obj``."""
@@ -275,48 +320,80 @@ class FingertipRolling:
                 f"(gap {max(gap, abs(d)) * 1e3:.3g} mm)"
             )
 
-    def _substep(
-        self, finger: int, q: FloatArray, frame_a: _Frame, frame_b: _Frame, p_obj: FloatArray
-    ) -> tuple[FloatArray, float]:
-        """One substep: the joints that keep the contact's material points moving together.
+    def _frames(self, fingers: list[int], q: FloatArray) -> tuple[FloatArray, list[FloatArray]]:
+        """The fingers' tip frames at ``q``: ``(c_world (F, 3), [J6 (6, m)])``.
 
-        The midpoint rule (second order): a half Euler step at the contact
-        ``p_obj`` gives the posture at the substep's middle; there the
-        contact is read again and the whole step solved with that contact's
-        material points (the tip's ``J_p`` at the middle, the object's
-        displacement over the substep). ``frame_a``, ``frame_b``: the object's
-        ``(R, x)`` before and after. Returns ``(q, slip)``: the new joints,
-        and how far (m) the least-squares step misses the object point's
-        displacement.
+        ``J6`` as in :meth:`tip_frame`; one kinematics pass serves every finger.
         """
-        idx = self.hand.finger_q_index[finger]
+        model, data = self.hand.model, self._data
+        pin.computeJointJacobians(model, data, q)
+        c, J = np.empty((len(fingers), 3)), []
+        for i, f in enumerate(fingers):
+            fid = self.hand.tip_frame_ids[f]
+            c[i] = pin.updateFramePlacement(model, data, fid).translation
+            J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+            J.append(J6[:, self.hand.finger_q_index[f]])
+        return c, J
+
+    def _placements(self, fingers: list[int], q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The fingers' tip placements at ``q``: ``(R_tip (F, 3, 3), c_world (F, 3))``."""
+        model, data = self.hand.model, self._data
+        pin.forwardKinematics(model, data, q)
+        R, c = np.empty((len(fingers), 3, 3)), np.empty((len(fingers), 3))
+        for i, f in enumerate(fingers):
+            M = pin.updateFramePlacement(model, data, self.hand.tip_frame_ids[f])
+            R[i], c[i] = M.rotation, M.translation
+        return R, c
+
+    def _substep(
+        self, fingers: list[int], q: FloatArray, frame_a: _Frame, frame_b: _Frame, P: FloatArray
+    ) -> tuple[FloatArray, list[float]]:
+        """One substep: the joints that keep the contacts' material points moving together.
+
+        The midpoint rule (second order): a half Euler step at the contacts
+        ``P: (F, 3)`` gives the posture at the substep's middle; there the
+        contacts are read again and the whole step solved with those
+        contacts' material points (the tip's ``J_p`` at the middle, the
+        object's displacement over the substep). ``frame_a``, ``frame_b``:
+        the object's ``(R, x)`` before and after. Returns ``(q, slip)``: the
+        new joints, and per finger how far (m) the least-squares step misses
+        the object point's displacement.
+        """
+        idx = [self.hand.finger_q_index[f] for f in fingers]
         (R_a, x_a), (R_b, x_b) = frame_a, frame_b
         damping = self.settings.damping
-        # the half step, at the substep's first contact
-        _, c, J6 = self.tip_frame(finger, q)
-        p_a = x_a + R_a @ p_obj
-        J = point_jacobian(J6, p_a, c)
+        # the half step, at the substep's first contacts
+        c, J6 = self._frames(fingers, q)
+        p_a = [x_a + R_a @ p for p in P]
+        J = [point_jacobian(J6[i], p_a[i], c[i]) for i in range(len(fingers))]
+        half = _solve_all(J, [(x_b + R_b @ P[i]) - p_a[i] for i in range(len(fingers))], damping)
         q_mid = q.copy()
-        q_mid[idx] += 0.5 * _solve(J, (x_b + R_b @ p_obj) - p_a, damping)
-        # the middle: the contact there, its material points' motion over the substep
-        frame_m = (_mid_rotation(R_a, R_b), 0.5 * (x_a + x_b))
-        R_m, x_m = frame_m
-        _, c_m, J6_m = self.tip_frame(finger, q_mid)
-        p_m = np.asarray(self.obj.closest_point(R_m.T @ (c_m - x_m))[0], dtype=float)
-        move = (x_b + R_b @ p_m) - (x_a + R_a @ p_m)
-        J_m = point_jacobian(J6_m, x_m + R_m @ p_m, c_m)
-        dq = _solve(J_m, move, damping)
-        if len(idx) > 3 and self.settings.limit_gain > 0.0:
-            dq += self._away_from_limits(idx, q_mid, J_m, frame_a, frame_b)
+        for ix, dq_i in zip(idx, half, strict=True):
+            q_mid[ix] += 0.5 * dq_i
+        # the middle: the contacts there, their material points' motion over the substep
+        R_m, x_m = _mid_rotation(R_a, R_b), 0.5 * (x_a + x_b)
+        c_m, J6_m = self._frames(fingers, q_mid)
+        p_m = self.obj.closest_point(np.array([R_m.T @ (cm - x_m) for cm in c_m]))[0]
+        move = [(x_b + R_b @ p) - (x_a + R_a @ p) for p in p_m]
+        J_m = [point_jacobian(J6_m[i], x_m + R_m @ p_m[i], c_m[i]) for i in range(len(fingers))]
+        dq = _solve_all(J_m, move, damping)
+        if self.settings.limit_gain > 0.0:
+            motion = float(np.linalg.norm(pin.log3(R_b @ R_a.T))) + 10.0 * float(
+                np.linalg.norm(x_b - x_a)
+            )
+            for i, ix in enumerate(idx):
+                if len(ix) > 3:
+                    dq[i] = dq[i] + self._away_from_limits(ix, q_mid, J_m[i], motion)
         q = q.copy()
-        q[idx] += dq
-        slip = float(np.linalg.norm(J_m @ dq - move))
+        for ix, dq_i in zip(idx, dq, strict=True):
+            q[ix] += dq_i
+        slip = [_norm(J_m[i] @ dq[i] - move[i]) for i in range(len(fingers))]
         for _ in range(self.settings.normal_iterations):
-            q = self._onto_surface(finger, q, frame_b)
+            q = self._onto_surface(fingers, q, frame_b)
         return q, slip
 
     def _away_from_limits(
-        self, idx: Any, q: FloatArray, J: FloatArray, frame_a: _Frame, frame_b: _Frame
+        self, idx: Any, q: FloatArray, J: FloatArray, motion: float
     ) -> FloatArray:
         """A redundant finger's null-space step away from its joint limits, ``(len(idx),)``.
 
@@ -324,42 +401,41 @@ class FingertipRolling:
         the substep). The step is the joints' offsets from mid-range (-1 at
         the lower limit, +1 at the upper) projected onto the null space of
         ``J`` (so the tip's material point does not move), times
-        ``limit_gain`` and the substep's object motion in radians: largest
-        near a limit, none at mid-range.
+        ``limit_gain`` and the substep's object ``motion`` (its rotation in
+        radians plus 10 per metre of translation): largest near a limit,
+        none at mid-range.
         """
         lo, hi = self.hand.lower[idx], self.hand.upper[idx]
         # each joint's offset from mid-range, -1 at the lower limit, +1 at the upper
         offset = (q[idx] - 0.5 * (lo + hi)) / np.maximum(0.5 * (hi - lo), 1e-6)
         null = offset - J.T @ np.linalg.solve(J @ J.T + 1e-12 * np.eye(3), J @ offset)
-        (R_a, x_a), (R_b, x_b) = frame_a, frame_b
-        motion = float(np.linalg.norm(pin.log3(R_b @ R_a.T))) + 10.0 * float(
-            np.linalg.norm(x_b - x_a)
-        )
         return np.asarray(-self.settings.limit_gain * motion * null, dtype=np.float64)
 
-    def _onto_surface(self, finger: int, q: FloatArray, frame: _Frame) -> FloatArray:
-        """Move the tip's centre along the object's normal until the sphere is tangent."""
-        idx = self.hand.finger_q_index[finger]
-        _, c, J6 = self.tip_frame(finger, q)
+    def _onto_surface(self, fingers: list[int], q: FloatArray, frame: _Frame) -> FloatArray:
+        """Move each tip's centre along the object's normal until its sphere is tangent."""
+        c, J6 = self._frames(fingers, q)
         R, x = frame
-        d, grad = self.obj.signed_distance_and_gradient(R.T @ (c - x))
-        step = (self.radius - float(d)) * (R @ np.asarray(grad))
+        d, grad = self.obj.signed_distance_and_gradient(np.array([R.T @ (ci - x) for ci in c]))
+        steps = [(self.radius - float(d[i])) * (R @ grad[i]) for i in range(len(fingers))]
+        dq = _solve_all([J[:3] for J in J6], steps, self.settings.damping)
         q = q.copy()
-        q[idx] += _solve(J6[:3], step, self.settings.damping)
+        for f, dq_i in zip(fingers, dq, strict=True):
+            q[self.hand.finger_q_index[f]] += dq_i
         return q
 
-    def _contact(
-        self, finger: int, q: FloatArray, frame: _Frame
+    def _contacts(
+        self, fingers: list[int], q: FloatArray, frame: _Frame
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Where the tip sphere meets the object: ``(p_obj, normal_out, p_tip)``, (3,) each.
+        """Where the tip spheres meet the object: ``(p_obj, normal_out, p_tip)``, (F, 3) each.
 
-        ``p_obj`` and ``normal_out`` in the object frame, ``p_tip`` in the tip link's.
+        ``p_obj`` and ``normal_out`` in the object frame, ``p_tip`` in each tip link's.
         """
-        R_t, c = self.tip_placement(finger, q)
+        R_t, c = self._placements(fingers, q)
         R, x = frame
-        p, n = self.obj.closest_point(R.T @ (c - x))
+        p, n = self.obj.closest_point(np.array([R.T @ (ci - x) for ci in c]))
         p = np.asarray(p, dtype=float)
-        return p, np.asarray(n, dtype=float), R_t.T @ (x + R @ p - c)
+        tips = np.array([R_t[i].T @ (x + R @ p[i] - c[i]) for i in range(len(fingers))])
+        return p, np.asarray(n, dtype=float), tips
 
 
 #: An object pose as ``(R (3, 3), x (3,))``, world frame.
@@ -414,3 +490,33 @@ def _solve(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
     A = J.T @ J
     A.flat[:: A.shape[0] + 1] += damping
     return np.asarray(np.linalg.solve(A, J.T @ rhs), dtype=np.float64)
+
+
+def _solve_all(
+    Js: Sequence[FloatArray], rhs: Sequence[FloatArray], damping: float
+) -> list[FloatArray]:
+    """:func:`_solve` of each ``(J, rhs)``, the square systems of full-rank shapes stacked.
+
+    A finger of 3 joints or more solves a 3 x 3 system: those are solved in
+    one batched call (each exactly as alone); other shapes one by one.
+    """
+    out: list[FloatArray | None] = [None] * len(Js)
+    wide = [i for i, J in enumerate(Js) if J.shape[0] == 3 and J.shape[1] >= 3]
+    if wide:
+        A = np.empty((len(wide), 3, 3))
+        for k, i in enumerate(wide):
+            A[k] = Js[i] @ Js[i].T
+        A[:, [0, 1, 2], [0, 1, 2]] += damping
+        b = np.array([rhs[i] for i in wide])[:, :, None]
+        y = np.linalg.solve(A, b)[:, :, 0]
+        for k, i in enumerate(wide):
+            out[i] = np.asarray(Js[i].T @ y[k], dtype=np.float64)
+    for i, J in enumerate(Js):
+        if out[i] is None:
+            out[i] = _solve(J, rhs[i], damping)
+    return [o for o in out if o is not None]
+
+
+def _norm(v: FloatArray) -> float:
+    """Euclidean norm of a (3,) vector (as ``np.linalg.norm``, without its overhead)."""
+    return math.sqrt(float(v.dot(v)))

@@ -166,15 +166,15 @@ class RollingTransferPlanner:
         its fingertip can follow; elsewhere its least-squares step misses by
         :attr:`RolledContact.slip`, which would be a slip, not a roll.
         """
-        q = state.q.copy()
-        out = _Rolled(q, state.points.copy(), state.normals.copy())
+        fingers = list(range(self.hand.n_fingers))
+        rolled = self.rolling.roll_fingers(
+            fingers, state.q, pa, pb, state.points, check_touch=False
+        )
+        out = _Rolled(rolled[0].q, state.points.copy(), state.normals.copy())
         slipped = None
-        for f in range(self.hand.n_fingers):
-            r = self.rolling.roll(f, state.q, pa, pb, state.points[f], check_touch=False)
-            idx = self.hand.finger_q_index[f]
-            q[idx] = r.q[idx]
+        for f, r in zip(fingers, rolled, strict=True):
             out.points[f], out.normals[f] = r.p_obj, r.normal_obj
-            if slipped is None and len(idx) < 3 and r.slip > LOW_DOF_SLIP:
+            if slipped is None and len(self.hand.finger_q_index[f]) < 3 and r.slip > LOW_DOF_SLIP:
                 slipped = f
         return out, slipped
 
