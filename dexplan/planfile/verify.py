@@ -31,7 +31,7 @@ from dexplan.core.errors import DexplanError, PlanFileError, one_line
 from dexplan.core.pose import inverse_transform_points, quat_angle
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp import exact_force_closure, force_closure_quality, min_subgrasp_quality
+from dexplan.model.grasp import ForceClosure, Solver, exact_force_closure_batch
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
@@ -112,6 +112,31 @@ class VerifyReport:
 
 
 # ---------------------------------------------------------------- checking
+#: The verifier's own force-closure solver: every pair it solves, exactly
+#: (Lawson-Hanson), so a plan's weakest hold does not depend on what the
+#: process solved before (an OSQP solution moves with its warm state, to its
+#: tolerance of 1e-7).
+_EXACT = ForceClosure(solver=Solver.NNLS)
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """A waypoint's contacts, read against its pose (:meth:`_Checker.read`).
+
+    Attributes:
+        rows: per finger in contact, ``(finger, fingertip distance error,
+            contact distance to the surface, stated-to-fingertip gap)`` (m).
+        fingers: the fingers in contact, in order.
+        P: (k, 3) their contact points, object frame.
+        N: (k, 3) their inward normals, object frame.
+    """
+
+    rows: list[tuple[int, float, float, float]]
+    fingers: tuple[int, ...]
+    P: FloatArray
+    N: FloatArray
+
+
 class _Checker:
     """Checks every rule against the models of one plan, one method per rule family."""
 
@@ -122,8 +147,7 @@ class _Checker:
         self.rolling = m.contact_motion == ContactMotion.ROLLING
         self.n = self.hand.n_fingers
         self.violations: list[Violation] = []
-        self._fc_memo: dict[tuple[bytes, bytes, bool], tuple[str, str]] = {}
-        self._quality_memo: dict[tuple[bytes, bytes, bool], float] = {}
+        self._fc_memo: dict[tuple[bytes, bool], str] = {}
         self.holds = HoldChecker(
             self.hand,
             self.obj,
@@ -147,9 +171,12 @@ class _Checker:
     # -- per segment ---------------------------------------------------------
     def segment(self, si: int, seg: Segment, previous: Segment | None) -> None:
         """Every rule of one segment: its waypoints, steps, kind and continuity."""
-        for wi, w in enumerate(seg.waypoints):
-            self.waypoint(si, wi, w, subgrasps=seg.kind == "transfer")
-        self.holds_of(si, seg)
+        transfer = seg.kind == "transfer"
+        reads = [self.read(w) for w in seg.waypoints]
+        self._judge(reads, subgrasps=transfer)
+        for wi, (w, rd) in enumerate(zip(seg.waypoints, reads, strict=True)):
+            self.waypoint(si, wi, w, rd, subgrasps=transfer)
+        self.holds_of(si, seg, reads)
         self.steps(si, seg)
         if seg.kind == "transfer":
             self.transfer(si, seg)
@@ -159,13 +186,15 @@ class _Checker:
             self.continuity(si, previous, seg)
 
     # -- per waypoint --------------------------------------------------------
-    def waypoint(self, si: int, wi: int, w: Waypoint, *, subgrasps: bool) -> None:
-        """Every rule of one waypoint (``subgrasps``: of a transfer)."""
-        if not self.pose_and_joints(si, wi, w):
+    def waypoint(
+        self, si: int, wi: int, w: Waypoint, rd: _Reading | None, *, subgrasps: bool
+    ) -> None:
+        """Every rule of one waypoint (``subgrasps``: of a transfer; ``rd``: its reading)."""
+        if not self.pose_and_joints(si, wi, w) or rd is None:
             return
-        pts, nrm = self.contacts(si, wi, w)
+        self.contacts(si, wi, rd)
         self.collisions(si, wi, w)
-        self.force_closure(si, wi, pts, nrm, subgrasps=subgrasps)
+        self.force_closure(si, wi, rd, subgrasps=subgrasps)
 
     def pose_and_joints(self, si: int, wi: int, w: Waypoint) -> bool:
         """``object_pose`` and ``joint_limits``; False when the pose is unusable."""
@@ -182,29 +211,45 @@ class _Checker:
             self.add(si, wi, "joint_limits", f"joints outside limits: {bad}")
         return True
 
-    def contacts(self, si: int, wi: int, w: Waypoint) -> tuple[list[FloatArray], list[FloatArray]]:
-        """The fingertip-contact rules; the holding contacts' points and inward normals."""
+    def read(self, w: Waypoint) -> _Reading | None:
+        """A waypoint's contacts read against its pose; None when the pose is unusable.
+
+        Every rule on the contacts (fingertip contacts, force closure, the
+        holds' quality) reads them once, here: the fingertip sphere pushes
+        where :func:`fingertip_contact` says.
+        """
+        if abs(float(np.linalg.norm(w.object_pose_xyzquat[3:])) - 1.0) > 1e-6:
+            return None  # pose_and_joints reports it
         obj, r = self.obj, self.hand.fingertip_radius
         tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
-        pts, nrm = [], []
+        rows, fingers, pts, nrm = [], [], [], []
         for i, c in enumerate(w.contacts):
             if c is None:
                 continue
             d_tip = float(obj.signed_distance(tips[i])) - r
+            d_c, stated = self._surface(c)
+            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r, stated)
+            rows.append((i, d_tip, d_c, gap))
+            fingers.append(i)
+            pts.append(np.asarray(p_s).reshape(3))
+            nrm.append(-np.asarray(n_s).reshape(3))
+        shape = (len(pts), 3)
+        return _Reading(
+            rows, tuple(fingers), np.array(pts).reshape(shape), np.array(nrm).reshape(shape)
+        )
+
+    def contacts(self, si: int, wi: int, rd: _Reading) -> None:
+        """The fingertip-contact rules of a waypoint's reading."""
+        for i, d_tip, d_c, gap in rd.rows:
             if abs(d_tip) > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: fingertip is {d_tip * 1e3:+.2f} mm from the surface"
                 self.add(si, wi, "fingertip_distance", msg)
-            d_c, stated = self._surface(c)
             if abs(d_c) > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: contact is {d_c * 1e3:+.2f} mm off the surface"
                 self.add(si, wi, "contact_on_surface", msg)
-            p_s, n_s, gap = fingertip_contact(obj, c, tips[i], r, stated)
             if gap > TIP_DISTANCE_TOL:
                 msg = f"finger {i}: stated contact is {gap * 1e3:.2f} mm from the fingertip's"
                 self.add(si, wi, "contact_matches_fingertip", msg)
-            pts.append(np.asarray(p_s).reshape(3))
-            nrm.append(-np.asarray(n_s).reshape(3))
-        return pts, nrm
 
     def _surface(self, c: FloatArray) -> tuple[float, tuple[FloatArray, FloatArray]]:
         """Signed distance and closest surface point of a stated contact, by exact value.
@@ -228,49 +273,51 @@ class _Checker:
             msg = f"a fingertip sinks {rep.max_penetration * 1e3:.2f} mm into the object"
             self.add(si, wi, "penetration", msg)
 
-    def force_closure(
-        self,
-        si: int,
-        wi: int,
-        pts: Sequence[FloatArray],
-        nrm: Sequence[FloatArray],
-        *,
-        subgrasps: bool,
-    ) -> None:
+    def force_closure(self, si: int, wi: int, rd: _Reading, *, subgrasps: bool) -> None:
         """``force_closure`` and (``subgrasps``) ``subgrasp_force_closure``."""
-        if len(pts) < 2:
-            self.add(si, wi, "force_closure", f"only {len(pts)} finger(s) hold the object")
+        k = len(rd.fingers)
+        if k < 2:
+            self.add(si, wi, "force_closure", f"only {k} finger(s) hold the object")
             return
-        P, N = np.array(pts), np.array(nrm)
-        ts = self.obj.characteristic_length
-        # The rules are signs, judged under the plan's contact model against the
-        # exact sets (round Coulomb cone, elliptic soft-finger set): the file's
-        # own linearization, then dense inner and outer polytopes. The same
-        # contacts give the same answer, and along a transfer or a regrasp the
-        # holding contacts repeat: remember answers by exact contact values.
-        key = (P.tobytes(), N.tobytes(), subgrasps)
-        if key not in self._fc_memo:
-            fc = self._fc_verdict(P, N, ts, subgrasps=False)
-            sub = self._fc_verdict(P, N, ts, subgrasps=True) if subgrasps else "fc_linear"
-            self._fc_memo[key] = (fc, sub)
-        fc, sub = self._fc_memo[key]
+        key = rd.P.tobytes() + rd.N.tobytes()
+        fc = self._fc_memo[key, False]
         if fc not in FC_PASS:
             self.add(si, wi, "force_closure", f"holding grasp is {self._fc_text(fc)}")
-        elif subgrasps and sub not in FC_PASS:
-            msg = f"some {len(pts) - 1}-finger subgrasp is {self._fc_text(sub)}"
+        elif subgrasps and (sub := self._fc_memo[key, True]) not in FC_PASS:
+            msg = f"some {k - 1}-finger subgrasp is {self._fc_text(sub)}"
             self.add(si, wi, "subgrasp_force_closure", msg)
 
-    def _fc_verdict(self, P: np.ndarray, N: np.ndarray, ts: float, *, subgrasps: bool) -> str:
-        return exact_force_closure(
-            P,
-            N,
-            self.mu,
-            edges=self.edges,
-            torque_scale=ts,
-            subgrasps=subgrasps,
-            contact_model=self.contact_model,
-            torsion=self.torsion,
-        )
+    def _judge(self, reads: Sequence[_Reading | None], *, subgrasps: bool) -> None:
+        """The force-closure verdicts of a segment's waypoints, into ``_fc_memo``.
+
+        The rules are signs, judged under the plan's contact model against the
+        exact sets (round Coulomb cone, elliptic soft-finger set): the file's
+        own linearization, then dense inner and outer polytopes. The same
+        contacts give the same answer, so answers are kept by exact contact
+        values (along a regrasp the holding contacts repeat); the others are
+        judged together, the waypoints of one contact count at once.
+        """
+        todo: dict[tuple[int, bool], dict[bytes, _Reading]] = {}
+        for rd in reads:
+            if rd is None or len(rd.fingers) < 2:
+                continue
+            key = rd.P.tobytes() + rd.N.tobytes()
+            for sub in (False, True) if subgrasps else (False,):
+                if (key, sub) not in self._fc_memo:
+                    todo.setdefault((len(rd.fingers), sub), {})[key] = rd
+        for (_, sub), group in todo.items():
+            verdicts = exact_force_closure_batch(
+                np.array([rd.P for rd in group.values()]),
+                np.array([rd.N for rd in group.values()]),
+                self.mu,
+                edges=self.edges,
+                torque_scale=self.obj.characteristic_length,
+                subgrasps=sub,
+                contact_model=self.contact_model,
+                torsion=self.torsion,
+            )
+            for key, verdict in zip(group, verdicts, strict=True):
+                self._fc_memo[key, sub] = str(verdict)
 
     def _fc_text(self, verdict: str) -> str:
         if self.contact_model == "soft":
@@ -284,7 +331,7 @@ class _Checker:
             )
         return f"not force closure ({where})"
 
-    def holds_of(self, si: int, seg: Segment) -> None:
+    def holds_of(self, si: int, seg: Segment, reads: Sequence[_Reading | None]) -> None:
         """``holds`` of one segment, and the figures of its holds kept.
 
         A regrasp's hold (the n-1 holding fingers; they and the object stay
@@ -296,38 +343,36 @@ class _Checker:
         of it is a hold of the round cone.
         """
         wps = [
-            (wi, w)
-            for wi, w in enumerate(seg.waypoints)
-            if abs(float(np.linalg.norm(w.object_pose_xyzquat[3:])) - 1.0) <= 1e-6
-            and sum(c is not None for c in w.contacts) >= 2  # else force_closure reports it
+            (wi, w, rd)
+            for wi, (w, rd) in enumerate(zip(seg.waypoints, reads, strict=True))
+            if rd is not None and len(rd.fingers) >= 2  # else force_closure reports it
         ]
         if seg.kind == "transfer":
-            holds = [(w.q, w.object_pose_xyzquat, list(w.contacts)) for _, w in wps]
+            holds = [(w.q, w.object_pose_xyzquat, list(w.contacts)) for _, w, _ in wps]
             worst = self.holds.worst_ratio(holds) if holds else 0.0
             ratios = [
-                (wi, w, self.holds.ratio(*h, shifted=False) if worst > 1.0 else worst)
-                for (wi, w), h in zip(wps, holds, strict=True)
+                (wi, rd, self.holds.ratio(*h, shifted=False) if worst > 1.0 else worst)
+                for (wi, _, rd), h in zip(wps, holds, strict=True)
             ]
             free = None
         else:
             free = seg.finger
-            inner = [(wi, w) for wi, w in wps if 0 < wi < len(seg.waypoints) - 1]
+            inner = [(wi, w, rd) for wi, w, rd in wps if 0 < wi < len(seg.waypoints) - 1]
             ratios = [
-                (wi, w, self.holds.ratio(w.q, w.object_pose_xyzquat, self._held(w, free)))
-                for wi, w in inner
+                (wi, rd, self.holds.ratio(w.q, w.object_pose_xyzquat, self._held(w, free)))
+                for wi, w, rd in inner
                 if sum(c is not None for c in self._held(w, free)) >= 2
             ]
-        for wi, w, ratio in ratios:
-            self._keep_hold(si, wi, w, free, ratio)
+        for wi, _, ratio in ratios:
+            self._keep_hold(si, wi, free, ratio)
+        self._weakest([rd for _, rd, _ in ratios], free)
 
     @staticmethod
     def _held(w: Waypoint, free: int | None) -> list[Any]:
         return [None if i == free else c for i, c in enumerate(w.contacts)]
 
-    def _keep_hold(self, si: int, wi: int, w: Waypoint, free: int | None, ratio: float) -> None:
-        """Record a hold's figures (quality, torque ratio) and its violation, if any."""
-        q = self._hold_quality(w, self._held(w, free), subgrasps=free is None)
-        self.weakest_hold = q if self.weakest_hold is None else min(self.weakest_hold, q)
+    def _keep_hold(self, si: int, wi: int, free: int | None, ratio: float) -> None:
+        """Record a hold's torque ratio and its violation, if any."""
         worst = self.worst_torque_ratio
         self.worst_torque_ratio = ratio if worst is None else max(worst, ratio)
         if not ratio <= 1.0:
@@ -339,32 +384,33 @@ class _Checker:
             )
             self.add(si, wi, "holds", msg)
 
-    def _hold_quality(self, w: Waypoint, contacts: Sequence[Any], *, subgrasps: bool) -> float:
-        """Force-closure quality of a hold's contacts (with the fingertip-read normals)."""
-        tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
-        r = self.hand.fingertip_radius
-        pts, nrm = [], []
-        for i, c in enumerate(contacts):
-            if c is not None:
-                p_s, n_s, _ = fingertip_contact(self.obj, np.asarray(c, dtype=float), tips[i], r)
-                pts.append(np.asarray(p_s).reshape(3))
-                nrm.append(-np.asarray(n_s).reshape(3))
-        P, N = np.array(pts), np.array(nrm)
-        key = (P.tobytes(), N.tobytes(), subgrasps)
-        if key not in self._quality_memo:
-            fn = min_subgrasp_quality if subgrasps else force_closure_quality
-            self._quality_memo[key] = float(
-                fn(
-                    P,
-                    N,
-                    self.mu,
-                    edges=self.edges,
-                    torque_scale=self.obj.characteristic_length,
-                    contact_model=self.contact_model,
-                    torsion=self.torsion,
-                )
+    def _weakest(self, reads: Sequence[_Reading], free: int | None) -> None:
+        """Fold a segment's holds into the weakest hold's force-closure quality.
+
+        A transfer's hold is every contact, judged by its weakest (n-1)-finger
+        subgrasp; a regrasp's is the fingers but ``free``, judged whole. Only
+        the least quality is reported, so the holds are bounded together and
+        only the pairs that can still be below the least value found are
+        solved (:meth:`ForceClosure.weakest_quality`).
+        """
+        groups: dict[int, dict[bytes, tuple[FloatArray, FloatArray]]] = {}
+        for rd in reads:
+            keep = [j for j, i in enumerate(rd.fingers) if i != free]
+            P, N = rd.P[keep], rd.N[keep]
+            groups.setdefault(len(keep), {})[P.tobytes() + N.tobytes()] = (P, N)
+        for grasps in groups.values():
+            q = _EXACT.weakest_quality(
+                np.array([P for P, _ in grasps.values()]),
+                np.array([N for _, N in grasps.values()]),
+                self.mu,
+                edges=self.edges,
+                torque_scale=self.obj.characteristic_length,
+                subgrasps=free is None,
+                contact_model=self.contact_model,
+                torsion=self.torsion,
+                cap=math.inf if self.weakest_hold is None else self.weakest_hold,
             )
-        return self._quality_memo[key]
+            self.weakest_hold = float(q)
 
     # -- steps, transfer, regrasp, continuity --------------------------------
     def steps(self, si: int, seg: Segment) -> None:

@@ -135,7 +135,7 @@ The exact sets (the round Coulomb cone, the elliptic soft-finger set
 :func:`exact_force_closure` between dense inscribed and circumscribed polytopes.
 """
 
-from dexplan.model.grasp.batch import min_subgrasp_quality_batch
+from dexplan.model.grasp.batch import exact_force_closure_batch, min_subgrasp_quality_batch
 from dexplan.model.grasp.cones import (
     CONTACT_MODELS,
     ELLIPSOID_GRID,
@@ -164,6 +164,7 @@ from dexplan.model.grasp.force_closure import (
     force_closure_quality,
     is_force_closure,
     min_subgrasp_quality,
+    weakest_quality,
 )
 from dexplan.model.grasp.subgrasps import MAX_INTERIOR_NORM, RANK_TOL
 
@@ -187,6 +188,7 @@ __all__ = [
     "check_contact_model",
     "contact_wrenches",
     "exact_force_closure",
+    "exact_force_closure_batch",
     "force_closure_quality",
     "friction_cone_edges",
     "friction_cone_facets",
@@ -196,4 +198,5 @@ __all__ = [
     "min_subgrasp_quality_batch",
     "soft_finger_facets",
     "tangent_basis",
+    "weakest_quality",
 ]

@@ -1,4 +1,4 @@
-"""The (k-1)-subgrasp force-closure quality of many grasps at once.
+"""Force-closure questions of many grasps at once.
 
 Planning asks the same question of many candidate grasps that differ in one
 contact (a regrasp's landing candidates) or come from one object pose (the
@@ -9,6 +9,11 @@ screen, the certified pair bounds), so the Python overhead is paid once, not
 B times. Grasps the bounds cannot decide go to the scalar method, so each
 value is what :meth:`ForceClosure.min_subgrasp_quality` returns for that grasp
 with the same arguments (tests compare them grasp by grasp).
+
+The plan verifier judges every waypoint of a segment:
+:func:`exact_force_closure_batch` runs the first test of
+:meth:`ForceClosure.exact_set_verdict` (the model's own linearization, which
+settles nearly every grasp of a plan) for all of them at once.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import numpy as np
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_positive
 from dexplan.model.grasp.cones import ContactModel, check_grasp, min_contacts
-from dexplan.model.grasp.force_closure import DEFAULT, ForceClosure
+from dexplan.model.grasp.force_closure import DEFAULT, ForceClosure, Verdict
 from dexplan.model.grasp.subgrasps import (
     Contacts,
     PairBounds,
@@ -28,7 +33,7 @@ from dexplan.model.grasp.subgrasps import (
     screen_groups,
 )
 
-__all__ = ["min_subgrasp_quality_batch"]
+__all__ = ["exact_force_closure_batch", "min_subgrasp_quality_batch"]
 
 
 def min_subgrasp_quality_batch(
@@ -66,13 +71,7 @@ def min_subgrasp_quality_batch(
     Raises:
         InvalidInputError: shapes other than (B, k, 3), or as the scalar method.
     """
-    pts_b = np.asarray(points, dtype=float)
-    nrm_b = np.asarray(normals, dtype=float)
-    if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
-        raise InvalidInputError(
-            "points and normals must both have shape (B, k, 3), got "
-            f"{pts_b.shape} and {nrm_b.shape}"
-        )
+    pts_b, nrm_b = _stacked(points, normals)
     B, k, _ = pts_b.shape
     if B == 0:
         return np.zeros(0)
@@ -141,3 +140,82 @@ def _bounded(
 def _per_grasp_min(values: FloatArray, k: int) -> FloatArray:
     """(G,) minimum over each grasp's k subsets and 12 directions of ``values: (G k, 12)``."""
     return values.reshape(-1, k * values.shape[1]).min(axis=1)
+
+
+def exact_force_closure_batch(
+    points: object,
+    normals: object,
+    mu: float,
+    *,
+    edges: int = 8,
+    torque_scale: float,
+    subgrasps: bool = False,
+    contact_model: ContactModel | str = ContactModel.POINT,
+    torsion: float = 0.0,
+    solver: ForceClosure = DEFAULT,
+) -> list[Verdict]:
+    """:meth:`ForceClosure.exact_set_verdict` of B grasps of k contacts each.
+
+    The linearization's screen runs for every grasp at once, in groups of
+    one grasp's subsets (each group stops at its first failing subset, as
+    the scalar screen does); a grasp it passes is ``"fc_linear"``, any other
+    goes to the scalar method (the dense polytopes).
+
+    Args:
+        points: (B, k, 3) contact points, object frame, metres.
+        normals: (B, k, 3) inward contact normals, object frame.
+        mu: friction coefficient, >= 0.
+        edges: the model's own pyramid edges, >= 3.
+        torque_scale: torque length (metres), the same for every grasp.
+        subgrasps: judge every (k-1)-contact subgrasp instead of the grasp.
+        contact_model: ``"point"`` or ``"soft"``.
+        torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+        solver: the :class:`ForceClosure` that judges the grasps the screen leaves.
+
+    Returns:
+        The verdict of each grasp, in order.
+
+    Raises:
+        InvalidInputError: shapes other than (B, k, 3), or as the scalar method.
+    """
+    pts_b, nrm_b = _stacked(points, normals)
+    B, k, _ = pts_b.shape
+    if B == 0:
+        return []
+    pts, nrm, mu_f, e, scale = check_grasp(
+        pts_b.reshape(-1, 3), nrm_b.reshape(-1, 3), mu, edges, torque_scale
+    )
+    if (k - 1 if subgrasps else k) < min_contacts(mu_f, contact_model):
+        return [Verdict.NOT_FC] * B
+    one = drop_one(k) if subgrasps else np.arange(k)[None, :]
+    subsets = (one[None] + k * np.arange(B)[:, None, None]).reshape(-1, one.shape[1])
+    con = Contacts(pts, nrm, mu_f, e, scale, scaled_torsion(contact_model, torsion, scale))
+    _, ok = screen_groups(Subsets(con, subsets), len(one))
+    passed = [bool(x) for x in ok.reshape(B, len(one)).all(axis=1)]
+    return [
+        Verdict.FC_LINEAR
+        if passed[b]
+        else solver.exact_set_verdict(
+            pts_b[b],
+            nrm_b[b],
+            mu_f,
+            edges=e,
+            torque_scale=scale,
+            subgrasps=subgrasps,
+            contact_model=contact_model,
+            torsion=torsion,
+        )
+        for b in range(B)
+    ]
+
+
+def _stacked(points: object, normals: object) -> tuple[FloatArray, FloatArray]:
+    """``points`` and ``normals`` as float arrays of one shape (B, k, 3), checked."""
+    pts_b = np.asarray(points, dtype=float)
+    nrm_b = np.asarray(normals, dtype=float)
+    if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
+        raise InvalidInputError(
+            "points and normals must both have shape (B, k, 3), got "
+            f"{pts_b.shape} and {nrm_b.shape}"
+        )
+    return pts_b, nrm_b

@@ -33,6 +33,7 @@ __all__ = [
     "force_closure_quality",
     "is_force_closure",
     "min_subgrasp_quality",
+    "weakest_quality",
 ]
 
 #: The 12 signed unit axes ``+-e_i`` of the scaled wrench space, shape (12, 6).
@@ -363,6 +364,77 @@ class ForceClosure:
         outer_rows = ellipsoid_facets(grasp.nrm, grasp.mu, grasp.tau, outer=True)
         return Verdict.UNDECIDED if sign(grasp.contacts(rows=outer_rows)) else Verdict.NOT_FC
 
+    def weakest_quality(
+        self,
+        points: object,
+        normals: object,
+        mu: float,
+        *,
+        edges: int = 8,
+        torque_scale: float,
+        subgrasps: bool = True,
+        contact_model: ContactModel | str = ContactModel.POINT,
+        torsion: float = 0.0,
+        cap: float = math.inf,
+    ) -> float:
+        """The least exact quality of B grasps of k contacts, in one branch and bound.
+
+        Equals ``min`` over the grasps of :meth:`min_subgrasp_quality`
+        (``subgrasps``) or :meth:`quality`, without a margin: the pairs of
+        every grasp are bounded at once, and a pair is solved only while its
+        lower bound is below the least value found (a grasp whose every bound
+        lies above it needs no solve). A plan's weakest hold is such a minimum
+        over its waypoints; ``cap``, the least value already known elsewhere
+        (e.g. the plan's earlier segments), prunes the pairs above it too.
+
+        Args:
+            points: (B, k, 3) contact points, object frame, metres.
+            normals: (B, k, 3) inward contact normals, object frame.
+            mu: friction coefficient, >= 0.
+            edges: pyramid edges per contact, >= 3.
+            torque_scale: torque length (metres), the same for every grasp.
+            subgrasps: the minimum over each grasp's (k-1)-subgrasps (False:
+                the grasp's own quality).
+            contact_model: ``"point"`` or ``"soft"``.
+            torsion: soft-finger torsion coefficient (m); 0 for point contacts.
+            cap: a value already reached: the result is ``min(cap, least quality)``.
+
+        Returns:
+            ``min(cap, least quality)``: 0.0 if some grasp is not force closure,
+            ``cap`` for B = 0.
+
+        Raises:
+            InvalidInputError: shapes other than (B, k, 3), or as :meth:`quality`.
+        """
+        pts_b = np.asarray(points, dtype=float)
+        nrm_b = np.asarray(normals, dtype=float)
+        if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
+            raise InvalidInputError(
+                "points and normals must both have shape (B, k, 3), got "
+                f"{pts_b.shape} and {nrm_b.shape}"
+            )
+        B, k, _ = pts_b.shape
+        if B == 0:
+            return cap
+        flat = (pts_b.reshape(-1, 3), nrm_b.reshape(-1, 3))
+        grasp = _Grasp(*flat, mu, edges, torque_scale, contact_model, torsion)
+        if (k - 1 if subgrasps else k) < min_contacts(grasp.mu, grasp.model):
+            return 0.0
+        # (S, m) subsets of one grasp, as its scalar call takes them; grasp b's are offset by k b
+        one = drop_one(k) if subgrasps else np.arange(k)[None, :]
+        subsets = (one[None] + k * np.arange(B)[:, None, None]).reshape(-1, one.shape[1])
+        self._calls += 1
+        self.stats["evaluations"] += B
+        con = grasp.contacts()
+        sub = Subsets(con, subsets)
+        z0 = self._screen(sub, len(one))
+        if z0 is None:
+            return 0.0
+        pairs = PairBounds(sub, z0)
+        pairs.refine()
+        use_osqp = self.solver == Solver.OSQP and con.r in (1, 3)  # as _min_quality
+        return self._branch_and_bound(pairs, None, use_osqp, cap)
+
     # -- internals ----------------------------------------------------------
 
     def _quality(self, grasp: _Grasp, subgrasps: bool, margin: float | None, solve: bool) -> float:
@@ -373,17 +445,23 @@ class ForceClosure:
         return self._min_quality(grasp.contacts(), grasp.subsets(subgrasps), thr, solve)
 
     @staticmethod
-    def _screen(sub: Subsets) -> FloatArray | None:
+    def _screen(sub: Subsets, group: int | None = None) -> FloatArray | None:
         """Exact FC screen of every subset: interior points ``bh z0 <= -1``, or None.
 
-        :func:`screen_groups` with all the subsets in one group: None as soon
-        as one subset is not force closure.
+        :func:`screen_groups` with the subsets in groups of ``group`` (default:
+        all in one group): None as soon as one subset is not force closure. A
+        group stops at its first failing subset, so the subsets examined, and
+        each one's answer, are those of a screen of its grasp alone.
         """
-        z0, ok = screen_groups(sub, len(sub.ok))
+        z0, ok = screen_groups(sub, len(sub.ok) if group is None else group)
         return z0 if ok.all() else None
 
     def _min_quality(
-        self, con: Contacts, subsets: np.ndarray, margin: float | None, solve: bool
+        self,
+        con: Contacts,
+        subsets: np.ndarray,
+        margin: float | None,
+        solve: bool,
     ) -> float:
         """Minimum quality over ``subsets``: screen, certified bounds, branch and bound.
 
@@ -418,17 +496,20 @@ class ForceClosure:
         use_osqp = self.solver == Solver.OSQP and con.r in (1, 3)
         return self._branch_and_bound(pairs, margin, use_osqp)
 
-    def _branch_and_bound(self, pairs: PairBounds, margin: float | None, use_osqp: bool) -> float:
+    def _branch_and_bound(
+        self, pairs: PairBounds, margin: float | None, use_osqp: bool, cap: float = math.inf
+    ) -> float:
         """Best-first branch and bound over the pairs.
 
         Pairs are solved in increasing lower bound until the lower bound reaches the
-        best exact value (or, with ``margin``, until the decision is certain).
+        best exact value (or, with ``margin``, until the decision is certain);
+        ``cap`` is a value already reached (the result is at most it).
         """
         flat_lo = pairs.q_lo.ravel()
         order = np.argsort(flat_lo).tolist()
         bounds = flat_lo.tolist()
         exact_l = pairs.exact.ravel().tolist()
-        best = math.inf
+        best = cap
         for idx in order:
             bound = bounds[idx]
             if bound >= best:
@@ -498,6 +579,7 @@ DEFAULT = ForceClosure()
 #: docstring each, on :class:`ForceClosure`).
 force_closure_quality = DEFAULT.quality
 min_subgrasp_quality = DEFAULT.min_subgrasp_quality
+weakest_quality = DEFAULT.weakest_quality
 is_force_closure = DEFAULT.is_force_closure
 exact_force_closure = DEFAULT.exact_set_verdict
 
