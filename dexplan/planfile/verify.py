@@ -337,8 +337,7 @@ class _Checker:
         A regrasp's hold (the n-1 holding fingers; they and the object stay
         still) is checked with every contact moved ``hold_shift``. A
         transfer's waypoints, where every finger holds, are checked at their
-        stated contacts, all in one program (:meth:`HoldChecker.worst_ratio`),
-        waypoint by waypoint only where it finds a ratio above 1. The plan's
+        stated contacts (:meth:`HoldChecker.stated_ratios`). The plan's
         own linearization is used: its edges lie on the round cone, so a hold
         of it is a hold of the round cone.
         """
@@ -349,11 +348,8 @@ class _Checker:
         ]
         if seg.kind == "transfer":
             holds = [(w.q, w.object_pose_xyzquat, list(w.contacts)) for _, w, _ in wps]
-            worst = self.holds.worst_ratio(holds) if holds else 0.0
-            ratios = [
-                (wi, rd, self.holds.ratio(*h, shifted=False) if worst > 1.0 else worst)
-                for (wi, _, rd), h in zip(wps, holds, strict=True)
-            ]
+            stated = self.holds.stated_ratios(holds)
+            ratios = [(wi, rd, r) for (wi, _, rd), r in zip(wps, stated, strict=True)]
             free = None
         else:
             free = seg.finger

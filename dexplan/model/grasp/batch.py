@@ -18,6 +18,8 @@ settles nearly every grasp of a plan) for all of them at once.
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from dexplan.core.errors import InvalidInputError
@@ -191,10 +193,10 @@ def exact_force_closure_batch(
     subsets = (one[None] + k * np.arange(B)[:, None, None]).reshape(-1, one.shape[1])
     con = Contacts(pts, nrm, mu_f, e, scale, scaled_torsion(contact_model, torsion, scale))
     _, ok = screen_groups(Subsets(con, subsets), len(one))
-    passed = [bool(x) for x in ok.reshape(B, len(one)).all(axis=1)]
+    passed = cast(np.ndarray, ok.reshape(B, len(one)).all(axis=1))
     return [
         Verdict.FC_LINEAR
-        if passed[b]
+        if bool(passed[b])
         else solver.exact_set_verdict(
             pts_b[b],
             nrm_b[b],

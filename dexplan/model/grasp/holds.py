@@ -23,12 +23,13 @@ force closure would drop the object.
 
 The figure of a hold is its **torque ratio**: the least, over admissible
 forces, of the largest ``|tau_j| / effort_j``, maximised over the nominal
-contacts and every shifted set. It is one linear program (HiGHS) with one
-block of force variables per contact set sharing the ratio ``t``:
-``min t`` s.t. each block balances the wrench in its cones with
-``|T_s x_s| <= t e``. The hold counts iff the ratio is at most 1; it is
-``inf`` when some contact set cannot balance the wrench at all (not force
-closure). A hand without effort limits has ratio 0 wherever it can hold.
+contacts and every shifted set. Each set's is one small linear program
+(HiGHS, :mod:`dexplan.model.grasp.ratio_lp`): ``min t`` s.t. its forces
+balance the wrench in its cones with ``|T_s x_s| <= t e``; the hold's is the
+largest (the program of all sets sharing ``t`` has that optimum). The hold
+counts iff the ratio is at most 1; it is ``inf`` when some contact set
+cannot balance the wrench at all (not force closure). A hand without
+effort limits has ratio 0 wherever it can hold.
 A checker built with ``effort_share`` s < 1 takes the ratio against s times
 the limits: the planner's holds then leave the hand torque headroom to
 execute the plan with (a servo needs some to correct errors), while the
@@ -47,8 +48,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import scipy.sparse as sp
-from scipy.optimize import Bounds, LinearConstraint, milp
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
@@ -59,6 +58,7 @@ from dexplan.model.grasp.grip_program import (
     grip_program,
     joint_effort_limits,
 )
+from dexplan.model.grasp.ratio_lp import RatioLP
 from dexplan.model.objects.fingertip import fingertip_contact
 
 __all__ = ["DEFAULT_HOLD_SHIFT", "MAX_HOLD_SHIFT", "HoldChecker"]
@@ -158,37 +158,52 @@ class HoldChecker:
         held = np.concatenate([self.hand.finger_q_index[i] for i in idx]).astype(int)
         key = np.round(np.concatenate([P.ravel(), w_ext, hold.q[held], [shifted]]), 12).tobytes()
         hit = self._memo.get(key)
-        if hit is None and shifted:
-            # the shifted sets only add blocks: a hold that fails at its stated
-            # contacts fails with them, and that one block is cheap
-            nominal = self.ratio(q, object_pose, contacts, shifted=False)
-            if not nominal <= 1.0:
-                hit = nominal
         if hit is None:
-            hit = _shared_ratio(self._blocks(hold, shifted=shifted))
+            hit = self._ratio_of(hold, shifted=shifted)
             if len(self._memo) > 4096:
                 self._memo.clear()
             self._memo[key] = hit
         return hit
 
-    def worst_ratio(
+    def stated_ratios(
         self, holds: Sequence[tuple[FloatArray, FloatArray, Sequence[FloatArray | None]]]
-    ) -> float:
-        """The largest torque ratio of many holds at their stated contacts, in one program.
+    ) -> list[float]:
+        """The torque ratios of many holds at their stated contacts (a transfer's waypoints).
 
-        One linear program for all of them (their blocks share the ratio), far
-        cheaper than one program each: along a transfer every waypoint is a hold.
+        Each is :meth:`ratio` without shifts; consecutive holds differ little,
+        so each program starts from the previous one's solution
+        (:class:`~dexplan.model.grasp.ratio_lp.RatioLP`).
 
         Args:
             holds: ``(q, object_pose, contacts)`` per hold, as :meth:`ratio` takes them.
         """
-        blocks: list[_Block] = []
+        lp = RatioLP()
+        out = []
         for q, pose, contacts in holds:
             hold = _Hold(np.asarray(q, dtype=float), np.asarray(pose, dtype=float), contacts)
-            if not hold.loaded():
-                return 0.0 if float(np.linalg.norm(self._wrench(hold.pose))) <= 1e-9 else math.inf
-            blocks += self._blocks(hold, shifted=False)
-        return _shared_ratio(blocks) if blocks else 0.0
+            out.append(self._ratio_of(hold, shifted=False, lp=lp))
+        return out
+
+    def _ratio_of(self, hold: _Hold, *, shifted: bool, lp: RatioLP | None = None) -> float:
+        """A hold's ratio: its stated contacts, then (``shifted``) each moved set.
+
+        The shifted sets only add programs, so a hold that fails at its stated
+        contacts fails with them: its figure is then the stated one, and the
+        moved sets are not built.
+        """
+        if not hold.loaded():
+            return 0.0 if float(np.linalg.norm(self._wrench(hold.pose))) <= 1e-9 else math.inf
+        lp = RatioLP() if lp is None else lp
+        frame = self._frame(hold)
+        worst = lp.ratio(*self._block(frame.P, frame.N, frame))
+        if not shifted or self.shift_m <= 0 or not worst <= 1.0:
+            return worst
+        for c in range(len(frame.P)):
+            for P2, N2 in self._shifted(frame.P, frame.N, c):
+                worst = max(worst, lp.ratio(*self._block(P2, N2, frame)))
+                if worst == math.inf:
+                    return worst
+        return worst
 
     def _wrench(self, pose: FloatArray) -> FloatArray:
         """(6,) the external wrench in the object frame (torque about its origin)."""
@@ -196,11 +211,10 @@ class HoldChecker:
         w = self.forces.wrench_world()
         return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
 
-    def _blocks(self, hold: _Hold, *, shifted: bool) -> list[_Block]:
-        """A hold's blocks: its stated contacts, then (``shifted``) the moved ones."""
+    def _frame(self, hold: _Hold) -> _Frame:
+        """What every contact set of a hold shares: pose, load, contacts, Jacobians."""
         q, pose = hold.q, hold.pose
         R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
-        w_ext = self._wrench(pose)
         idx = hold.loaded()
         P = np.array([np.asarray(hold.contacts[i], dtype=float).reshape(3) for i in idx])
         tips = (self.hand.fingertip_positions(q) - pose[:3]) @ R  # object frame
@@ -210,12 +224,7 @@ class HoldChecker:
                 for c, i in enumerate(idx)
             ]
         ).reshape(-1, 3)
-        jac = self._jacobians(q, idx)
-        used = self._used(idx)
-        sets = [(P, N)]
-        for c in range(len(idx)) if shifted and self.shift_m > 0 else ():
-            sets += self._shifted(P, N, c)
-        return [self._block(P2, N2, w_ext, pose, R, jac, used) for P2, N2 in sets]
+        return _Frame(pose, R, self._wrench(pose), P, N, self._jacobians(q, idx), self._used(idx))
 
     def _shifted(self, P: FloatArray, N: FloatArray, c: int) -> list[tuple[FloatArray, FloatArray]]:
         """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways.
@@ -257,20 +266,18 @@ class HoldChecker:
         return out
 
     def _block(
-        self,
-        P: FloatArray,
-        N: FloatArray,
-        w_ext: FloatArray,
-        pose: FloatArray,
-        R: FloatArray,
-        jac: list[tuple[FloatArray, FloatArray]],
-        used: np.ndarray,
-    ) -> _Block:
-        """One contact set's balance, normal-force and cone rows and its torque rows."""
+        self, P: FloatArray, N: FloatArray, f: _Frame
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """One contact set's program: ``A``, ``lo``, ``hi``, its torque rows ``T``, ``effort``.
+
+        ``lo <= A x <= hi`` are the balance, normal-force and cone rows;
+        ``T x`` the torques of the limited joints of the loaded fingers, whose
+        effort limits are ``effort`` (:meth:`RatioLP.ratio`'s arguments).
+        """
         prog = grip_program(
             P,
             N,
-            w_ext,
+            f.w_ext,
             mu_eff=self.mu,
             torsion_eff=self.torsion if self.soft else None,
             L=self.L,
@@ -280,13 +287,13 @@ class HoldChecker:
         )
         r = 4 if self.soft else 3
         T = np.zeros((self.hand.model.nv, P.shape[0] * r))
-        for c, (J, centre) in enumerate(jac):
-            d = pose[:3] + R @ P[c] - centre  # tip centre to contact, world frame
+        for c, (J, centre) in enumerate(f.jac):
+            d = f.pose[:3] + f.R @ P[c] - centre  # tip centre to contact, world frame
             T[:, c * r : (c + 1) * r] = contact_torque_columns(
-                J, d, R, N[c], self.L if self.soft else None
+                J, d, f.R, N[c], self.L if self.soft else None
             )
-        joints = self._limited[used]
-        return _Block(prog.A, prog.lo, prog.hi, T[joints], self._effort[used])
+        joints = self._limited[f.used]
+        return prog.A, prog.lo, prog.hi, T[joints], self._effort[f.used]
 
     def _used(self, idx: list[int]) -> np.ndarray:
         """Positions in the limited joints of the joints of the loaded fingers ``idx``."""
@@ -308,50 +315,20 @@ class _Hold:
 
 
 @dataclass(frozen=True)
-class _Block:
-    """One contact set of the shared-ratio program.
+class _Frame:
+    """What the contact sets of one hold share.
 
-    ``lo <= A x <= hi``; joint torques ``T x`` of the limited joints of its
-    loaded fingers, whose effort limits are ``effort``.
+    ``pose`` (7,) and ``R`` (3, 3) the object's pose, world frame; ``w_ext``
+    (6,) the load, object frame; ``P``, ``N`` (k, 3) the stated contacts and
+    inward normals, object frame; ``jac`` per loaded finger its tip frame's
+    (6, nv) Jacobian and (3,) centre, world frame; ``used`` the positions of
+    the loaded fingers' joints among the limited ones.
     """
 
-    A: FloatArray
-    lo: FloatArray
-    hi: FloatArray
-    T: FloatArray
-    effort: FloatArray
-
-
-def _shared_ratio(blocks: list[_Block]) -> float:
-    """``min t`` such that every block is feasible with ``|T_s x_s| <= t effort``; inf if none.
-
-    Variables ``(x_1, ..., x_S, t)``; with no limited joint the program only
-    decides feasibility and the ratio is 0. The blocks share only ``t``, so
-    the matrix is block diagonal plus the ``t`` column: sparse, and
-    ``milp`` takes its two-sided rows as they are (a transfer's program has
-    a block per waypoint; a dense matrix of it costs more to build and
-    convert than HiGHS takes to solve it).
-    """
-    rows, t_col, lo, hi = [], [], [], []
-    for b in blocks:
-        ne = len(b.effort)
-        rows.append(np.vstack([b.A, b.T, -b.T]) if ne else b.A)
-        t_col.append(np.concatenate([np.zeros(b.A.shape[0]), -b.effort, -b.effort]))
-        lo.append(np.concatenate([b.lo, np.full(2 * ne, -np.inf)]))
-        hi.append(np.concatenate([b.hi, np.zeros(2 * ne)]))
-    t = np.concatenate(t_col)[:, None]
-    A: Any = (
-        np.hstack([rows[0], t])
-        if len(rows) == 1
-        else sp.hstack([sp.block_diag(rows, format="csr"), sp.csr_matrix(t)], format="csr")
-    )
-    m = A.shape[1] - 1
-    lp = milp(
-        np.r_[np.zeros(m), 1.0],
-        constraints=LinearConstraint(A, np.concatenate(lo), np.concatenate(hi)),
-        bounds=Bounds(np.r_[np.full(m, -np.inf), 0.0], np.full(m + 1, np.inf)),
-        options={"presolve": False},
-    )
-    if lp.status != 0 or lp.x is None:
-        return math.inf
-    return float(lp.x[-1])
+    pose: FloatArray
+    R: FloatArray
+    w_ext: FloatArray
+    P: FloatArray
+    N: FloatArray
+    jac: list[tuple[FloatArray, FloatArray]]
+    used: np.ndarray
