@@ -60,6 +60,7 @@ ON_USE: frozenset[tuple[str, str]] = frozenset(
         ("dexplan.model.scenario.hand_table", "dexplan.model.hand.builtin"),
         ("dexplan.model.scenario.hand_table", "dexplan.model.hand.packages"),
         ("dexplan.model.grasp.least_distance", "scipy.optimize._slsqplib"),  # guarded private API
+        ("dexplan.model.grasp.ratio_lp", "scipy.optimize._highspy"),  # guarded private API
     }
 )
 
