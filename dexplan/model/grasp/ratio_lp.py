@@ -41,9 +41,8 @@ def _highs_core() -> Any:
     try:
         from scipy.optimize._highspy import _core  # private to SciPy: guarded
 
-        lp = _program(_core, np.array([[1.0, -1.0]]), np.array([0.5]), np.array([0.5]))
         h = _new_highs(_core)
-        h.passModel(lp)
+        h.passModel(*_program(_core, np.array([[1.0, -1.0]]), np.array([0.5]), np.array([0.5])))
         h.run()
         ok = h.getModelStatus() == _core.HighsModelStatus.kOptimal
         if ok and abs(h.getSolution().col_value[-1] - 0.0) < 1e-12:
@@ -61,8 +60,12 @@ def _new_highs(core: Any) -> Any:
     return h
 
 
-def _program(core: Any, M: FloatArray, lo: FloatArray, hi: FloatArray) -> Any:
-    """The HiGHS program ``min t`` s.t. ``lo <= M [x; t] <= hi``, ``x`` free, ``t >= 0``.
+def _program(core: Any, M: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[Any, ...]:
+    """``passModel``'s arguments: ``min t`` s.t. ``lo <= M [x; t] <= hi``, ``x`` free, ``t >= 0``.
+
+    The arrays go to HiGHS as they are (a ``HighsLp``'s fields would be
+    copied element by element); those that depend only on the shape are made
+    once per shape.
 
     Args:
         core: SciPy's HiGHS module.
@@ -71,20 +74,39 @@ def _program(core: Any, M: FloatArray, lo: FloatArray, hi: FloatArray) -> Any:
         hi: (rows,) upper bounds (``inf`` for none).
     """
     rows, cols = M.shape
-    inf = core.kHighsInf
-    lp = core.HighsLp()
-    lp.num_col_, lp.num_row_ = cols, rows
-    lp.col_cost_ = np.r_[np.zeros(cols - 1), 1.0]
-    lp.col_lower_ = np.r_[np.full(cols - 1, -inf), 0.0]
-    lp.col_upper_ = np.full(cols, inf)
-    lp.row_lower_ = np.where(np.isinf(lo), -inf, lo)
-    lp.row_upper_ = np.where(np.isinf(hi), inf, hi)
-    lp.a_matrix_.format_ = core.MatrixFormat.kRowwise
-    lp.a_matrix_.start_ = np.arange(0, rows * cols + 1, cols, dtype=np.int32)
-    lp.a_matrix_.index_ = np.tile(np.arange(cols, dtype=np.int32), rows)
-    lp.a_matrix_.value_ = np.ascontiguousarray(M).ravel()
-    return lp
+    fixed = _FIXED.get(M.shape)
+    if fixed is None:
+        inf = core.kHighsInf
+        fixed = _FIXED[M.shape] = (
+            np.r_[np.zeros(cols - 1), 1.0],  # cost: t
+            np.r_[np.full(cols - 1, -inf), 0.0],  # x free, t >= 0
+            np.full(cols, inf),
+            np.arange(0, rows * cols + 1, cols, dtype=np.int32),  # dense rows
+            np.tile(np.arange(cols, dtype=np.int32), rows),
+            np.zeros(cols, dtype=np.int32),  # continuous
+        )
+    cost, col_lo, col_hi, start, index, integrality = fixed
+    return (
+        cols,
+        rows,
+        rows * cols,
+        int(core.MatrixFormat.kRowwise),
+        int(core.ObjSense.kMinimize),
+        0.0,
+        cost,
+        col_lo,
+        col_hi,
+        np.maximum(lo, -core.kHighsInf),
+        np.minimum(hi, core.kHighsInf),
+        start,
+        index,
+        np.ascontiguousarray(M, dtype=float).ravel(),
+        integrality,
+    )
 
+
+#: :func:`_program`'s arrays that depend only on the shape, by shape.
+_FIXED: dict[tuple[int, int], tuple[FloatArray, ...]] = {}
 
 _CORE = _highs_core()
 
@@ -121,7 +143,7 @@ class RatioLP:
         if self._highs is None:
             return _milp_ratio(M, lo_all, hi_all)
         h = self._highs
-        h.passModel(_program(_CORE, M, lo_all, hi_all))
+        h.passModel(*_program(_CORE, M, lo_all, hi_all))
         basis = self._basis.get(M.shape)
         if basis is not None:
             h.setBasis(basis)
