@@ -51,10 +51,9 @@ import pinocchio as pin
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
-from dexplan.model.grasp.cones import tangent_basis
+from dexplan.model.grasp.cones import friction_cone_facets, tangent_basis
 from dexplan.model.grasp.grip_forces import ForceSettings
 from dexplan.model.grasp.grip_program import (
-    contact_torque_columns,
     grip_program,
     joint_effort_limits,
 )
@@ -124,6 +123,7 @@ class HoldChecker:
         self._limited = np.flatnonzero(~np.isnan(e))
         self._effort = self.effort_share * e[self._limited]
         self._memo: dict[bytes, float] = {}
+        self._used_memo: dict[tuple[int, ...], np.ndarray] = {}
 
     def holds(
         self, q: FloatArray, object_pose: FloatArray, contacts: Sequence[FloatArray | None]
@@ -205,9 +205,13 @@ class HoldChecker:
                     return worst
         return worst
 
-    def _wrench(self, pose: FloatArray) -> FloatArray:
-        """(6,) the external wrench in the object frame (torque about its origin)."""
-        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+    def _wrench(self, pose: FloatArray, R: FloatArray | None = None) -> FloatArray:
+        """(6,) the external wrench in the object frame (torque about its origin).
+
+        ``R``: the pose's (3, 3) rotation when the caller has it already.
+        """
+        if R is None:
+            R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
         w = self.forces.wrench_world()
         return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
 
@@ -224,7 +228,19 @@ class HoldChecker:
                 for c, i in enumerate(idx)
             ]
         ).reshape(-1, 3)
-        return _Frame(pose, R, self._wrench(pose), P, N, self._jacobians(q, idx), self._used(idx))
+        used = self._used(idx)
+        joints = self._limited[used]
+        jac = self._jacobians(q, idx)
+        return _Frame(
+            pose,
+            R,
+            self._wrench(pose, R),
+            P,
+            N,
+            np.array([J.T[joints] for J, _ in jac]).reshape(len(idx), len(joints), 6),
+            np.array([centre for _, centre in jac]).reshape(-1, 3),
+            self._effort[used],
+        )
 
     def _shifted(self, P: FloatArray, N: FloatArray, c: int) -> list[tuple[FloatArray, FloatArray]]:
         """Contact sets with contact ``c`` moved ``shift_m`` along the surface, 4 ways.
@@ -270,35 +286,87 @@ class HoldChecker:
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """One contact set's program: ``A``, ``lo``, ``hi``, its torque rows ``T``, ``effort``.
 
-        ``lo <= A x <= hi`` are the balance, normal-force and cone rows;
-        ``T x`` the torques of the limited joints of the loaded fingers, whose
-        effort limits are ``effort`` (:meth:`RatioLP.ratio`'s arguments).
+        ``lo <= A x <= hi`` are the balance, normal-force and cone rows of
+        :func:`grip_program` (point contacts with friction, the common case,
+        built here at once: the same rows); ``T x`` the torques of the limited
+        joints of the loaded fingers, whose effort limits are ``effort``
+        (:meth:`RatioLP.ratio`'s arguments).
         """
-        prog = grip_program(
-            P,
-            N,
-            f.w_ext,
-            mu_eff=self.mu,
-            torsion_eff=self.torsion if self.soft else None,
-            L=self.L,
-            edges=self.edges,
-            min_normal_force=self.forces.min_normal_force,
-            torque=None,
-        )
-        r = 4 if self.soft else 3
-        T = np.zeros((self.hand.model.nv, P.shape[0] * r))
-        for c, (J, centre) in enumerate(f.jac):
-            d = f.pose[:3] + f.R @ P[c] - centre  # tip centre to contact, world frame
-            T[:, c * r : (c + 1) * r] = contact_torque_columns(
-                J, d, f.R, N[c], self.L if self.soft else None
+        if self.soft or self.mu <= 0.0:
+            prog = grip_program(
+                P,
+                N,
+                f.w_ext,
+                mu_eff=self.mu,
+                torsion_eff=self.torsion if self.soft else None,
+                L=self.L,
+                edges=self.edges,
+                min_normal_force=self.forces.min_normal_force,
+                torque=None,
             )
-        joints = self._limited[f.used]
-        return prog.A, prog.lo, prog.hi, T[joints], self._effort[f.used]
+            A, lo, hi = prog.A, prog.lo, prog.hi
+        else:
+            A, lo, hi = self._point_rows(P, N, f.w_ext)
+        return A, lo, hi, self._torques(P, N, f), f.effort
+
+    def _point_rows(
+        self, P: FloatArray, N: FloatArray, w_ext: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:func:`grip_program`'s rows for point contacts with friction, all contacts at once.
+
+        Rows: balance ``sum f_c = -F``, ``sum p_c x f_c = -T`` (6), normal
+        forces ``n_c . f_c >= min_normal_force`` (k), cone facets ``<= 0``
+        (k edges); variables ``f_c``, three per contact.
+        """
+        k = P.shape[0]
+        ck = np.arange(k)
+        G = np.zeros((6, 3 * k))
+        G[:3] = np.tile(np.eye(3), k)
+        skew = G[3:].reshape(3, k, 3)  # [p_c]_x, contact by contact
+        skew[0, :, 1], skew[0, :, 2] = -P[:, 2], P[:, 1]
+        skew[1, :, 0], skew[1, :, 2] = P[:, 2], -P[:, 0]
+        skew[2, :, 0], skew[2, :, 1] = -P[:, 1], P[:, 0]
+        nrm = np.zeros((k, 3 * k))
+        nrm.reshape(k, k, 3)[ck, ck] = N
+        facets = friction_cone_facets(N, self.mu, self.edges)  # (k, edges, 3)
+        cone = np.zeros((k * self.edges, 3 * k))
+        cone.reshape(k, self.edges, k, 3)[ck, :, ck, :] = facets
+        rows = k * self.edges
+        lo = np.concatenate(
+            [-w_ext, np.full(k, self.forces.min_normal_force), np.full(rows, -np.inf)]
+        )
+        hi = np.concatenate([-w_ext, np.full(k, np.inf), np.zeros(rows)])
+        return np.vstack([G, nrm, cone]), lo, hi
+
+    def _torques(self, P: FloatArray, N: FloatArray, f: _Frame) -> FloatArray:
+        """(joints, k r) the limited joints' torques per unit of each contact's variables.
+
+        ``tau = J^T [f_w; d x f_w (+ tau_n R n)]`` with ``f_w = R f`` the force
+        in the world frame and ``d`` the tip centre to the contact
+        (:func:`~dexplan.model.grasp.grip_program.contact_torque_columns`, for
+        all contacts at once).
+        """
+        k = P.shape[0]
+        d = f.pose[:3] + P @ f.R.T - f.centres  # (k, 3) tip centre to contact, world frame
+        S = np.zeros((k, 3, 3))
+        S[:, 0, 1], S[:, 0, 2] = -d[:, 2], d[:, 1]
+        S[:, 1, 0], S[:, 1, 2] = d[:, 2], -d[:, 0]
+        S[:, 2, 0], S[:, 2, 1] = -d[:, 1], d[:, 0]
+        lift = np.concatenate([np.broadcast_to(f.R, (k, 3, 3)), S @ f.R], axis=1)  # (k, 6, 3)
+        cols = f.jt @ lift  # (k, joints, 3)
+        if self.soft:  # the torsion variable: tau_n R n_c, scaled by L
+            twist = np.einsum("cjs,cs->cj", f.jt[:, :, 3:], N @ f.R.T) * self.L
+            cols = np.concatenate([cols, twist[:, :, None]], axis=2)
+        return cols.transpose(1, 0, 2).reshape(cols.shape[1], -1)
 
     def _used(self, idx: list[int]) -> np.ndarray:
         """Positions in the limited joints of the joints of the loaded fingers ``idx``."""
-        held = np.concatenate([self.hand.finger_q_index[i] for i in idx])
-        return np.flatnonzero(np.isin(self._limited, held))
+        key = tuple(idx)
+        out = self._used_memo.get(key)
+        if out is None:
+            held = np.concatenate([self.hand.finger_q_index[i] for i in idx])
+            out = self._used_memo[key] = np.flatnonzero(np.isin(self._limited, held))
+        return out
 
 
 @dataclass(frozen=True)
@@ -320,9 +388,10 @@ class _Frame:
 
     ``pose`` (7,) and ``R`` (3, 3) the object's pose, world frame; ``w_ext``
     (6,) the load, object frame; ``P``, ``N`` (k, 3) the stated contacts and
-    inward normals, object frame; ``jac`` per loaded finger its tip frame's
-    (6, nv) Jacobian and (3,) centre, world frame; ``used`` the positions of
-    the loaded fingers' joints among the limited ones.
+    inward normals, object frame; ``jt`` (k, joints, 6) per loaded finger the
+    limited joints' rows of its tip frame's transposed ``LOCAL_WORLD_ALIGNED``
+    Jacobian, ``centres`` (k, 3) its tip centre, world frame; ``effort``
+    (joints,) those joints' effort limits (N m).
     """
 
     pose: FloatArray
@@ -330,5 +399,6 @@ class _Frame:
     w_ext: FloatArray
     P: FloatArray
     N: FloatArray
-    jac: list[tuple[FloatArray, FloatArray]]
-    used: np.ndarray
+    jt: FloatArray
+    centres: FloatArray
+    effort: FloatArray
