@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from dexplan.core.errors import InvalidInputError
-from dexplan.model.grasp import ForceClosure, min_subgrasp_quality, min_subgrasp_quality_batch
+from dexplan.model.grasp import (
+    ForceClosure,
+    exact_force_closure,
+    exact_force_closure_batch,
+    min_subgrasp_quality,
+    min_subgrasp_quality_batch,
+)
 
 TETRA = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=float) / np.sqrt(3)
 
@@ -92,3 +98,57 @@ def test_batch_edge_cases() -> None:
         min_subgrasp_quality_batch(p, 0 * n, 0.8, torque_scale=0.04, margin=0.005)
     with pytest.raises(InvalidInputError, match="margin"):
         min_subgrasp_quality_batch(p, n, 0.8, torque_scale=0.04, margin=-1.0)
+
+
+@pytest.mark.parametrize(
+    ("k", "model", "torsion", "mu"),
+    [(4, "point", 0.0, 0.8), (5, "point", 0.0, 0.5), (3, "soft", 0.01, 0.8)],
+)
+@pytest.mark.parametrize("subgrasps", [True, False])
+def test_weakest_quality_is_the_least_scalar_quality(k, model, torsion, mu, subgrasps) -> None:
+    """One branch and bound over B grasps gives the least of their scalar qualities.
+
+    With the exact (Lawson-Hanson) pair solver every solved pair has one
+    value, so the least is the same number, whichever pairs the shared
+    bounds spare; a cap already reached is the answer when nothing is below it.
+    """
+    rng = np.random.default_rng(k + 7 * int(subgrasps))
+    p, n = _grasps(rng, 60, k, noise=0.4)
+    ref = ForceClosure(solver="nnls")
+    one = ref.min_subgrasp_quality if subgrasps else ref.quality
+    kw = dict(torque_scale=0.04, contact_model=model, torsion=torsion)
+    values = np.array([one(p[b], n[b], mu, **kw) for b in range(len(p))])
+    fc = ForceClosure(solver="nnls")
+    positive = values > 0
+    assert positive.sum() >= 5
+    least = float(values[positive].min())
+    assert fc.weakest_quality(p[positive], n[positive], mu, subgrasps=subgrasps, **kw) == least
+    assert fc.weakest_quality(p, n, mu, subgrasps=subgrasps, **kw) == float(values.min())
+    for cap in (0.5 * least, 2.0 * least):
+        got = fc.weakest_quality(p[positive], n[positive], mu, subgrasps=subgrasps, cap=cap, **kw)
+        assert got == min(cap, least)
+    assert fc.weakest_quality(p[:0], n[:0], mu, cap=0.3, **kw) == 0.3
+    with pytest.raises(InvalidInputError, match=r"\(B, k, 3\)"):
+        fc.weakest_quality(p[0], n[0], mu, **kw)
+
+
+@pytest.mark.parametrize(
+    ("k", "model", "torsion", "mu"),
+    [
+        (4, "point", 0.0, 0.3),
+        (5, "point", 0.0, 0.5),
+        (3, "soft", 0.01, 0.5),
+        (4, "point", 0.0, 0.0),
+    ],
+)
+@pytest.mark.parametrize("subgrasps", [True, False])
+def test_batched_exact_verdicts_are_the_scalar_ones(k, model, torsion, mu, subgrasps) -> None:
+    """Every grasp's verdict is the scalar exact_force_closure's, on grasps of every verdict."""
+    rng = np.random.default_rng(3 * k + int(subgrasps))
+    p, n = _grasps(rng, 150, k, noise=1.5)
+    kw = dict(torque_scale=0.04, subgrasps=subgrasps, contact_model=model, torsion=torsion)
+    scalar = [exact_force_closure(p[b], n[b], mu, **kw) for b in range(len(p))]
+    assert exact_force_closure_batch(p, n, mu, **kw) == scalar
+    if mu > 0 and not (subgrasps and k == 3):
+        assert {"fc_linear", "not_fc"} <= set(scalar)  # both kinds reached
+    assert exact_force_closure_batch(p[:0], n[:0], mu, **kw) == []

@@ -5,13 +5,22 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pinocchio as pin
 import pytest
+from scipy.optimize import Bounds, LinearConstraint, milp
 
 from dexplan.core.errors import InvalidInputError, ModelError, ScenarioError
+from dexplan.model.grasp import ratio_lp
 from dexplan.model.grasp.grip_forces import ForceSettings, GripForceSolver
+from dexplan.model.grasp.grip_program import (
+    contact_torque_columns,
+    grip_program,
+    joint_effort_limits,
+)
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.hand.hand import Hand
 from dexplan.model.hand.urdf import with_effort_limits
+from dexplan.model.objects.fingertip import fingertip_contact
 from dexplan.planfile import hand_from_plan, read_plan
 from dexplan.planfile.models import models_from_document
 
@@ -221,3 +230,96 @@ def test_the_scenario_effort_share_reaches_the_planners_holds(tmp_path) -> None:
         obj = shape_from_dict(dict(scen.object), scen.base_dir)
         hc = hold_checker(scen, hand, obj, validity_settings(scen, hand.n_fingers))
         assert hc.effort_share == share
+
+
+def _reference_ratio(hc: HoldChecker, q, pose, contacts) -> float:
+    """A hold's ratio at its stated contacts, built from the public pieces and solved by milp.
+
+    An independent reading of the module's program: the contact normals as
+    the verifier reads them, grip_program's rows, contact_torque_columns'
+    torques of the limited joints of the loaded fingers, ``min t``.
+    """
+    hand, model = hc.hand, hc.hand.model
+    R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+    loaded = [i for i, c in enumerate(contacts) if c is not None]
+    P = np.array([contacts[i] for i in loaded], dtype=float)
+    tips = (hand.fingertip_positions(q) - pose[:3]) @ R
+    N = np.array(
+        [
+            -fingertip_contact(hc.obj, P[c], tips[i], hand.fingertip_radius)[1]
+            for c, i in enumerate(loaded)
+        ]
+    )
+    w = hc.forces.wrench_world()
+    prog = grip_program(
+        P,
+        N,
+        np.concatenate([R.T @ w[:3], R.T @ w[3:]]),
+        mu_eff=hc.mu,
+        torsion_eff=hc.torsion if hc.soft else None,
+        L=hc.L,
+        edges=hc.edges,
+        min_normal_force=hc.forces.min_normal_force,
+        torque=None,
+    )
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    r = 4 if hc.soft else 3
+    T = np.zeros((model.nv, len(loaded) * r))
+    for c, i in enumerate(loaded):
+        fid = hand.tip_frame_ids[i]
+        J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        d = pose[:3] + R @ P[c] - data.oMf[fid].translation
+        T[:, c * r : (c + 1) * r] = contact_torque_columns(J, d, R, N[c], hc.L if hc.soft else None)
+    effort = joint_effort_limits(model)
+    held = np.concatenate([hand.finger_q_index[i] for i in loaded])
+    joints = [j for j in held if not np.isnan(effort[j])]
+    Tj, e = T[joints], effort[joints]
+    m = T.shape[1]
+    A = np.block([[prog.A, np.zeros((len(prog.A), 1))], [Tj, -e[:, None]], [-Tj, -e[:, None]]])
+    lo = np.concatenate([prog.lo, np.full(2 * len(e), -np.inf)])
+    hi = np.concatenate([prog.hi, np.zeros(2 * len(e))])
+    res = milp(
+        np.r_[np.zeros(m), 1.0],
+        constraints=LinearConstraint(A, lo, hi),
+        bounds=Bounds(np.r_[np.full(m, -np.inf), 0.0], np.full(m + 1, np.inf)),
+    )
+    return math.inf if res.status != 0 else float(res.x[-1])
+
+
+@pytest.mark.parametrize(
+    ("model", "torsion", "mu"), [("point", 0.0, None), ("soft", 0.005, None), ("soft", 0.005, 0.0)]
+)
+def test_ratio_is_the_optimum_of_an_independent_program(regrasp_holds, model, torsion, mu) -> None:
+    """The stated contacts' ratio equals a program built from the public pieces (point,
+    soft and frictionless soft contacts), and a transfer's ratios in one pass equal
+    the holds' own ratios: warm starts change the path to the optimum, not the optimum."""
+    m, holds = regrasp_holds
+    hc = HoldChecker(
+        m.hand,
+        m.obj,
+        m.mu if mu is None else mu,
+        m.friction_edges,
+        model,
+        torsion,
+        ForceSettings(mass=0.1, min_normal_force=0.1),
+    )
+    alone = [hc.ratio(q, pose, contacts, shifted=False) for q, pose, contacts in holds]
+    for (q, pose, contacts), r in zip(holds, alone, strict=True):
+        assert r == pytest.approx(_reference_ratio(hc, q, pose, contacts), rel=1e-9, abs=1e-12)
+    assert np.isfinite(alone).all() or mu == 0.0
+    np.testing.assert_allclose(hc.stated_ratios(holds), alone, rtol=1e-9, atol=1e-12)
+
+
+def test_ratio_programs_without_scipys_highs_module_give_the_same_ratios(
+    regrasp_holds, monkeypatch
+) -> None:
+    """Without SciPy's HiGHS module (private to SciPy) each program goes to milp: same ratios."""
+    m, holds = regrasp_holds
+    hc = _checker(m, shift=0.002)
+    direct = [hc.ratio(q, pose, contacts) for q, pose, contacts in holds]
+    monkeypatch.setattr(ratio_lp, "_CORE", None)
+    hc = _checker(m, shift=0.002)
+    fallback = [hc.ratio(q, pose, contacts) for q, pose, contacts in holds]
+    np.testing.assert_allclose(fallback, direct, rtol=1e-9)
