@@ -323,3 +323,38 @@ def test_ratio_programs_without_scipys_highs_module_give_the_same_ratios(
     hc = _checker(m, shift=0.002)
     fallback = [hc.ratio(q, pose, contacts) for q, pose, contacts in holds]
     np.testing.assert_allclose(fallback, direct, rtol=1e-9)
+
+
+def test_a_transfers_ratios_built_together_are_each_holds_own(
+    regrasp_holds, paper_plan, tmp_path
+) -> None:
+    """A transfer's holds (the same loaded fingers) are built and solved in one pass: each
+    ratio is the hold's own, with or without the caller's normals (and holds of different
+    fingers, mixed in, are each their own too)."""
+    m, regrasps = regrasp_holds
+    doc = read_plan(paper_plan(2, tmp_path))
+    seg = next(s for s in doc["segments"] if s["kind"] == "transfer")
+    holds = [
+        (
+            np.asarray(w["q"]),
+            np.asarray(w["object_pose_xyzquat"]),
+            [None if c is None else np.asarray(c, dtype=float) for c in w["contacts"]],
+        )
+        for w in seg["waypoints"]
+    ]
+    hc = _checker(m, mass=0.5)
+    alone = [hc.ratio(q, pose, contacts, shifted=False) for q, pose, contacts in holds]
+    assert all(0.0 < r < math.inf for r in alone)
+    np.testing.assert_allclose(hc.stated_ratios(holds), alone, rtol=1e-9)
+    normals = []
+    for q, pose, contacts in holds:
+        R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
+        tips = (m.hand.fingertip_positions(q) - pose[:3]) @ R
+        r = m.hand.fingertip_radius
+        normals.append(
+            np.array([-fingertip_contact(m.obj, c, tips[i], r)[1] for i, c in enumerate(contacts)])
+        )
+    np.testing.assert_allclose(hc.stated_ratios(holds, normals), alone, rtol=1e-9)
+    mixed = holds[:3] + regrasps
+    expected = [hc.ratio(q, pose, contacts, shifted=False) for q, pose, contacts in mixed]
+    np.testing.assert_allclose(hc.stated_ratios(mixed), expected, rtol=1e-9)

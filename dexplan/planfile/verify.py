@@ -348,7 +348,7 @@ class _Checker:
         ]
         if seg.kind == "transfer":
             holds = [(w.q, w.object_pose_xyzquat, list(w.contacts)) for _, w, _ in wps]
-            stated = self.holds.stated_ratios(holds)
+            stated = self.holds.stated_ratios(holds, [rd.N for _, _, rd in wps])
             ratios = [(wi, rd, r) for (wi, _, rd), r in zip(wps, stated, strict=True)]
             free = None
         else:

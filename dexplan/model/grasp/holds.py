@@ -166,23 +166,36 @@ class HoldChecker:
         return hit
 
     def stated_ratios(
-        self, holds: Sequence[tuple[FloatArray, FloatArray, Sequence[FloatArray | None]]]
+        self,
+        holds: Sequence[tuple[FloatArray, FloatArray, Sequence[FloatArray | None]]],
+        normals: Sequence[FloatArray] | None = None,
     ) -> list[float]:
         """The torque ratios of many holds at their stated contacts (a transfer's waypoints).
 
-        Each is :meth:`ratio` without shifts; consecutive holds differ little,
-        so each program starts from the previous one's solution
-        (:class:`~dexplan.model.grasp.ratio_lp.RatioLP`).
+        Each is :meth:`ratio` without shifts. The programs of holds of the
+        same loaded fingers (point contacts with friction) are built together,
+        and consecutive holds differ little, so each program starts from the
+        previous one's solution (:class:`~dexplan.model.grasp.ratio_lp.RatioLP`).
 
         Args:
             holds: ``(q, object_pose, contacts)`` per hold, as :meth:`ratio` takes them.
+            normals: per hold, the (k, 3) inward normals of its loaded
+                contacts, object frame, as
+                :func:`~dexplan.model.objects.fingertip.fingertip_contact`
+                reads them, when the caller has read them already (the
+                verifier has, for every waypoint).
         """
+        hs = [_Hold(np.asarray(q, dtype=float), np.asarray(p, dtype=float), c) for q, p, c in holds]
         lp = RatioLP()
-        out = []
-        for q, pose, contacts in holds:
-            hold = _Hold(np.asarray(q, dtype=float), np.asarray(pose, dtype=float), contacts)
-            out.append(self._ratio_of(hold, shifted=False, lp=lp))
-        return out
+        fingers = {tuple(h.loaded()) for h in hs}
+        if self.soft or self.mu <= 0.0 or len(fingers) != 1 or not next(iter(fingers)):
+            return [self._ratio_of(h, shifted=False, lp=lp) for h in hs]
+        frames = [self._frame(h, None if normals is None else normals[j]) for j, h in enumerate(hs)]
+        P, N = np.array([f.P for f in frames]), np.array([f.N for f in frames])
+        A, lo, hi = self._point_rows(P, N, np.array([f.w_ext for f in frames]))
+        T = self._torques(P, N, frames)
+        effort = frames[0].effort
+        return [lp.ratio(A[j], lo[j], hi[j], T[j], effort) for j in range(len(hs))]
 
     def _ratio_of(self, hold: _Hold, *, shifted: bool, lp: RatioLP | None = None) -> float:
         """A hold's ratio: its stated contacts, then (``shifted``) each moved set.
@@ -215,19 +228,24 @@ class HoldChecker:
         w = self.forces.wrench_world()
         return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
 
-    def _frame(self, hold: _Hold) -> _Frame:
-        """What every contact set of a hold shares: pose, load, contacts, Jacobians."""
+    def _frame(self, hold: _Hold, N: FloatArray | None = None) -> _Frame:
+        """What every contact set of a hold shares: pose, load, contacts, Jacobians.
+
+        ``N``: the (k, 3) inward normals of the loaded contacts when the
+        caller has read them (else they are read here, the same way).
+        """
         q, pose = hold.q, hold.pose
         R = pin.Quaternion(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix()
         idx = hold.loaded()
         P = np.array([np.asarray(hold.contacts[i], dtype=float).reshape(3) for i in idx])
-        tips = (self.hand.fingertip_positions(q) - pose[:3]) @ R  # object frame
-        N = np.array(
-            [
-                -fingertip_contact(self.obj, P[c], tips[i], self.hand.fingertip_radius)[1]
-                for c, i in enumerate(idx)
-            ]
-        ).reshape(-1, 3)
+        if N is None:
+            tips = (self.hand.fingertip_positions(q) - pose[:3]) @ R  # object frame
+            N = np.array(
+                [
+                    -fingertip_contact(self.obj, P[c], tips[i], self.hand.fingertip_radius)[1]
+                    for c, i in enumerate(idx)
+                ]
+            ).reshape(-1, 3)
         used = self._used(idx)
         joints = self._limited[used]
         jac = self._jacobians(q, idx)
@@ -306,58 +324,69 @@ class HoldChecker:
             )
             A, lo, hi = prog.A, prog.lo, prog.hi
         else:
-            A, lo, hi = self._point_rows(P, N, f.w_ext)
-        return A, lo, hi, self._torques(P, N, f), f.effort
+            A3, lo2, hi2 = self._point_rows(P[None], N[None], f.w_ext[None])
+            A, lo, hi = A3[0], lo2[0], hi2[0]
+        return A, lo, hi, self._torques(P[None], N[None], [f])[0], f.effort
 
     def _point_rows(
         self, P: FloatArray, N: FloatArray, w_ext: FloatArray
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """:func:`grip_program`'s rows for point contacts with friction, all contacts at once.
+        """:func:`grip_program`'s rows for point contacts with friction, of H contact sets at once.
 
         Rows: balance ``sum f_c = -F``, ``sum p_c x f_c = -T`` (6), normal
         forces ``n_c . f_c >= min_normal_force`` (k), cone facets ``<= 0``
         (k edges); variables ``f_c``, three per contact.
-        """
-        k = P.shape[0]
-        ck = np.arange(k)
-        G = np.zeros((6, 3 * k))
-        G[:3] = np.tile(np.eye(3), k)
-        skew = G[3:].reshape(3, k, 3)  # [p_c]_x, contact by contact
-        skew[0, :, 1], skew[0, :, 2] = -P[:, 2], P[:, 1]
-        skew[1, :, 0], skew[1, :, 2] = P[:, 2], -P[:, 0]
-        skew[2, :, 0], skew[2, :, 1] = -P[:, 1], P[:, 0]
-        nrm = np.zeros((k, 3 * k))
-        nrm.reshape(k, k, 3)[ck, ck] = N
-        facets = friction_cone_facets(N, self.mu, self.edges)  # (k, edges, 3)
-        cone = np.zeros((k * self.edges, 3 * k))
-        cone.reshape(k, self.edges, k, 3)[ck, :, ck, :] = facets
-        rows = k * self.edges
-        lo = np.concatenate(
-            [-w_ext, np.full(k, self.forces.min_normal_force), np.full(rows, -np.inf)]
-        )
-        hi = np.concatenate([-w_ext, np.full(k, np.inf), np.zeros(rows)])
-        return np.vstack([G, nrm, cone]), lo, hi
 
-    def _torques(self, P: FloatArray, N: FloatArray, f: _Frame) -> FloatArray:
-        """(joints, k r) the limited joints' torques per unit of each contact's variables.
+        Args:
+            P: (H, k, 3) contact points, object frame.
+            N: (H, k, 3) inward unit normals, object frame.
+            w_ext: (H, 6) the load, object frame.
+
+        Returns:
+            ``A`` (H, rows, 3 k), ``lo`` and ``hi`` (H, rows).
+        """
+        H, k, _ = P.shape
+        E = self.edges
+        c3 = 3 * np.arange(k)
+        G = np.zeros((H, 6, 3 * k))
+        G[:, :3] = np.tile(np.eye(3), k)
+        G[:, 3, c3 + 1], G[:, 3, c3 + 2] = -P[:, :, 2], P[:, :, 1]  # [p_c]_x, contact by contact
+        G[:, 4, c3], G[:, 4, c3 + 2] = P[:, :, 2], -P[:, :, 0]
+        G[:, 5, c3], G[:, 5, c3 + 1] = -P[:, :, 1], P[:, :, 0]
+        nrm = np.zeros((H, k, 3 * k))
+        nrm[:, np.arange(k)[:, None], c3[:, None] + np.arange(3)] = N
+        facets = friction_cone_facets(N.reshape(-1, 3), self.mu, E).reshape(H, k, E, 3)
+        cone = np.zeros((H, k * E, 3 * k))
+        r_idx = (E * np.arange(k))[:, None, None] + np.arange(E)[None, :, None]
+        cone[:, r_idx, c3[:, None, None] + np.arange(3)] = facets
+        f_min = self.forces.min_normal_force
+        lo = np.concatenate([-w_ext, np.full((H, k), f_min), np.full((H, k * E), -np.inf)], axis=1)
+        hi = np.concatenate([-w_ext, np.full((H, k), np.inf), np.zeros((H, k * E))], axis=1)
+        return np.concatenate([G, nrm, cone], axis=1), lo, hi
+
+    def _torques(self, P: FloatArray, N: FloatArray, frames: Sequence[_Frame]) -> FloatArray:
+        """(H, joints, k r) the limited joints' torques per unit of each contact's variables.
 
         ``tau = J^T [f_w; d x f_w (+ tau_n R n)]`` with ``f_w = R f`` the force
         in the world frame and ``d`` the tip centre to the contact
         (:func:`~dexplan.model.grasp.grip_program.contact_torque_columns`, for
-        all contacts at once).
+        H contact sets of k contacts at once, set j at ``frames[j]``'s pose).
         """
-        k = P.shape[0]
-        d = f.pose[:3] + P @ f.R.T - f.centres  # (k, 3) tip centre to contact, world frame
-        S = np.zeros((k, 3, 3))
-        S[:, 0, 1], S[:, 0, 2] = -d[:, 2], d[:, 1]
-        S[:, 1, 0], S[:, 1, 2] = d[:, 2], -d[:, 0]
-        S[:, 2, 0], S[:, 2, 1] = -d[:, 1], d[:, 0]
-        lift = np.concatenate([np.broadcast_to(f.R, (k, 3, 3)), S @ f.R], axis=1)  # (k, 6, 3)
-        cols = f.jt @ lift  # (k, joints, 3)
+        H, k, _ = P.shape
+        R = np.array([f.R for f in frames])  # (H, 3, 3)
+        jt = np.array([f.jt for f in frames])  # (H, k, joints, 6)
+        origin = np.array([f.pose[:3] for f in frames])[:, None, :]
+        d = origin + P @ R.transpose(0, 2, 1) - np.array([f.centres for f in frames])
+        S = np.zeros((H, k, 3, 3))  # [d]_x: tip centre to contact, world frame
+        S[..., 0, 1], S[..., 0, 2] = -d[..., 2], d[..., 1]
+        S[..., 1, 0], S[..., 1, 2] = d[..., 2], -d[..., 0]
+        S[..., 2, 0], S[..., 2, 1] = -d[..., 1], d[..., 0]
+        Rk = np.broadcast_to(R[:, None], (H, k, 3, 3))
+        cols = jt @ np.concatenate([Rk, S @ Rk], axis=2)  # (H, k, joints, 3)
         if self.soft:  # the torsion variable: tau_n R n_c, scaled by L
-            twist = np.einsum("cjs,cs->cj", f.jt[:, :, 3:], N @ f.R.T) * self.L
-            cols = np.concatenate([cols, twist[:, :, None]], axis=2)
-        return cols.transpose(1, 0, 2).reshape(cols.shape[1], -1)
+            twist = np.einsum("hcjs,hcs->hcj", jt[..., 3:], N @ R.transpose(0, 2, 1)) * self.L
+            cols = np.concatenate([cols, twist[..., None]], axis=3)
+        return cols.transpose(0, 2, 1, 3).reshape(H, cols.shape[2], -1)
 
     def _used(self, idx: list[int]) -> np.ndarray:
         """Positions in the limited joints of the joints of the loaded fingers ``idx``."""
