@@ -211,11 +211,18 @@ class HoldChecker:
         worst = lp.ratio(*self._block(frame.P, frame.N, frame))
         if not shifted or self.shift_m <= 0 or not worst <= 1.0:
             return worst
-        for c in range(len(frame.P)):
-            for P2, N2 in self._shifted(frame.P, frame.N, c):
-                worst = max(worst, lp.ratio(*self._block(P2, N2, frame)))
-                if worst == math.inf:
-                    return worst
+        sets = [s for c in range(len(frame.P)) for s in self._shifted(frame.P, frame.N, c)]
+        if self.soft or self.mu <= 0.0:
+            blocks = [self._block(P2, N2, frame) for P2, N2 in sets]
+        else:  # the moved sets' rows and torques at once
+            P2, N2 = np.array([P2 for P2, _ in sets]), np.array([N2 for _, N2 in sets])
+            A, lo, hi = self._point_rows(P2, N2, np.broadcast_to(frame.w_ext, (len(sets), 6)))
+            T = self._torques(P2, N2, [frame] * len(sets))
+            blocks = [(A[j], lo[j], hi[j], T[j], frame.effort) for j in range(len(sets))]
+        for block in blocks:
+            worst = max(worst, lp.ratio(*block))
+            if worst == math.inf:
+                return worst
         return worst
 
     def _wrench(self, pose: FloatArray, R: FloatArray | None = None) -> FloatArray:
