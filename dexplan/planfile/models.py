@@ -9,6 +9,7 @@ is the inverse of :func:`hand_from_plan`: the ``hand`` table a plan is written w
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,12 +22,13 @@ from dexplan.model.grasp.grip_forces import DEFAULT_GRAVITY, DEFAULT_MASS, Force
 from dexplan.model.grasp.holds import DEFAULT_HOLD_SHIFT
 from dexplan.model.grasp.rolling import ContactMotion
 from dexplan.model.hand.hand import Hand
-from dexplan.model.hand.packages import mesh_mismatches
+from dexplan.model.hand.packages import mesh_mismatches, search_dirs
 from dexplan.model.objects import Shape, shape_from_dict
 
 __all__ = [
     "NOT_SHAPE_FIELDS",
     "PlanModels",
+    "cached_plan_hand",
     "hand_from_plan",
     "hand_table",
     "models_from_document",
@@ -188,3 +190,30 @@ def plan_force_settings(doc: Mapping[str, Any]) -> ForceSettings:
         mass=float(doc["object"].get("mass", DEFAULT_MASS)),
         gravity=(float(g[0]), float(g[1]), float(g[2])),
     )
+
+
+#: Hands rebuilt from plan files, by the ``hand`` table's content (most recent
+#: last), and how many are kept.
+_HANDS: dict[str, Hand] = {}
+_HANDS_SIZE = 4
+
+
+def cached_plan_hand(table: Mapping[str, Any]) -> Hand:
+    """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
+
+    Many queries of one process carry the same hand: rebuilding its model
+    (URDF parsing, Pinocchio and coal geometry) for each plan costs about as much as
+    checking a third of its waypoints. The key is the whole table (URDF text,
+    fingertip frames and radius, exclusions, joint names), so a plan of any
+    other hand is rebuilt from its own file. The folders mesh files are
+    searched in are part of the key: the same table elsewhere may resolve
+    its ``package://`` meshes to other files (checked against ``mesh_sha256``).
+    """
+    key = json.dumps([table, search_dirs()], sort_keys=True)
+    hand = _HANDS.pop(key, None)
+    if hand is None:
+        hand = hand_from_plan(table)
+        if len(_HANDS) >= _HANDS_SIZE:
+            _HANDS.pop(next(iter(_HANDS)))
+    _HANDS[key] = hand
+    return hand

@@ -18,7 +18,6 @@ The format itself (reading, writing, building) is
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,11 +33,9 @@ from dexplan.core.typing import FloatArray
 from dexplan.model.grasp import ForceClosure, Solver, exact_force_closure_batch
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.grasp.rolling import ContactMotion
-from dexplan.model.hand.hand import Hand
-from dexplan.model.hand.packages import search_dirs
 from dexplan.model.objects.fingertip import TIP_DISTANCE_TOL, fingertip_contact
 from dexplan.planfile.document import segments_from_dicts
-from dexplan.planfile.models import PlanModels, hand_from_plan, models_from_document
+from dexplan.planfile.models import PlanModels, cached_plan_hand, models_from_document
 from dexplan.planfile.rules import (
     CONTACT_DRIFT_TOL,
     FC_PASS,
@@ -553,33 +550,6 @@ class _Checker:
             self.add(*last, "goal", msg)
 
 
-#: Hands rebuilt from plan files, by the ``hand`` table's content (most recent
-#: last), and how many are kept.
-_HANDS: dict[str, Hand] = {}
-_HANDS_SIZE = 4
-
-
-def _plan_hand(table: Mapping[str, Any]) -> Hand:
-    """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
-
-    Many queries of one process carry the same hand: rebuilding its model
-    (URDF parsing, Pinocchio and coal geometry) for each plan costs about as much as
-    checking a third of its waypoints. The key is the whole table (URDF text,
-    fingertip frames and radius, exclusions, joint names), so a plan of any
-    other hand is rebuilt from its own file. The folders mesh files are
-    searched in are part of the key: the same table elsewhere may resolve
-    its ``package://`` meshes to other files (checked against ``mesh_sha256``).
-    """
-    key = json.dumps([table, search_dirs()], sort_keys=True)
-    hand = _HANDS.pop(key, None)
-    if hand is None:
-        hand = hand_from_plan(table)
-        if len(_HANDS) >= _HANDS_SIZE:
-            _HANDS.pop(next(iter(_HANDS)))
-    _HANDS[key] = hand
-    return hand
-
-
 def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
     """Check every rule of a ``dexplan-plan/2`` (or ``/1``) document.
 
@@ -597,7 +567,7 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
     """
     validate_plan(doc, base_dir)
     try:
-        hand = _plan_hand(doc["hand"])
+        hand = cached_plan_hand(doc["hand"])
         chk = _Checker(models_from_document(doc, Path(base_dir), hand=hand))
     except PlanFileError:
         raise
