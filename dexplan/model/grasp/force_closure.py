@@ -431,6 +431,15 @@ class ForceClosure:
         if z0 is None:
             return 0.0
         pairs = PairBounds(sub, z0)
+        # a pair whose first lower bound is above the least upper bound (or the
+        # cap) cannot be the least: only the subsets with a pair below it are
+        # refined and searched (the margin absorbs the bounds' rounding)
+        below = min(cap, float(pairs.q_hi.min())) * (1.0 + 1e-9)
+        keep = np.flatnonzero((pairs.first_lower() <= below).any(axis=1))
+        if not len(keep):
+            return cap
+        if len(keep) < len(z0):
+            pairs = PairBounds(sub.take(keep), z0[keep])
         pairs.refine()
         use_osqp = self.solver == Solver.OSQP and con.r in (1, 3)  # as _min_quality
         return self._branch_and_bound(pairs, None, use_osqp, cap)
