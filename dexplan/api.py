@@ -97,7 +97,7 @@ class Plan:
         return self.result.segments
 
     def to_document(self, out_dir: str | Path = ".") -> dict[str, Any]:
-        """The ``dexplan-plan/1`` document (mesh paths relative to ``out_dir``).
+        """The ``dexplan-plan/2`` document (mesh paths relative to ``out_dir``).
 
         Its ``stats`` are the planner's, plus the ``quality`` table when computed
         (:meth:`PlanQuality.as_dict` and ``time_s``, the seconds it took).
@@ -386,7 +386,7 @@ def verify(plan_file: str | Path | Mapping[str, Any]) -> VerifyReport:
 
     Raises:
         PlanFileError: the file is missing, not JSON, or not a well-formed
-            ``dexplan-plan/1`` document.
+            ``dexplan-plan/2`` document.
     """
     if isinstance(plan_file, Mapping):
         return verify_plan(plan_file, ".")

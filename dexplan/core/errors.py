@@ -41,7 +41,7 @@ class PlannerError(DexplanError):
 
 
 class PlanFileError(DexplanError):
-    """A plan file cannot be read or does not follow the ``dexplan-plan/1`` format."""
+    """A plan file cannot be read or does not follow the ``dexplan-plan/2`` format."""
 
 
 class RoadmapFileError(PlanFileError):

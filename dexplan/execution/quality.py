@@ -1,6 +1,6 @@
 """Plan quality: the figures users compare plans by, from a plan document.
 
-:func:`plan_quality` computes a :class:`PlanQuality` from a ``dexplan-plan/1``
+:func:`plan_quality` computes a :class:`PlanQuality` from a ``dexplan-plan/2``
 document in three parts, cheapest first:
 
 - **geometry** (microseconds, from the segments alone): regrasps and
@@ -245,7 +245,7 @@ def plan_quality(
     """The quality figures of a plan (module docstring).
 
     Args:
-        doc: a validated ``dexplan-plan/1`` document
+        doc: a validated ``dexplan-plan/2`` document
             (:func:`~dexplan.planfile.document.read_plan`,
             :func:`~dexplan.planfile.document.build_plan_document`).
         base_dir: folder relative mesh paths resolve against (the plan's).

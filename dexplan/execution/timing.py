@@ -1,6 +1,6 @@
 """Time parameterisation of a plan: time-optimal, quasi-static, at rest at every segment end.
 
-A plan (``dexplan-plan/1``) is geometric: waypoints without time. Each segment
+A plan (``dexplan-plan/2``) is geometric: waypoints without time. Each segment
 is parameterised on its own with toppra (time-optimal path parameterisation by
 reachability analysis, Pham & Pham 2018); nothing of the optimisation is
 written here.
@@ -437,7 +437,7 @@ def _times_at(sv: FloatArray, grid: FloatArray, sd: FloatArray, times: FloatArra
 def time_plan(
     doc: Mapping[str, Any], limits: TimingLimits = DEFAULT_LIMITS, hand: Hand | None = None
 ) -> PlanTiming:
-    """Time-parameterise every segment of a validated ``dexplan-plan/1`` document.
+    """Time-parameterise every segment of a validated ``dexplan-plan/2`` document.
 
     Args:
         doc: the plan (:func:`dexplan.planfile.document.read_plan`).

@@ -1,4 +1,4 @@
-"""Plan files (``dexplan-plan/1``): the document, its schema, its models, its verifier.
+"""Plan files (``dexplan-plan/2``): the document, its schema, its models, its verifier.
 
 :mod:`~dexplan.planfile.document` builds, writes and reads documents,
 :mod:`~dexplan.planfile.schema` checks their structure,

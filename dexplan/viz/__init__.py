@@ -7,7 +7,7 @@ without rerun-sdk, and asking for a recording without it raises
 
 Three entry points write ``.rrd`` files that the Rerun viewer opens directly:
 
-- :func:`record_plan`: a ``dexplan-plan/1`` document (and optionally the
+- :func:`record_plan`: a ``dexplan-plan/2`` document (and optionally the
   roadmap it came from), animated on the ``plan_step`` and ``time`` timelines;
 - :func:`record_roadmap`: a GSn roadmap alone, with or without the hand,
   object and obstacles of a plan document or scenario;

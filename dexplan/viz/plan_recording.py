@@ -1,4 +1,4 @@
-"""Recordings of plans: a ``dexplan-plan/1`` document animated on ``plan_step`` and ``time``."""
+"""Recordings of plans: a ``dexplan-plan/2`` document animated on ``plan_step`` and ``time``."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def record_plan(
     roadmap: Roadmap | None = None,
     base_dir: Path = Path("."),
 ) -> None:
-    """Write a Rerun recording (``.rrd``) of a ``dexplan-plan/1`` document.
+    """Write a Rerun recording (``.rrd``) of a ``dexplan-plan/2`` document.
 
     The recording holds the static scene (hand link geometry, object, goal,
     obstacles, palm frame, in a right-handed z-up world), the roadmap when

@@ -267,7 +267,7 @@ def record_roadmap(
     Args:
         roadmap: the roadmap (e.g. :meth:`Roadmap.load`).
         path: output ``.rrd`` file.
-        scene: models to draw: a ``dexplan-plan/1`` document, a scenario, or
+        scene: models to draw: a ``dexplan-plan/2`` document, a scenario, or
             None for the roadmap alone.
         base_dir: folder relative mesh paths of a plan document resolve against.
         browse_nodes: put each node's configuration on ``roadmap_node``.

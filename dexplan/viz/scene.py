@@ -1,6 +1,6 @@
 """The scene of a recording: hand, object, goal and obstacles, static and per configuration.
 
-The models are rebuilt from a ``dexplan-plan/1`` document or a
+The models are rebuilt from a ``dexplan-plan/2`` document or a
 :class:`~dexplan.model.scenario.scenario.Scenario` (:class:`Scene`); the hand's link
 geometry, the object, goal and obstacles are logged once, statically
 (:func:`log_scene_static`), and configurations (object pose and every moving
@@ -108,7 +108,7 @@ def obstacles_from_dicts(
 
 
 def scene_from_doc(doc: Mapping[str, Any], base_dir: Path) -> Scene:
-    """Hand, object and obstacles of a ``dexplan-plan/1`` document.
+    """Hand, object and obstacles of a ``dexplan-plan/2`` document.
 
     Raises:
         PlanFileError: the document is malformed (the message names the
