@@ -22,7 +22,6 @@ from typing import cast
 
 import numpy as np
 
-from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray, as_positive
 from dexplan.model.grasp.cones import ContactModel, check_grasp, min_contacts
 from dexplan.model.grasp.force_closure import DEFAULT, ForceClosure, Verdict
@@ -30,9 +29,10 @@ from dexplan.model.grasp.subgrasps import (
     Contacts,
     PairBounds,
     Subsets,
-    drop_one,
+    batch_subsets,
     scaled_torsion,
     screen_groups,
+    stacked_grasps,
 )
 
 __all__ = ["exact_force_closure_batch", "min_subgrasp_quality_batch"]
@@ -73,7 +73,7 @@ def min_subgrasp_quality_batch(
     Raises:
         InvalidInputError: shapes other than (B, k, 3), or as the scalar method.
     """
-    pts_b, nrm_b = _stacked(points, normals)
+    pts_b, nrm_b = stacked_grasps(points, normals)
     B, k, _ = pts_b.shape
     if B == 0:
         return np.zeros(0)
@@ -115,7 +115,7 @@ def _bounded(
     if k - 1 < min_contacts(mu, model):
         return out, none
     # subset s = k b + j of grasp b leaves out its contact j (the scalar order)
-    subsets = (drop_one(k)[None] + k * np.arange(B)[:, None, None]).reshape(B * k, k - 1)
+    subsets, _ = batch_subsets(B, k, subgrasps=True)
     sub = Subsets(con, subsets)
     z0, screened = screen_groups(sub, k)
     alive = np.flatnonzero(screened.reshape(B, k).all(axis=1))
@@ -180,7 +180,7 @@ def exact_force_closure_batch(
     Raises:
         InvalidInputError: shapes other than (B, k, 3), or as the scalar method.
     """
-    pts_b, nrm_b = _stacked(points, normals)
+    pts_b, nrm_b = stacked_grasps(points, normals)
     B, k, _ = pts_b.shape
     if B == 0:
         return []
@@ -189,11 +189,10 @@ def exact_force_closure_batch(
     )
     if (k - 1 if subgrasps else k) < min_contacts(mu_f, contact_model):
         return [Verdict.NOT_FC] * B
-    one = drop_one(k) if subgrasps else np.arange(k)[None, :]
-    subsets = (one[None] + k * np.arange(B)[:, None, None]).reshape(-1, one.shape[1])
+    subsets, per_grasp = batch_subsets(B, k, subgrasps)
     con = Contacts(pts, nrm, mu_f, e, scale, scaled_torsion(contact_model, torsion, scale))
-    _, ok = screen_groups(Subsets(con, subsets), len(one))
-    passed = cast(np.ndarray, ok.reshape(B, len(one)).all(axis=1))
+    _, ok = screen_groups(Subsets(con, subsets), per_grasp)
+    passed = cast(np.ndarray, ok.reshape(B, per_grasp).all(axis=1))
     return [
         Verdict.FC_LINEAR
         if bool(passed[b])
@@ -209,15 +208,3 @@ def exact_force_closure_batch(
         )
         for b in range(B)
     ]
-
-
-def _stacked(points: object, normals: object) -> tuple[FloatArray, FloatArray]:
-    """``points`` and ``normals`` as float arrays of one shape (B, k, 3), checked."""
-    pts_b = np.asarray(points, dtype=float)
-    nrm_b = np.asarray(normals, dtype=float)
-    if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
-        raise InvalidInputError(
-            "points and normals must both have shape (B, k, 3), got "
-            f"{pts_b.shape} and {nrm_b.shape}"
-        )
-    return pts_b, nrm_b

@@ -21,9 +21,11 @@ from dexplan.model.grasp.subgrasps import (
     Contacts,
     PairBounds,
     Subsets,
+    batch_subsets,
     drop_one,
     scaled_torsion,
     screen_groups,
+    stacked_grasps,
 )
 
 __all__ = [
@@ -406,13 +408,7 @@ class ForceClosure:
         Raises:
             InvalidInputError: shapes other than (B, k, 3), or as :meth:`quality`.
         """
-        pts_b = np.asarray(points, dtype=float)
-        nrm_b = np.asarray(normals, dtype=float)
-        if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
-            raise InvalidInputError(
-                "points and normals must both have shape (B, k, 3), got "
-                f"{pts_b.shape} and {nrm_b.shape}"
-            )
+        pts_b, nrm_b = stacked_grasps(points, normals)
         B, k, _ = pts_b.shape
         if B == 0:
             return cap
@@ -420,14 +416,13 @@ class ForceClosure:
         grasp = _Grasp(*flat, mu, edges, torque_scale, contact_model, torsion)
         if (k - 1 if subgrasps else k) < min_contacts(grasp.mu, grasp.model):
             return 0.0
-        # (S, m) subsets of one grasp, as its scalar call takes them; grasp b's are offset by k b
-        one = drop_one(k) if subgrasps else np.arange(k)[None, :]
-        subsets = (one[None] + k * np.arange(B)[:, None, None]).reshape(-1, one.shape[1])
+        # each grasp's subsets, as its scalar call takes them
+        subsets, per_grasp = batch_subsets(B, k, subgrasps)
         self._calls += 1
         self.stats["evaluations"] += B
         con = grasp.contacts()
         sub = Subsets(con, subsets)
-        z0 = self._screen(sub, len(one))
+        z0 = self._screen(sub, per_grasp)
         if z0 is None:
             return 0.0
         pairs = PairBounds(sub, z0)

@@ -15,6 +15,7 @@ from typing import cast
 
 import numpy as np
 
+from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp.cones import check_contact_model, pyramid_facets, soft_pyramid_facets
 from dexplan.model.grasp.least_distance import ldp, ldp_norm
@@ -321,6 +322,38 @@ def drop_one(k: int) -> np.ndarray:
         idx = np.arange(k)
         out = _DROP_ONE[k] = np.array([np.delete(idx, s) for s in range(k)], dtype=np.intp)
     return out
+
+
+def batch_subsets(n_grasps: int, k: int, subgrasps: bool) -> tuple[np.ndarray, int]:
+    """The subsets of ``n_grasps`` stacked grasps of ``k`` contacts each.
+
+    Grasp ``b``'s contacts are rows ``k b .. k b + k - 1`` of the stacked
+    contacts; its subsets are those of one grasp (every (k-1)-subset with
+    ``subgrasps``, else the whole grasp) offset by ``k b``.
+
+    Returns:
+        ``(subsets (n_grasps S, m), S)``: the index rows, grasp by grasp, and
+        the number ``S`` of subsets per grasp.
+    """
+    one = drop_one(k) if subgrasps else np.arange(k)[None, :]
+    subsets = (one[None] + k * np.arange(n_grasps)[:, None, None]).reshape(-1, one.shape[1])
+    return subsets, len(one)
+
+
+def stacked_grasps(points: object, normals: object) -> tuple[FloatArray, FloatArray]:
+    """``points`` and ``normals`` as float arrays of one shape (B, k, 3), checked.
+
+    Raises:
+        InvalidInputError: other shapes.
+    """
+    pts_b = np.asarray(points, dtype=float)
+    nrm_b = np.asarray(normals, dtype=float)
+    if pts_b.ndim != 3 or pts_b.shape[2] != 3 or pts_b.shape != nrm_b.shape:
+        raise InvalidInputError(
+            "points and normals must both have shape (B, k, 3), got "
+            f"{pts_b.shape} and {nrm_b.shape}"
+        )
+    return pts_b, nrm_b
 
 
 def scaled_torsion(contact_model: object, torsion: object, scale: float) -> float | None:
