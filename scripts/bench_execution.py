@@ -66,7 +66,9 @@ def _scenario(name: str) -> str:
     for p in (SCENARIOS / f"{name}.toml", SCENARIOS / "suite" / f"{name}.toml"):
         if p.exists():
             return str(p)
-    raise SystemExit(f"bench_execution: scenario {name!r} not found")
+    # bad input: one line naming the field and the value, exit 2 (as the CLI)
+    print(f"bench_execution: error: --scenario {name!r}: no such scenario", file=sys.stderr)
+    raise SystemExit(2)
 
 
 def _plan(seed: int, args: argparse.Namespace, out: Path) -> Path | None:
