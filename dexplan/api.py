@@ -35,7 +35,6 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
 from dexplan.execution.quality import PlanQuality, QualityLevel, plan_quality
 from dexplan.model.hand.hand import Hand
-from dexplan.model.hand.packages import package_search_path
 from dexplan.model.scenario import (
     GoalSpec,
     Scenario,
@@ -199,9 +198,10 @@ class _Checker:
         scen = self.scenario
         doc = build_plan_document(scen, self.hand, result, scen.base_dir)
         # the plan's package:// meshes resolve where the planner's hand found
-        # them (the scenario's package_dirs too), as `verify --package-dir` would
-        with package_search_path(self.hand.package_dirs):
-            report = verify_plan(doc, scen.base_dir)
+        # them (the scenario's package_dirs too), as `verify --package-dir`
+        # would; given as folders, not as ROS_PACKAGE_PATH entries, each of
+        # which is crawled two levels deep for packages (site-packages is one)
+        report = verify_plan(doc, scen.base_dir, self.hand.package_dirs)
         self.checked[:] = [(doc, report)]
         return [str(v) for v in report.violations]
 

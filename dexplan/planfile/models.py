@@ -198,7 +198,7 @@ _HANDS: dict[str, Hand] = {}
 _HANDS_SIZE = 4
 
 
-def cached_plan_hand(table: Mapping[str, Any]) -> Hand:
+def cached_plan_hand(table: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()) -> Hand:
     """The hand of a plan's ``hand`` table, rebuilt once per distinct table.
 
     Many queries of one process carry the same hand: rebuilding its model
@@ -206,13 +206,14 @@ def cached_plan_hand(table: Mapping[str, Any]) -> Hand:
     checking a third of its waypoints. The key is the whole table (URDF text,
     fingertip frames and radius, exclusions, joint names), so a plan of any
     other hand is rebuilt from its own file. The folders mesh files are
-    searched in are part of the key: the same table elsewhere may resolve
-    its ``package://`` meshes to other files (checked against ``mesh_sha256``).
+    searched in (``package_dirs`` first, :func:`search_dirs`) are part of the
+    key: the same table elsewhere may resolve its ``package://`` meshes to
+    other files (checked against ``mesh_sha256``).
     """
-    key = json.dumps([table, search_dirs()], sort_keys=True)
+    key = json.dumps([table, search_dirs(package_dirs)], sort_keys=True)
     hand = _HANDS.pop(key, None)
     if hand is None:
-        hand = hand_from_plan(table)
+        hand = hand_from_plan(table, package_dirs)
         if len(_HANDS) >= _HANDS_SIZE:
             _HANDS.pop(next(iter(_HANDS)))
     _HANDS[key] = hand

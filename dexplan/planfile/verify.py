@@ -550,12 +550,16 @@ class _Checker:
             self.add(*last, "goal", msg)
 
 
-def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyReport:
+def verify_plan(
+    doc: Mapping[str, Any], base_dir: str | Path = ".", package_dirs: Sequence[str | Path] = ()
+) -> VerifyReport:
     """Check every rule of a ``dexplan-plan/2`` (or ``/1``) document.
 
     Args:
         doc: the parsed plan (see :func:`dexplan.planfile.document.read_plan`).
         base_dir: folder that relative mesh paths resolve against.
+        package_dirs: folders the hand's ``package://`` mesh URIs resolve
+            against first (:func:`~dexplan.model.hand.packages.search_dirs`).
 
     Returns:
         A :class:`VerifyReport` listing every violation.
@@ -567,7 +571,7 @@ def verify_plan(doc: Mapping[str, Any], base_dir: str | Path = ".") -> VerifyRep
     """
     validate_plan(doc, base_dir)
     try:
-        hand = cached_plan_hand(doc["hand"])
+        hand = cached_plan_hand(doc["hand"], package_dirs)
         chk = _Checker(models_from_document(doc, Path(base_dir), hand=hand))
     except PlanFileError:
         raise

@@ -48,6 +48,7 @@ object poses are given as ``(x, y, z, qx, qy, qz, qw)``.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -66,6 +67,7 @@ __all__ = [
     "ContactMotion",
     "FingertipRolling",
     "RollSettings",
+    "RollStep",
     "RolledContact",
     "point_jacobian",
     "tip_side_contacts",
@@ -154,6 +156,25 @@ class RolledContact:
     arc_obj: float
     arc_tip: float
     slip: float
+
+
+@dataclass(frozen=True)
+class RollStep:
+    """Fingers after one substep of a roll (:meth:`FingertipRolling.step`).
+
+    Attributes:
+        q: (nq,) the hand's joints, only the rolled fingers' changed.
+        p_obj: (F, 3) per rolled finger, its contact point, object frame.
+        normals_obj: (F, 3) the object's outward unit normals there, object frame.
+        p_tip: (F, 3) the contact points in each tip link's frame.
+        slip: (F,) per finger, the displacement (m) its joints could not follow.
+    """
+
+    q: FloatArray
+    p_obj: FloatArray
+    normals_obj: FloatArray
+    p_tip: FloatArray
+    slip: FloatArray
 
 
 def point_jacobian(J6: FloatArray, p_world: FloatArray, c_world: FloatArray) -> FloatArray:
@@ -289,28 +310,65 @@ class FingertipRolling:
         if check_touch:
             for f, p in zip(fs, P, strict=True):
                 self._check_touch(f, q, pose_a, p)
-        s = self.settings
-        angle = quat_angle(pose_a[3:7], pose_b[3:7])
-        dist = float(np.linalg.norm(np.asarray(pose_b[:3]) - pose_a[:3]))
-        k = max(1, math.ceil(max(angle / s.max_substep_rad, dist / s.max_substep_m)))
+        poses = self.substep_poses(pose_a, pose_b)
         prev = _pose(pose_a)
         R_t, c = self._placements(fs, q)
         T = np.array([R_t[i].T @ (prev[1] + prev[0] @ P[i] - c[i]) for i in range(len(fs))])
         normals = self.obj.closest_point(P)[1]
         arc_obj, arc_tip, slip = [0.0] * len(fs), [0.0] * len(fs), [0.0] * len(fs)
-        for j in range(1, k + 1):
-            frame = _pose(interpolate_pose(pose_a, pose_b, j / k))
-            q, moved = self._substep(fs, q, prev, frame, P)
-            P_new, normals, T_new = self._contacts(fs, q, frame)
+        for a, b in itertools.pairwise(poses):
+            out = self.step(fs, q, a, b, P)
             for i in range(len(fs)):
-                arc_obj[i] += _norm(P_new[i] - P[i])
-                arc_tip[i] += _norm(T_new[i] - T[i])
-                slip[i] += moved[i]
-            P, T, prev = P_new, T_new, frame
+                arc_obj[i] += _norm(out.p_obj[i] - P[i])
+                arc_tip[i] += _norm(out.p_tip[i] - T[i])
+                slip[i] += float(out.slip[i])
+            q, P, normals, T = out.q, out.p_obj, out.normals_obj, out.p_tip
         return [
             RolledContact(q.copy(), P[i], normals[i], T[i], arc_obj[i], arc_tip[i], slip[i])
             for i in range(len(fs))
         ]
+
+    def substep_poses(self, pose_a: FloatArray, pose_b: FloatArray) -> FloatArray:
+        """The object poses ``(k + 1, 7)`` a roll from ``pose_a`` to ``pose_b`` steps through.
+
+        ``k`` substeps of at most :attr:`RollSettings.max_substep_rad` and
+        :attr:`RollSettings.max_substep_m`, evenly spaced (interpolated as
+        :func:`~dexplan.core.pose.interpolate_pose`); the first pose is
+        ``pose_a`` and the last ``pose_b``, exactly.
+        """
+        s = self.settings
+        pose_a, pose_b = np.asarray(pose_a, dtype=float), np.asarray(pose_b, dtype=float)
+        angle = quat_angle(pose_a[3:7], pose_b[3:7])
+        dist = float(np.linalg.norm(pose_b[:3] - pose_a[:3]))
+        k = max(1, math.ceil(max(angle / s.max_substep_rad, dist / s.max_substep_m)))
+        inner = [interpolate_pose(pose_a, pose_b, j / k) for j in range(1, k)]
+        return np.array([pose_a, *inner, pose_b])
+
+    def step(
+        self,
+        fingers: Sequence[int],
+        q: FloatArray,
+        pose_a: FloatArray,
+        pose_b: FloatArray,
+        points: FloatArray,
+    ) -> RollStep:
+        """One substep of :meth:`roll_fingers`: the fingers roll from ``pose_a`` to ``pose_b``.
+
+        The poses must be one substep apart (:meth:`substep_poses`); the
+        fingers, as in :meth:`roll_fingers`, are not checked.
+
+        Args:
+            fingers: the fingers, each once.
+            q: (nq,) the hand's joints at ``pose_a``, each tip touching its contact.
+            pose_a: (7,) the object's pose before, world frame, XYZW.
+            pose_b: (7,) the object's pose after.
+            points: (len(fingers), 3) the contacts at ``pose_a``, object frame.
+        """
+        fs = list(fingers)
+        frame = _pose(pose_b)
+        q, slip = self._substep(fs, np.asarray(q, dtype=float), _pose(pose_a), frame, points)
+        P, normals, T = self._contacts(fs, q, frame)
+        return RollStep(q, P, normals, T, np.asarray(slip, dtype=float))
 
     def _check_touch(self, finger: int, q: FloatArray, pose: FloatArray, p_obj: FloatArray) -> None:
         """Raise unless the tip sphere at ``q`` touches the object at ``p_obj``."""
@@ -501,20 +559,21 @@ def _solve_all(
 ) -> list[FloatArray]:
     """:func:`_solve` of each ``(J, rhs)``, the square systems of full-rank shapes stacked.
 
-    A finger of 3 joints or more solves a 3 x 3 system: those are solved in
-    one batched call (each exactly as alone); other shapes one by one.
+    A finger of 3 joints or more solves a 3 x 3 system: those of one shape
+    are solved in one batched call (each exactly as alone); other shapes one
+    by one.
     """
     out: list[FloatArray | None] = [None] * len(Js)
-    wide = [i for i, J in enumerate(Js) if J.shape[0] == 3 and J.shape[1] >= 3]
-    if wide:
-        A = np.empty((len(wide), 3, 3))
-        for k, i in enumerate(wide):
-            A[k] = Js[i] @ Js[i].T
+    shapes = {J.shape for J in Js if J.shape[0] == 3 and J.shape[1] >= 3}
+    for shape in shapes:
+        rows = [i for i, J in enumerate(Js) if J.shape == shape]
+        J = np.array([Js[i] for i in rows])
+        JT = J.transpose(0, 2, 1)
+        A = J @ JT
         A[:, [0, 1, 2], [0, 1, 2]] += damping
-        b = np.array([rhs[i] for i in wide])[:, :, None]
-        y = np.linalg.solve(A, b)[:, :, 0]
-        for k, i in enumerate(wide):
-            out[i] = np.asarray(Js[i].T @ y[k], dtype=np.float64)
+        y = np.linalg.solve(A, np.array([rhs[i] for i in rows])[:, :, None])
+        for k, x in zip(rows, (JT @ y)[:, :, 0], strict=True):
+            out[k] = x
     for i, J in enumerate(Js):
         if out[i] is None:
             out[i] = _solve(J, rhs[i], damping)

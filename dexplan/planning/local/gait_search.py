@@ -178,16 +178,12 @@ def search_gaits(
             tr = state.transfer
             if tr is not None and tr.blocking is not None:
                 children.extend(_children(trans, poses, state, tr, branching, tolerance))
-        ranked = sorted(
-            _evaluate(trans, poses, _unseen(children, seen)),
-            key=lambda s: s.rank(end),
-            reverse=True,
-        )
-        layer, spare = ranked[:beam_width], ranked[beam_width:]
+        layer, spare = _beam(trans, poses, _unseen(children, seen), beam_width, end)
         reserve.extend(s for s in spare if s.regrasps < max_regrasps)
         if not layer:
             # every kept state is a dead end: go back to the states left out
             # that got farthest
+            reserve = _evaluated(trans, poses, reserve)
             reserve.sort(key=lambda s: (s.idx, s.rank(end)), reverse=True)
             layer, reserve = reserve[:beam_width], reserve[beam_width:]
         if not layer:
@@ -221,6 +217,43 @@ def _unseen(children: list[_State], seen: set[tuple[int, bytes]]) -> list[_State
         if key not in seen:
             seen.add(key)
             out.append(c)
+    return out
+
+
+def _beam(
+    trans: Transitions, poses: FloatArray, states: list[_State], width: int, end: int
+) -> tuple[list[_State], list[_State]]:
+    """The ``width`` best of ``states`` by :meth:`_State.rank` once evaluated, and the others.
+
+    Running a state's transfer (:func:`_evaluate`) can only lower its rank:
+    the finger that blocks secures no more stroke than its landing promised,
+    and it may not be let go there. So the states are evaluated best
+    promise first, and those whose promise ranks below ``width`` evaluated
+    states are left unevaluated (their transfers are the search's largest
+    cost): the beam is the one evaluating all of them would give, in the
+    same order. The others are returned too, evaluated or not
+    (:func:`_evaluated` runs the rest if the search comes back to them).
+    """
+    promise = [s.rank(end) for s in states]
+    done: dict[int, _State | None] = {}
+    for i in sorted(range(len(states)), key=lambda i: promise[i], reverse=True):
+        ranks = sorted((d.rank(end) for d in done.values() if d is not None), reverse=True)
+        if len(ranks) >= width and ranks[width - 1] > promise[i]:
+            break  # this promise and every one after it rank below the beam
+        out = _evaluate(trans, poses, [states[i]])
+        done[i] = out[0] if out else None
+    kept = [done.get(i, s) for i, s in enumerate(states) if done.get(i, s) is not None]
+    ranked = sorted(
+        (s for s in kept if s.transfer is not None), key=lambda s: s.rank(end), reverse=True
+    )
+    return ranked[:width], ranked[width:] + [s for s in kept if s.transfer is None]
+
+
+def _evaluated(trans: Transitions, poses: FloatArray, states: list[_State]) -> list[_State]:
+    """``states``, those not yet evaluated by :func:`_beam` evaluated (dropped where it drops)."""
+    out = []
+    for s in states:
+        out.extend([s] if s.transfer is not None else _evaluate(trans, poses, [s]))
     return out
 
 

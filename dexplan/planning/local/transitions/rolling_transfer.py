@@ -26,7 +26,9 @@ sphere touches it (the plan file writes it in the tip link's frame).
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -48,6 +50,9 @@ _MAX_HALVINGS = 4
 #: Slip (m) of one step above which a finger of fewer than 3 joints cannot roll
 #: (the verifier's no-slip rule allows 1e-4 m over a whole transfer).
 LOW_DOF_SLIP = 1e-6
+#: Finger substeps remembered (:meth:`RollingTransferPlanner._step_all`)
+#: before the memory is cleared.
+_ROLL_MEMORY = 20_000
 
 
 class RollingTransferPlanner:
@@ -82,6 +87,10 @@ class RollingTransferPlanner:
         self.quality = quality
         self.fc_margin = fc_margin
         self.rolling = FingertipRolling(hand, obj)
+        # every finger's substeps, by (finger, poses, joints, contact): _step_all
+        self._rolls: dict[tuple[int, bytes, bytes, bytes], _FingerRoll] = {}
+        moved = np.concatenate([np.asarray(ix, dtype=int) for ix in hand.finger_q_index])
+        self._shared_q = np.setdiff1d(np.arange(hand.nq), moved)
 
     def transfer(
         self, poses: FloatArray, start: int, q_start: FloatArray, grasp: GraspContacts
@@ -166,17 +175,54 @@ class RollingTransferPlanner:
         its fingertip can follow; elsewhere its least-squares step misses by
         :attr:`RolledContact.slip`, which would be a slip, not a roll.
         """
-        fingers = list(range(self.hand.n_fingers))
-        rolled = self.rolling.roll_fingers(
-            fingers, state.q, pa, pb, state.points, check_touch=False
-        )
-        out = _Rolled(rolled[0].q, state.points.copy(), state.normals.copy())
+        out = _Rolled(state.q.copy(), state.points.copy(), state.normals.copy())
+        slip = np.zeros(self.hand.n_fingers)
+        poses = self.rolling.substep_poses(pa, pb)
+        for a, b in itertools.pairwise(poses):
+            slip += self._step_all(a, b, out)
         slipped = None
-        for f, r in zip(fingers, rolled, strict=True):
-            out.points[f], out.normals[f] = r.p_obj, r.normal_obj
-            if slipped is None and len(self.hand.finger_q_index[f]) < 3 and r.slip > LOW_DOF_SLIP:
+        for f, idx in enumerate(self.hand.finger_q_index):
+            if len(idx) < 3 and slip[f] > LOW_DOF_SLIP:
                 slipped = f
+                break
         return out, slipped
+
+    def _step_all(self, a: FloatArray, b: FloatArray, state: _Rolled) -> FloatArray:
+        """Roll every finger one substep, from pose ``a`` to ``b``, in place; ``(n,)`` slips.
+
+        A finger's substep is remembered: it depends on that finger alone
+        (its joints and contact, the two poses, and joints no finger moves,
+        such as a wrist's). The gait search runs the transfers after a few
+        regrasps from the same state, and the fingers those regrasps leave in
+        place roll the same way in each; a step halved for its joints
+        (:meth:`_advance`) rolls again through its own substeps' poses.
+        Rolled together or alone, a finger rolls exactly alike.
+        """
+        steps = a.tobytes() + b.tobytes() + state.q[self._shared_q].tobytes()
+        keys = [
+            (f, steps, state.q[idx].tobytes(), state.points[f].tobytes())
+            for f, idx in enumerate(self.hand.finger_q_index)
+        ]
+        todo = [f for f, key in enumerate(keys) if key not in self._rolls]
+        if todo:
+            if len(self._rolls) + len(todo) > _ROLL_MEMORY:
+                self._rolls.clear()
+            done = self.rolling.step(todo, state.q, a, b, state.points[todo])
+            for i, f in enumerate(todo):
+                idx = self.hand.finger_q_index[f]
+                self._rolls[keys[f]] = _FingerRoll(
+                    done.q[idx], done.p_obj[i], done.normals_obj[i], float(done.slip[i])
+                )
+        slip = np.empty(self.hand.n_fingers)
+        for f, idx in enumerate(self.hand.finger_q_index):
+            r = self._rolls[keys[f]]
+            state.q[idx], state.points[f], state.normals[f], slip[f] = (
+                r.q,
+                r.p_obj,
+                r.normal_obj,
+                r.slip,
+            )
+        return slip
 
     def verifier_normals(self, pose: FloatArray, q: FloatArray, points: FloatArray) -> FloatArray:
         """(n, 3) outward normals, object frame, of contacts as the verifier reads them.
@@ -212,6 +258,23 @@ class RollingTransferPlanner:
             moved = np.linalg.norm(rolled.points - before.points, axis=1)
             return int(np.argmax(moved)), TransferStop.FORCE_CLOSURE
         return None
+
+
+@dataclass(frozen=True)
+class _FingerRoll:
+    """One finger's roll over one step, as :meth:`RollingTransferPlanner._roll_all` keeps it.
+
+    Attributes:
+        q: (m,) the finger's joints after it.
+        p_obj: (3,) its contact, object frame.
+        normal_obj: (3,) the outward normal there, object frame.
+        slip: (m) what its joints could not follow (:attr:`RolledContact.slip`).
+    """
+
+    q: FloatArray
+    p_obj: FloatArray
+    normal_obj: FloatArray
+    slip: float
 
 
 class _Rolled:
