@@ -141,3 +141,22 @@ def test_batch_ik_matches_forward_kinematics(hand: Hand) -> None:
             q[idx] = qf
             assert np.linalg.norm(hand.fingertip_positions(q)[i] - t) < 1e-8
             assert hand.within_limits(q)
+
+
+def test_reach_voxels_are_the_box_dilation_of_the_sampled_tips() -> None:
+    """Each sampled fingertip's voxel and its 26 neighbours, as scipy's morphology gives them."""
+    from scipy.ndimage import binary_dilation
+
+    from dexplan.model.hand.reach import ReachVoxels
+
+    rng = np.random.default_rng(3)
+    tips = np.vstack([rng.normal(0.0, 0.03, size=(500, 3)), [[0.1, -0.05, 0.02]]])
+    vox = ReachVoxels.from_tips(tips, 0.004)
+    ijk = np.floor((tips - vox.origin) / vox.size).astype(np.int64)
+    seeds = np.zeros(vox.occupied.shape, dtype=bool)
+    seeds[tuple(ijk.T)] = True
+    want = binary_dilation(seeds, structure=np.ones((3, 3, 3), dtype=bool))
+    assert np.array_equal(vox.occupied, want)
+    # a lone tip: exactly its 27 voxels
+    lone = ReachVoxels.from_tips(np.array([[0.0, 0.0, 0.0]]), 0.004)
+    assert int(lone.occupied.sum()) == 27

@@ -14,7 +14,12 @@ from dexplan.core.errors import InvalidInputError
 from dexplan.core.typing import FloatArray
 from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
-from dexplan.planning.local.grasps import current_follow, grasp_follow, grasp_from_state
+from dexplan.planning.local.grasps import (
+    current_follow,
+    follow_bound,
+    grasp_follow,
+    grasp_from_state,
+)
 from dexplan.planning.local.transitions import Transitions, densify_poses
 
 __all__ = [
@@ -112,9 +117,7 @@ def start_state(
     whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
     if whole:
         return _carrying(ctx, pose, future, whole, len(whole) == len(pool), rng)
-    strokes = [_stroke_sum(trans, pose, x, future) for x in pool]
-    far = max(strokes)
-    near = [x for x, f in zip(pool, strokes, strict=True) if f >= START_FOLLOW_SHARE * far]
+    near = _near(trans, pose, future, pool)
     grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
     strength = [trans.grasp_quality(g, exact=True) for g in grasps]
     best, most = near[0], -1
@@ -126,6 +129,34 @@ def start_state(
         if free == ctx.hand.n_fingers:
             break
     return best
+
+
+def _near(
+    trans: Transitions, pose: FloatArray, future: FloatArray, pool: list[FloatArray]
+) -> list[FloatArray]:
+    """The states of ``pool`` whose stroke is near the best one's, in ``pool``'s order.
+
+    Near: a :func:`_stroke_sum` at least :data:`START_FOLLOW_SHARE` of the
+    largest. Tracking the fingers is most of a start grasp's
+    cost, and its IK-only bound (:func:`_stroke_bound`) is nearly as tight:
+    the states are tracked largest bound first, and those whose bound is
+    already below the share of a tracked one's stroke are not tracked.
+    """
+    bounds = [_stroke_bound(trans, pose, x, future) for x in pool]
+    strokes: dict[int, int] = {}
+    for i in sorted(range(len(pool)), key=lambda i: bounds[i], reverse=True):
+        if strokes and bounds[i] < START_FOLLOW_SHARE * max(strokes.values()):
+            break  # neither near the best nor the best, nor is any after it
+        strokes[i] = _stroke_sum(trans, pose, pool[i], future)
+    far = max(strokes.values())
+    return [x for i, x in enumerate(pool) if strokes.get(i, -1) >= START_FOLLOW_SHARE * far]
+
+
+def _stroke_bound(trans: Transitions, pose: FloatArray, x: FloatArray, future: FloatArray) -> int:
+    """An upper bound of :func:`_stroke_sum`: each finger's :func:`follow_bound`, summed."""
+    grasp = grasp_from_state(trans, pose, x[POSE_DIM:])
+    end = len(future) - 1
+    return sum(min(follow_bound(trans, f, grasp, future), end) for f in range(trans.hand.n_fingers))
 
 
 def _stroke_sum(trans: Transitions, pose: FloatArray, x: FloatArray, future: FloatArray) -> int:

@@ -14,7 +14,7 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.transitions import GraspContacts, Transitions
 
-__all__ = ["current_follow", "grasp_follow", "grasp_from_state", "regrasps_onto"]
+__all__ = ["current_follow", "follow_bound", "grasp_follow", "grasp_from_state", "regrasps_onto"]
 
 
 def grasp_follow(
@@ -51,6 +51,20 @@ def current_follow(
         return bound
     limit = bound + max(1, trans.settings.follow_stride)
     return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
+
+
+def follow_bound(trans: Transitions, finger: int, grasp: GraspContacts, future: FloatArray) -> int:
+    """An upper bound of :func:`current_follow`, without tracking the finger.
+
+    The IK-only bound, plus the poses past it the tracking may count (it
+    checks in strides of :attr:`TransitionSettings.follow_stride`).
+    """
+    r = trans.hand.fingertip_radius
+    tip = grasp.points[finger] + r * grasp.normals_out[finger]
+    bound = int(trans.follow_scores(finger, tip[None], future)[0])
+    if trans.tracked_count(finger) <= 0 or bound <= 0:
+        return bound
+    return bound + max(1, trans.settings.follow_stride)
 
 
 def regrasps_onto(
