@@ -34,7 +34,7 @@ def as_vector(value: object, name: str, size: int | None = None) -> FloatArray:
     if arr.ndim != 1 or (size is not None and arr.shape[0] != size):
         want = f"({size},)" if size is not None else "a 1-D array"
         raise InvalidInputError(f"{name} must have shape {want}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise InvalidInputError(f"{name} must be finite, got {shorten(arr.tolist())}")
     return arr
 
@@ -52,7 +52,7 @@ def as_points(value: object, name: str, width: int = 3) -> FloatArray:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != width:
         raise InvalidInputError(f"{name} must have shape (N, {width}), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise InvalidInputError(f"{name} must be finite, got {shorten(arr.tolist())}")
     return arr
 

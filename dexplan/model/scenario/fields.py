@@ -154,7 +154,7 @@ def vector(
     if any(x is None for x in xs):
         fail(f"{name} must be {want}, got {shorten(val)}")
     arr = np.array(xs, dtype=float)
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         fail(f"{name} must be finite, got {shorten(val)}")
     if max_abs is not None and np.any(np.abs(arr) > max_abs):
         fail(f"{name} entries must be within +-{max_abs:g}, got {shorten(val)}")

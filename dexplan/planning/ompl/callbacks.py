@@ -153,7 +153,7 @@ class Accept:
     def __call__(self, candidate: object) -> FloatArray | None:
         """Return the accepted state in planning coordinates ``(n,)``, or None."""
         x = np.asarray(candidate, dtype=np.float64)
-        if x.shape != (self.frame.n,) or not np.all(np.isfinite(x)):
+        if x.shape != (self.frame.n,) or not np.isfinite(x).all():
             raise InvalidInputError(
                 f"a sampler returned shape {x.shape} (need ({self.frame.n},)) or non-finite"
             )

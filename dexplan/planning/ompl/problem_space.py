@@ -324,7 +324,7 @@ class ProblemSpace:
         n = self._spec.ambient_dim
         if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
             raise InvalidInputError(f"waypoints must have shape (M, {n}), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             raise InvalidInputError("waypoints must be finite")
         path = og.PathGeometric(self.si)
         for x in arr:

@@ -246,10 +246,11 @@ class RollingTransferPlanner:
         self, pose: FloatArray, rolled: _Rolled, before: _Rolled
     ) -> tuple[int | None, TransferStop] | None:
         """Why the rolled grasp at ``pose`` is not valid (``(finger, reason)``), or None."""
-        lo, hi = self.checks.lo, self.checks.hi
-        for f, idx in enumerate(self.hand.finger_q_index):
-            if np.any(rolled.q[idx] < lo[idx]) or np.any(rolled.q[idx] > hi[idx]):
-                return f, TransferStop.JOINT_LIMIT
+        out = (rolled.q < self.checks.lo) | (rolled.q > self.checks.hi)
+        if out.any():  # one test for the whole hand; the finger only when one fails
+            for f, idx in enumerate(self.hand.finger_q_index):
+                if out[idx].any():
+                    return f, TransferStop.JOINT_LIMIT
         free, finger = self.checks.collision_finger(rolled.q, pose, self.checks.all_contact)
         if not free:
             return finger, TransferStop.COLLISION
@@ -262,7 +263,7 @@ class RollingTransferPlanner:
 
 @dataclass(frozen=True)
 class _FingerRoll:
-    """One finger's roll over one step, as :meth:`RollingTransferPlanner._roll_all` keeps it.
+    """One finger's substep of a roll, as :meth:`RollingTransferPlanner._step_all` keeps it.
 
     Attributes:
         q: (m,) the finger's joints after it.
