@@ -16,11 +16,11 @@ from dexplan.planning.context import PlanningContext
 from dexplan.planning.gsn.space import POSE_DIM
 from dexplan.planning.local.grasps import (
     current_follow,
+    finger_follows,
     follow_bound,
-    grasp_follow,
     grasp_from_state,
 )
-from dexplan.planning.local.transitions import Transitions, densify_poses
+from dexplan.planning.local.transitions import GraspContacts, Transitions, densify_poses
 
 __all__ = [
     "START_CANDIDATES",
@@ -113,16 +113,16 @@ def start_state(
     )
     rng = np.random.default_rng(0) if rng is None else rng
     pool = [first, *ctx.sampler.samples_at_pose(pose, candidates - 1, rng)]
-    follows = [grasp_follow(trans, pose, x[POSE_DIM:], future)[0] for x in pool]
-    whole = [x for x, f in zip(pool, follows, strict=True) if f >= len(future)]
+    grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in pool]
+    ik = [finger_follows(trans, g, future) for g in grasps]  # each finger's, IK alone
+    whole = [x for x, f in zip(pool, ik, strict=True) if min(f) >= len(future)]
     if whole:
         return _carrying(ctx, pose, future, whole, len(whole) == len(pool), rng)
-    near = _near(trans, pose, future, pool)
-    grasps = [grasp_from_state(trans, pose, x[POSE_DIM:]) for x in near]
-    strength = [trans.grasp_quality(g, exact=True) for g in grasps]
-    best, most = near[0], -1
+    near = _near(trans, future, pool, grasps, ik)
+    strength = [trans.grasp_quality(grasps[k], exact=True) for k in near]
+    best, most = pool[near[0]], -1
     for k in np.argsort(strength, kind="stable")[::-1][:START_HOLD_CHECKS]:
-        x, g = near[k], grasps[k]
+        x, g = pool[near[k]], grasps[near[k]]
         free = sum(trans.can_release(f, pose, x[POSE_DIM:], g) for f in range(ctx.hand.n_fingers))
         if free > most:
             best, most = x, free
@@ -132,47 +132,52 @@ def start_state(
 
 
 def _near(
-    trans: Transitions, pose: FloatArray, future: FloatArray, pool: list[FloatArray]
-) -> list[FloatArray]:
-    """The states of ``pool`` whose stroke is near the best one's, in ``pool``'s order.
+    trans: Transitions,
+    future: FloatArray,
+    pool: list[FloatArray],
+    grasps: list[GraspContacts],
+    ik: list[list[int]],
+) -> list[int]:
+    """The indexes of ``pool``'s states whose stroke is near the best one's, ascending.
 
     Near: a :func:`_stroke_sum` at least :data:`START_FOLLOW_SHARE` of the
-    largest. Tracking the fingers is most of a start grasp's
-    cost, and its IK-only bound (:func:`_stroke_bound`) is nearly as tight:
+    largest. ``grasps`` and ``ik`` are the states' contacts and their
+    fingers' IK-only follows
+    (:func:`~dexplan.planning.local.grasps.finger_follows`). Tracking the
+    fingers is most of a start grasp's cost, and the IK-only follows bound
+    it nearly as tightly (:func:`~dexplan.planning.local.grasps.follow_bound`):
     the states are tracked largest bound first, and those whose bound is
     already below the share of a tracked one's stroke are not tracked.
     """
-    bounds = [_stroke_bound(trans, pose, x, future) for x in pool]
+    end = len(future) - 1
+    n = trans.hand.n_fingers
+    bounds = [sum(min(follow_bound(trans, f, b[f]), end) for f in range(n)) for b in ik]
     strokes: dict[int, int] = {}
     for i in sorted(range(len(pool)), key=lambda i: bounds[i], reverse=True):
         if strokes and bounds[i] < START_FOLLOW_SHARE * max(strokes.values()):
             break  # neither near the best nor the best, nor is any after it
-        strokes[i] = _stroke_sum(trans, pose, pool[i], future)
+        strokes[i] = _stroke_sum(trans, pool[i], grasps[i], ik[i], future)
     far = max(strokes.values())
-    return [x for i, x in enumerate(pool) if strokes.get(i, -1) >= START_FOLLOW_SHARE * far]
+    return [i for i in range(len(pool)) if strokes.get(i, -1) >= START_FOLLOW_SHARE * far]
 
 
-def _stroke_bound(trans: Transitions, pose: FloatArray, x: FloatArray, future: FloatArray) -> int:
-    """An upper bound of :func:`_stroke_sum`: each finger's :func:`follow_bound`, summed."""
-    grasp = grasp_from_state(trans, pose, x[POSE_DIM:])
-    end = len(future) - 1
-    return sum(min(follow_bound(trans, f, grasp, future), end) for f in range(trans.hand.n_fingers))
-
-
-def _stroke_sum(trans: Transitions, pose: FloatArray, x: FloatArray, future: FloatArray) -> int:
+def _stroke_sum(
+    trans: Transitions, x: FloatArray, grasp: GraspContacts, ik: list[int], future: FloatArray
+) -> int:
     """The poses of ``future`` the fingers of state ``x`` follow, summed over the fingers.
 
     Each finger's own follow with its links collision-checked
-    (:func:`~dexplan.planning.local.grasps.current_follow`): a finger whose
+    (:func:`~dexplan.planning.local.grasps.current_follow`, from its IK-only
+    follow ``ik``): a finger whose
     stroke ends early costs a regrasp there, whichever finger it is, so
     the sum (the stroke the start grasp secures) ranks start grasps as the
     gait search ranks its states.
     """
     q = x[POSE_DIM:]
-    grasp = grasp_from_state(trans, pose, q)
     end = len(future) - 1
     return sum(
-        min(current_follow(trans, f, q, grasp, future), end) for f in range(trans.hand.n_fingers)
+        min(current_follow(trans, f, q, grasp, future, ik[f]), end)
+        for f in range(trans.hand.n_fingers)
     )
 
 
@@ -202,7 +207,7 @@ def _transferable(
 ) -> FloatArray | None:
     """The first of ``states`` (at ``pose``) whose transfer along ``future`` reaches its end.
 
-    The IK-only follow (:func:`~dexplan.planning.local.grasps.grasp_follow`)
+    The IK-only follow (:func:`~dexplan.planning.local.grasps.finger_follows`)
     ignores link collisions and holds; the transfer checks them, as the
     reduction will. On the TriFinger's cube every start grasp follows a
     quarter turn by IK alone, and 11 of 32 sampled ones transfer all the

@@ -519,7 +519,7 @@ def tip_side_contacts(
         Per finger, ``R_tip^T (p_world - c_tip)`` (on the tip sphere when the
         tip touches the contact), or None for a free finger.
     """
-    data = hand.model.createData()
+    data = hand.data  # the hand's own kinematics buffer (a fresh one per call costs more)
     pin.forwardKinematics(hand.model, data, np.asarray(q, dtype=float))
     R, x = _pose(object_pose)
     out: list[FloatArray | None] = []

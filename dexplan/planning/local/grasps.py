@@ -14,7 +14,14 @@ from dexplan.core.segments import Segment
 from dexplan.core.typing import FloatArray
 from dexplan.planning.local.transitions import GraspContacts, Transitions
 
-__all__ = ["current_follow", "follow_bound", "grasp_follow", "grasp_from_state", "regrasps_onto"]
+__all__ = [
+    "current_follow",
+    "finger_follows",
+    "follow_bound",
+    "grasp_follow",
+    "grasp_from_state",
+    "regrasps_onto",
+]
 
 
 def grasp_follow(
@@ -29,42 +36,55 @@ def grasp_follow(
     whose first blocked finger goes further, then whose second does, ranks
     higher (a transfer stops at the first blocked finger).
     """
-    grasp = grasp_from_state(trans, pose, q)
+    return tuple(sorted(finger_follows(trans, grasp_from_state(trans, pose, q), future)))
+
+
+def finger_follows(trans: Transitions, grasp: GraspContacts, future: FloatArray) -> list[int]:
+    """Per finger, in finger order, how far it follows ``future`` from ``grasp`` by IK alone.
+
+    :meth:`Transitions.follow_scores` of each fingertip centre (joint
+    limits, no link collisions): the bound :func:`current_follow` tightens.
+    """
     tips = grasp.points + trans.hand.fingertip_radius * grasp.normals_out
     n = trans.hand.n_fingers
-    return tuple(sorted(int(trans.follow_scores(i, tips[i][None], future)[0]) for i in range(n)))
+    return [int(trans.follow_scores(i, tips[i][None], future)[0]) for i in range(n)]
 
 
 def current_follow(
-    trans: Transitions, finger: int, q: FloatArray, grasp: GraspContacts, future: FloatArray
+    trans: Transitions,
+    finger: int,
+    q: FloatArray,
+    grasp: GraspContacts,
+    future: FloatArray,
+    bound: int | None = None,
 ) -> int:
     """How many of the ``future`` poses ``finger`` can follow on its current contact.
 
-    The IK-only bound (:meth:`Transitions.follow_scores`), tightened by
-    tracking the finger with its links collision-checked
-    (:meth:`Transitions.track_score`) for tracked fingers (:meth:`Transitions.tracked_count`).
+    The IK-only bound (:meth:`Transitions.follow_scores`; ``bound`` when the
+    caller has it, :func:`finger_follows`), tightened by tracking the
+    finger with its links collision-checked (:meth:`Transitions.track_score`)
+    for tracked fingers (:meth:`Transitions.tracked_count`).
     """
     r = trans.hand.fingertip_radius
     tip = grasp.points[finger] + r * grasp.normals_out[finger]
-    bound = int(trans.follow_scores(finger, tip[None], future)[0])
+    if bound is None:
+        bound = int(trans.follow_scores(finger, tip[None], future)[0])
     if trans.tracked_count(finger) <= 0 or bound <= 0:
         return bound
     limit = bound + max(1, trans.settings.follow_stride)
     return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
 
 
-def follow_bound(trans: Transitions, finger: int, grasp: GraspContacts, future: FloatArray) -> int:
-    """An upper bound of :func:`current_follow`, without tracking the finger.
+def follow_bound(trans: Transitions, finger: int, ik_follow: int) -> int:
+    """An upper bound of :func:`current_follow` from the finger's IK-only follow.
 
-    The IK-only bound, plus the poses past it the tracking may count (it
-    checks in strides of :attr:`TransitionSettings.follow_stride`).
+    ``ik_follow``: its :func:`finger_follows` entry. Tracking counts at most
+    the poses past it that its strides check
+    (:attr:`TransitionSettings.follow_stride`).
     """
-    r = trans.hand.fingertip_radius
-    tip = grasp.points[finger] + r * grasp.normals_out[finger]
-    bound = int(trans.follow_scores(finger, tip[None], future)[0])
-    if trans.tracked_count(finger) <= 0 or bound <= 0:
-        return bound
-    return bound + max(1, trans.settings.follow_stride)
+    if trans.tracked_count(finger) <= 0 or ik_follow <= 0:
+        return ik_follow
+    return ik_follow + max(1, trans.settings.follow_stride)
 
 
 def regrasps_onto(
