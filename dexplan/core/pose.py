@@ -16,6 +16,16 @@ from dexplan.core.typing import FloatArray
 IDENTITY_XYZQUAT: FloatArray = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
 
 
+def length(v: FloatArray) -> float:
+    """Euclidean length of a contiguous float64 vector ``v: (k,)``, as ``np.linalg.norm(v)``.
+
+    Bit for bit: ``np.linalg.norm`` computes ``sqrt(v . v)`` too, after a few
+    microseconds of argument handling, and the hot paths (a waypoint's
+    contacts, a roll's substeps) ask for thousands of lengths a plan.
+    """
+    return math.sqrt(float(v.dot(v)))
+
+
 def quat_to_matrix(q_xyzw: FloatArray) -> FloatArray:
     """Rotation matrix ``R: (3, 3)`` of a unit quaternion ``q_xyzw: (4,)``."""
     x, y, z, w = q_xyzw
@@ -34,7 +44,7 @@ def quat_to_matrix(q_xyzw: FloatArray) -> FloatArray:
 def normalize_quat(q_xyzw: FloatArray) -> FloatArray:
     """Unit quaternion with ``w >= 0`` (canonical member of the double cover)."""
     q = np.asarray(q_xyzw, dtype=float)
-    q = q / np.linalg.norm(q)
+    q = q / length(q)
     return -q if q[3] < 0 else q
 
 
@@ -55,15 +65,16 @@ def quat_multiply(a_xyzw: FloatArray, b_xyzw: FloatArray) -> FloatArray:
 def quat_from_axis_angle(axis: FloatArray, angle: float) -> FloatArray:
     """Quaternion XYZW of a rotation of ``angle`` rad about ``axis: (3,)``."""
     a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
+    a = a / length(a)
     s = math.sin(0.5 * angle)
     return np.array([a[0] * s, a[1] * s, a[2] * s, math.cos(0.5 * angle)])
 
 
 def quat_angle(a_xyzw: FloatArray, b_xyzw: FloatArray) -> float:
     """Rotation angle (rad, in [0, pi]) between two orientations, double cover aware."""
-    d = abs(float(np.dot(a_xyzw, b_xyzw)))
-    d /= float(np.linalg.norm(a_xyzw) * np.linalg.norm(b_xyzw))
+    a, b = np.asarray(a_xyzw, dtype=float), np.asarray(b_xyzw, dtype=float)
+    d = abs(float(np.dot(a, b)))
+    d /= length(a) * length(b)
     return 2.0 * math.acos(min(1.0, d))
 
 
@@ -76,7 +87,7 @@ def slerp(a_xyzw: FloatArray, b_xyzw: FloatArray, s: float) -> FloatArray:
         b, d = -b, -d
     if d > 0.9995:
         out = a + s * (b - a)
-        return out / np.linalg.norm(out)
+        return out / length(out)
     theta = math.acos(d)
     sin_t = math.sin(theta)
     return (math.sin((1 - s) * theta) * a + math.sin(s * theta) * b) / sin_t
@@ -87,7 +98,7 @@ def interpolate_pose(a_xyzquat: FloatArray, b_xyzquat: FloatArray, s: float) -> 
     out = np.empty(7)
     out[:3] = (1 - s) * a_xyzquat[:3] + s * b_xyzquat[:3]
     q = slerp(a_xyzquat[3:], b_xyzquat[3:], s)
-    out[3:] = q / np.linalg.norm(q)
+    out[3:] = q / length(q)
     return out
 
 
@@ -101,11 +112,11 @@ def random_quaternion(rng: np.random.Generator) -> FloatArray:
 
 def transform_points(pose_xyzquat: FloatArray, p_local: FloatArray) -> FloatArray:
     """World coordinates of ``p_local: (N, 3)`` given in the frame at ``pose_xyzquat``."""
-    R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
+    R = quat_to_matrix(pose_xyzquat[3:7] / length(pose_xyzquat[3:7]))
     return np.asarray(p_local) @ R.T + pose_xyzquat[:3]
 
 
 def inverse_transform_points(pose_xyzquat: FloatArray, p_world: FloatArray) -> FloatArray:
     """Coordinates in the frame at ``pose_xyzquat`` of world points ``p_world: (N, 3)``."""
-    R = quat_to_matrix(pose_xyzquat[3:7] / np.linalg.norm(pose_xyzquat[3:7]))
+    R = quat_to_matrix(pose_xyzquat[3:7] / length(pose_xyzquat[3:7]))
     return (np.asarray(p_world) - pose_xyzquat[:3]) @ R

@@ -15,7 +15,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from dexplan.core.pose import quat_angle
+from dexplan.core.pose import length, quat_angle
 from dexplan.core.typing import FloatArray
 
 
@@ -88,6 +88,6 @@ def object_path_length(segments: Sequence[Segment]) -> tuple[float, float]:
     for s in segments:
         for a, b in zip(s.waypoints, s.waypoints[1:], strict=False):
             pa, pb = a.object_pose_xyzquat, b.object_pose_xyzquat
-            trans += float(np.linalg.norm(pb[:3] - pa[:3]))
+            trans += length(pb[:3] - pa[:3])
             rot += quat_angle(pa[3:], pb[3:])
     return trans, rot

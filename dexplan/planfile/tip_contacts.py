@@ -15,7 +15,7 @@ from itertools import pairwise
 import numpy as np
 import pinocchio as pin
 
-from dexplan.core.pose import quat_to_matrix
+from dexplan.core.pose import length, quat_to_matrix
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.hand.hand import Hand
@@ -30,7 +30,7 @@ def tip_sides(hand: Hand, w: Waypoint) -> list[FloatArray]:
     the waypoint's joints.
     """
     pose = w.object_pose_xyzquat
-    R = quat_to_matrix(pose[3:] / np.linalg.norm(pose[3:]))
+    R = quat_to_matrix(pose[3:] / length(pose[3:]))
     pin.forwardKinematics(hand.model, hand.data, w.q)
     out = []
     for c, fid in zip(w.contacts, hand.tip_frame_ids, strict=True):
@@ -56,9 +56,9 @@ def contact_path_lengths(hand: Hand, seg: Segment) -> list[tuple[int, float, flo
         if c0 is None:
             continue
         on_obj = sum(
-            float(np.linalg.norm(np.asarray(b.contacts[i]) - np.asarray(a.contacts[i])))
+            length(np.asarray(b.contacts[i], dtype=float) - np.asarray(a.contacts[i], dtype=float))
             for a, b in pairwise(wps)
         )
-        on_tip = sum(float(np.linalg.norm(tb[i] - ta[i])) for ta, tb in pairwise(tips))
+        on_tip = sum(length(tb[i] - ta[i]) for ta, tb in pairwise(tips))
         out.append((i, on_tip, on_obj))
     return out

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from dexplan.core.errors import DexplanError, PlanFileError, one_line
-from dexplan.core.pose import inverse_transform_points, quat_angle
+from dexplan.core.pose import inverse_transform_points, length, quat_angle
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
 from dexplan.model.grasp import ForceClosure, Solver, exact_force_closure_batch
@@ -197,7 +197,7 @@ class _Checker:
         """``object_pose`` and ``joint_limits``; False when the pose is unusable."""
         hand = self.hand
         pose, q = w.object_pose_xyzquat, w.q  # sizes and finiteness: validate_plan
-        if abs(float(np.linalg.norm(pose[3:])) - 1.0) > 1e-6:
+        if abs(length(pose[3:]) - 1.0) > 1e-6:
             self.add(si, wi, "object_pose", "quaternion is not unit length")
             return False
         if not hand.within_limits(q, 1e-9):
@@ -215,7 +215,7 @@ class _Checker:
         holds' quality) reads them once, here: the fingertip sphere pushes
         where :func:`fingertip_contact` says.
         """
-        if abs(float(np.linalg.norm(w.object_pose_xyzquat[3:])) - 1.0) > 1e-6:
+        if abs(length(w.object_pose_xyzquat[3:]) - 1.0) > 1e-6:
             return None  # pose_and_joints reports it
         obj, r = self.obj, self.hand.fingertip_radius
         tips = inverse_transform_points(w.object_pose_xyzquat, self.hand.fingertip_positions(w.q))
@@ -410,7 +410,7 @@ class _Checker:
         """``step``: object and joint change between consecutive waypoints."""
         for wi in range(1, len(seg.waypoints)):
             a, b = seg.waypoints[wi - 1], seg.waypoints[wi]
-            dp = float(np.linalg.norm(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3]))
+            dp = length(b.object_pose_xyzquat[:3] - a.object_pose_xyzquat[:3])
             da = quat_angle(a.object_pose_xyzquat[3:], b.object_pose_xyzquat[3:])
             dq = float(np.max(np.abs(b.q - a.q))) if a.q.size else 0.0
             if dp > MAX_STEP_M + 1e-12:
@@ -460,8 +460,8 @@ class _Checker:
                 if t is None:
                     continue
                 t = np.asarray(t, dtype=float)
-                gap = float(np.linalg.norm(t - t_pose))
-                off = abs(float(np.linalg.norm(t)) - r)
+                gap = length(t - t_pose)
+                off = abs(length(t) - r)
                 if gap > TIP_DISTANCE_TOL or off > TIP_DISTANCE_TOL:
                     msg = (
                         f"finger {i}: tip contact is {gap * 1e3:.2f} mm from the contact's "

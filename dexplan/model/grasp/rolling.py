@@ -59,7 +59,7 @@ import numpy as np
 import pinocchio as pin
 
 from dexplan.core.errors import InvalidInputError
-from dexplan.core.pose import interpolate_pose, quat_angle, quat_to_matrix
+from dexplan.core.pose import interpolate_pose, length, quat_angle, quat_to_matrix
 from dexplan.core.typing import FloatArray
 
 __all__ = [
@@ -319,8 +319,8 @@ class FingertipRolling:
         for a, b in itertools.pairwise(poses):
             out = self.step(fs, q, a, b, P)
             for i in range(len(fs)):
-                arc_obj[i] += _norm(out.p_obj[i] - P[i])
-                arc_tip[i] += _norm(out.p_tip[i] - T[i])
+                arc_obj[i] += length(out.p_obj[i] - P[i])
+                arc_tip[i] += length(out.p_tip[i] - T[i])
                 slip[i] += float(out.slip[i])
             q, P, normals, T = out.q, out.p_obj, out.normals_obj, out.p_tip
         return [
@@ -339,7 +339,7 @@ class FingertipRolling:
         s = self.settings
         pose_a, pose_b = np.asarray(pose_a, dtype=float), np.asarray(pose_b, dtype=float)
         angle = quat_angle(pose_a[3:7], pose_b[3:7])
-        dist = float(np.linalg.norm(pose_b[:3] - pose_a[:3]))
+        dist = length(pose_b[:3] - pose_a[:3])
         k = max(1, math.ceil(max(angle / s.max_substep_rad, dist / s.max_substep_m)))
         inner = [interpolate_pose(pose_a, pose_b, j / k) for j in range(1, k)]
         return np.array([pose_a, *inner, pose_b])
@@ -440,16 +440,14 @@ class FingertipRolling:
         J_m = [point_jacobian(J6_m[i], x_m + R_m @ p_m[i], c_m[i]) for i in range(len(fingers))]
         dq = _solve_all(J_m, move, damping)
         if self.settings.limit_gain > 0.0:
-            motion = float(np.linalg.norm(pin.log3(R_b @ R_a.T))) + 10.0 * float(
-                np.linalg.norm(x_b - x_a)
-            )
+            motion = length(pin.log3(R_b @ R_a.T)) + 10.0 * length(x_b - x_a)
             for i, ix in enumerate(idx):
                 if len(ix) > 3:
                     dq[i] = dq[i] + self._away_from_limits(ix, q_mid, J_m[i], motion)
         q = q.copy()
         for ix, dq_i in zip(idx, dq, strict=True):
             q[ix] += dq_i
-        slip = [_norm(J_m[i] @ dq[i] - move[i]) for i in range(len(fingers))]
+        slip = [length(J_m[i] @ dq[i] - move[i]) for i in range(len(fingers))]
         for _ in range(self.settings.normal_iterations):
             q = self._onto_surface(fingers, q, frame_b)
         return q, slip
@@ -535,7 +533,7 @@ def tip_side_contacts(
 def _pose(pose: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``(R (3, 3), x (3,))`` of a ``(7,)`` XYZW pose."""
     pose = np.asarray(pose, dtype=float)
-    return quat_to_matrix(pose[3:7] / np.linalg.norm(pose[3:7])), pose[:3]
+    return quat_to_matrix(pose[3:7] / length(pose[3:7])), pose[:3]
 
 
 def _mid_rotation(R_a: FloatArray, R_b: FloatArray) -> FloatArray:
@@ -578,8 +576,3 @@ def _solve_all(
         if out[i] is None:
             out[i] = _solve(J, rhs[i], damping)
     return [o for o in out if o is not None]
-
-
-def _norm(v: FloatArray) -> float:
-    """Euclidean norm of a (3,) vector (as ``np.linalg.norm``, without its overhead)."""
-    return math.sqrt(float(v.dot(v)))

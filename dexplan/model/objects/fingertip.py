@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dexplan.core.pose import length
 from dexplan.core.typing import FloatArray
 from dexplan.model.objects.shape import Shape
 
@@ -51,8 +52,8 @@ def fingertip_contact(
         the distance (m) between the stated contact and the fingertip's own.
     """
     p_s, n_s = (np.asarray(v, dtype=float).reshape(3) for v in (stated or obj.closest_point(c_obj)))
-    gap = float(np.linalg.norm(p_s + radius * n_s - tip_obj))
+    gap = length(p_s + radius * n_s - tip_obj)
     if gap > TIP_DISTANCE_TOL:
         p_t, n_s = (np.asarray(v, dtype=float).reshape(3) for v in obj.closest_point(tip_obj))
-        gap = float(np.linalg.norm(p_t - c_obj))
+        gap = length(p_t - c_obj)
     return p_s, n_s, gap

@@ -242,7 +242,11 @@ def _beam(
             break  # this promise and every one after it rank below the beam
         out = _evaluate(trans, poses, [states[i]])
         done[i] = out[0] if out else None
-    kept = [done.get(i, s) for i, s in enumerate(states) if done.get(i, s) is not None]
+    kept: list[_State] = []
+    for i, s in enumerate(states):
+        d = done.get(i, s)  # evaluated, dropped by the evaluation (None), or left
+        if d is not None:
+            kept.append(d)
     ranked = sorted(
         (s for s in kept if s.transfer is not None), key=lambda s: s.rank(end), reverse=True
     )
