@@ -10,6 +10,7 @@ two surfaces have the same length (Montana's contact equations).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from itertools import pairwise
 
 import numpy as np
@@ -42,15 +43,19 @@ def tip_sides(hand: Hand, w: Waypoint) -> list[FloatArray]:
     return out
 
 
-def contact_path_lengths(hand: Hand, seg: Segment) -> list[tuple[int, float, float]]:
+def contact_path_lengths(
+    hand: Hand, seg: Segment, tips: Sequence[Sequence[FloatArray]] | None = None
+) -> list[tuple[int, float, float]]:
     """Per contact finger of a transfer: ``(finger, on the fingertip (m), on the object (m))``.
 
     Each path is the polyline through the contact's places at the segment's
     waypoints (the verifier's step rule keeps them close, so chords and arcs
-    agree to second order).
+    agree to second order). ``tips``: the waypoints' :func:`tip_sides`, when
+    the caller has them.
     """
     wps = seg.waypoints
-    tips = [tip_sides(hand, w) for w in wps]
+    if tips is None:
+        tips = [tip_sides(hand, w) for w in wps]
     out = []
     for i, c0 in enumerate(wps[0].contacts):
         if c0 is None:

@@ -158,6 +158,7 @@ class _Checker:
         self.weakest_hold: float | None = None
         self.worst_torque_ratio: float | None = None
         self._surface_memo: dict[bytes, tuple[float, tuple[FloatArray, FloatArray]]] = {}
+        self._tips: tuple[Segment, list[list[FloatArray]]] | None = None
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
         """Record a violation of ``rule`` (a name of :data:`RULES`)."""
@@ -444,7 +445,7 @@ class _Checker:
 
     def no_slip(self, si: int, seg: Segment) -> None:
         """``transfer_no_slip``: per finger, equal path lengths on the tip and on the object."""
-        for i, on_tip, on_obj in contact_path_lengths(self.hand, seg):
+        for i, on_tip, on_obj in contact_path_lengths(self.hand, seg, self.tip_sides(seg)):
             if abs(on_tip - on_obj) > NO_SLIP_REL * on_obj + NO_SLIP_ABS:
                 msg = (
                     f"finger {i}: the contact travels {on_tip * 1e3:.2f} mm on the fingertip "
@@ -452,11 +453,20 @@ class _Checker:
                 )
                 self.add(si, len(seg.waypoints) - 1, "transfer_no_slip", msg)
 
+    def tip_sides(self, seg: Segment) -> list[list[FloatArray]]:
+        """Each waypoint's contacts in their tip frames (:func:`tip_sides`), read once a segment.
+
+        The tip-contact rule and a rolling transfer's no-slip rule both read them.
+        """
+        if self._tips is None or self._tips[0] is not seg:
+            self._tips = (seg, [tip_sides(self.hand, w) for w in seg.waypoints])
+        return self._tips[1]
+
     def tip_contact(self, si: int, seg: Segment, stated: Sequence[Sequence[Any]]) -> None:
         """``tip_contact``: the file's ``tip_contacts`` of a segment against the pose's."""
         r = self.hand.fingertip_radius
-        for wi, (w, row) in enumerate(zip(seg.waypoints, stated, strict=True)):
-            for i, (t, t_pose) in enumerate(zip(row, tip_sides(self.hand, w), strict=True)):
+        for wi, (row, sides) in enumerate(zip(stated, self.tip_sides(seg), strict=True)):
+            for i, (t, t_pose) in enumerate(zip(row, sides, strict=True)):
                 if t is None:
                     continue
                 t = np.asarray(t, dtype=float)

@@ -59,7 +59,11 @@ def reach_shell(hand: Hand, finger: int) -> ReachShell:
     q = np.tile(hand.neutral, (_SHELL_SAMPLES, 1))
     q[:, idx] = rng.uniform(hand.lower[idx], hand.upper[idx], size=(_SHELL_SAMPLES, len(idx)))
     q[0, idx], q[1, idx] = hand.lower[idx], hand.upper[idx]
-    tips = np.array([hand.fingertip_positions(qi)[finger] for qi in q])
+    chain = hand.finger_chain(finger)  # batched forward kinematics, when revolute
+    if chain is not None:
+        tips = chain.tips(q[:, idx])
+    else:
+        tips = np.array([hand.fingertip_positions(qi)[finger] for qi in q])
     centre = hand.joint_origin(int(idx[0]), hand.neutral)
     d = np.linalg.norm(tips - centre, axis=1)
     return ReachShell(centre, float(d.min()) * 0.9, float(d.max()) * 1.02)
