@@ -30,6 +30,7 @@ from dexplan.core.errors import DexplanError, PlanFileError, one_line
 from dexplan.core.pose import inverse_transform_points, length, quat_angle
 from dexplan.core.segments import Segment, Waypoint
 from dexplan.core.typing import FloatArray
+from dexplan.model.collision import CollisionReport
 from dexplan.model.grasp import ForceClosure, Solver, exact_force_closure_batch
 from dexplan.model.grasp.holds import HoldChecker
 from dexplan.model.grasp.rolling import ContactMotion
@@ -159,6 +160,7 @@ class _Checker:
         self.worst_torque_ratio: float | None = None
         self._surface_memo: dict[bytes, tuple[float, tuple[FloatArray, FloatArray]]] = {}
         self._tips: tuple[Segment, list[list[FloatArray]]] | None = None
+        self._collision_memo: dict[bytes, CollisionReport] = {}
 
     def add(self, seg: int, wp: int, rule: str, message: str) -> None:
         """Record a violation of ``rule`` (a name of :data:`RULES`)."""
@@ -264,7 +266,12 @@ class _Checker:
 
     def collisions(self, si: int, wi: int, w: Waypoint) -> None:
         """``collision`` and ``penetration``."""
-        rep = self.world.check(w.q, w.object_pose_xyzquat, w.contact_mask(), first_only=True)
+        mask = w.contact_mask()
+        key = w.q.tobytes() + w.object_pose_xyzquat.tobytes() + bytes(mask)
+        rep = self._collision_memo.get(key)
+        if rep is None:  # a regrasp's still hand, a segment's shared end: the same answer
+            rep = self.world.check(w.q, w.object_pose_xyzquat, mask, first_only=True)
+            self._collision_memo[key] = rep
         if rep.pair is not None:
             self.add(si, wi, "collision", f"{rep.pair[0]} touches {rep.pair[1]}")
         if rep.max_penetration > PENETRATION_TOL:

@@ -223,6 +223,10 @@ class Verdict:
     fc_quality: float = float("nan")
 
 
+#: Valid states :meth:`GraspValidity.check` remembers before it forgets them all.
+_VALID_KEPT = 4096
+
+
 class GraspValidity:
     """Validity checker for states of a :class:`GraspSubspace`.
 
@@ -240,6 +244,10 @@ class GraspValidity:
         self.settings = settings
         self.stats = ValidityStats()
         self.torque_scale = gsn.obj.characteristic_length
+        # valid states by their bytes: OMPL asks again about the states of a
+        # path it checks (a state's motions both ways, the path's own check),
+        # and a valid state costs every test, force closure last
+        self._valid: dict[bytes, Verdict] = {}
 
     def grasp_quality(self, p_obj: FloatArray, n_in_obj: FloatArray) -> float:
         """Force-closure quality of contacts ``p_obj, n_in_obj: (k, 3)`` (object frame).
@@ -323,12 +331,20 @@ class GraspValidity:
         """
         gsn = self.gsn
         self.stats.checked += 1
+        known = self._valid.get(x.tobytes()) if fc_quality is None else None
+        if known is not None:
+            self.stats.valid += 1
+            return known
         if fc_quality is not None and fc_quality <= self.settings.fc_margin:
             verdict = self._reject_force_closure(x, fc_quality)
         else:
             verdict = self._check(x, gsn, fc_quality)
         if verdict.valid:
             self.stats.valid += 1
+            if fc_quality is None:
+                if len(self._valid) >= _VALID_KEPT:
+                    self._valid.clear()
+                self._valid[x.tobytes()] = verdict
         elif verdict.reason is not None:  # every rejection names its reason
             self.stats.rejected[verdict.reason] += 1
         return verdict
