@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -117,8 +119,8 @@ def test_load_from_file_with_subset_of_fingers(hand: Hand, tmp_path) -> None:
 
 def test_damped_least_squares_path_without_closed_form() -> None:
     h = Hand.builtin("paper")
-    assert all(s is not None for s in h._analytic_ik)  # the builtin hand gets closed-form IK
-    h._analytic_ik = [None] * h.n_fingers
+    assert all(h.planar_ik(i) is not None for i in range(h.n_fingers))  # closed form built in
+    h._ik_solvers = dataclasses.replace(h._ik, analytic=(None,) * h.n_fingers)
     for i, _, res in _ik_of_reachable_targets(h, 2, 15):
         assert res.success and res.residual < 1e-6, (i, res)
 

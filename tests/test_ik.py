@@ -63,8 +63,13 @@ def test_allegro_fingers_have_closed_form() -> None:
     hand = Hand.builtin("allegro")
     for i in range(hand.n_fingers):
         assert hand.has_closed_form_ik(i)
-    split = hand._split_ik
-    assert [s.free for s in split] == [3, 3, 3, 0]  # distal joints free; thumb's first joint
+    split = [hand.split_ik(i) for i in range(hand.n_fingers)]
+    assert [None if s is None else s.free for s in split] == [
+        3,
+        3,
+        3,
+        0,
+    ]  # distal joints free; thumb's first joint
 
 
 def test_closed_form_reaches_targets_within_limits(hand: Hand) -> None:
@@ -105,7 +110,7 @@ def test_tracking_is_exact_and_continuous() -> None:
     for i in range(hand.n_fingers):
         idx = hand.finger_q_index[i]
         chain = FingerChain.from_model(hand.model, hand.tip_frame_ids[i])
-        split = hand._split_ik[i]
+        split = hand.split_ik(i)
         # a start on the free joint's table, mid-range
         q0 = 0.5 * (hand.lower[idx] + hand.upper[idx])
         q0[split.free] = split.table[len(split.table) // 2]
@@ -141,7 +146,7 @@ def test_scalar_tracking_equals_the_vectorised_path(name: str) -> None:
     hand = Hand.builtin(name)
     rng = np.random.default_rng(7)
     for i in range(hand.n_fingers):
-        split = hand._split_ik[i]
+        split = hand.split_ik(i)
         assert split._rows, "the Allegro fingers have the scalar tracker"
         vectorised = copy.copy(split)
         vectorised._rows = []
@@ -170,7 +175,7 @@ def test_directions_match_forward_kinematics() -> None:
     hand = Hand.builtin("allegro")
     rng = np.random.default_rng(3)
     for i in range(hand.n_fingers):
-        split = hand._split_ik[i]
+        split = hand.split_ik(i)
         q = _random_q(hand, i, 200, seed=10 + i)
         on_table = q.copy()
         on_table[:, split.free] = split.table[rng.integers(0, len(split.table), len(q))]
@@ -186,7 +191,7 @@ def test_finger_ik_nearest_to_q_init() -> None:
     """Hand.finger_ik on a redundant finger returns the solution nearest q_init."""
     hand = Hand.builtin("allegro")
     i, idx = 0, hand.finger_q_index[0]
-    split = hand._split_ik[0]
+    split = hand.split_ik(0)
     q_f = np.array([0.1, 0.6, 0.7, split.table[200]])
     q = hand.neutral.copy()
     q[idx] = q_f
@@ -243,7 +248,7 @@ def test_planar_branches_pick_what_the_scalar_solver_picks() -> None:
     hand = Hand.builtin("paper")
     rng = np.random.default_rng(4)
     for f in range(hand.n_fingers):
-        solver = hand._analytic_ik[f]
+        solver = hand.planar_ik(f)
         assert solver is not None
         idx = hand.finger_q_index[f]
         qs = rng.uniform(hand.lower, hand.upper, size=(300, hand.nq))

@@ -14,6 +14,7 @@ order as Pinocchio reads it). ``finger_q_index[i]`` gives the entries of
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -166,26 +167,20 @@ class Hand:
         :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint fingers; else the
         closed forms of :mod:`dexplan.model.hand.ik` (4-joint fingers, a grid for the redundancy;
         offset 3-joint and planar 2-joint fingers) or batched DLS from several seeds.
+
+        Built on first use (:attr:`_ik`): detecting the closed forms costs 5 ms
+        on the paper's hand and 45 ms on the Allegro, and a hand rebuilt from
+        a plan file to verify it never solves IK.
         """
-        lo, hi, q0 = self.lower, self.upper, self.neutral
-        self._analytic_ik: list[PlanarFingerIK | None] = [
-            PlanarFingerIK.detect(self.model, self.data, idx, fid, lo, hi, q0)
-            for idx, fid in zip(self.finger_q_index, self.tip_frame_ids, strict=True)
-        ]
-        self._chains: list[FingerChain | None] = [
-            FingerChain.from_model(self.model, fid) for fid in self.tip_frame_ids
-        ]
-        self._split_ik: list[SplitFingerIK | None] = []
-        # every branch in closed form: offset 3-joint (TriFinger), planar 2-joint (Dex3)
-        self._offset_ik: list[OffsetFingerIK | PlanarPairIK | None] = []
-        for i, idx in enumerate(self.finger_q_index):
-            lo, hi, chain = self.lower[idx], self.upper[idx], self._chains[i]
-            planar = self._analytic_ik[i] is not None
-            self._split_ik.append(None if planar else SplitFingerIK.detect(chain, lo, hi))
-            other = planar or self._split_ik[i] is not None
-            offset = None if other else OffsetFingerIK.detect(chain, lo, hi)
-            self._offset_ik.append(offset or PlanarPairIK.detect(chain, lo, hi))
+        self._ik_solvers: _FingerSolvers | None = None
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
+
+    @property
+    def _ik(self) -> _FingerSolvers:
+        """The fingers' IK solvers and vectorised chains (built on first use)."""
+        if self._ik_solvers is None:
+            self._ik_solvers = _FingerSolvers.detect(self)
+        return self._ik_solvers
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -344,13 +339,13 @@ class Hand:
         Returns:
             ``q_finger: (m,)`` within limits, or None.
         """
-        analytic = self._analytic_ik[finger]
+        analytic = self._ik.analytic[finger]
         if analytic is not None:
             return analytic.solve(p_target_world, q_hand[self.finger_q_index[finger]])
-        split = self._split_ik[finger]
+        split = self._ik.split[finger]
         if split is not None:
             return split.solve_near(p_target_world, q_hand[self.finger_q_index[finger]], approach)
-        offset = self._offset_ik[finger]
+        offset = self._ik.offset[finger]
         if offset is not None:
             q_f, ok = offset.nearest(p_target_world, q_hand[self.finger_q_index[finger]])
             return q_f[0] if ok[0] else None
@@ -373,7 +368,7 @@ class Hand:
             q_hand: (nq,) previous hand configuration.
             approach: (3,) unit inward surface normal, world frame.
         """
-        split = self._split_ik[finger]
+        split = self._ik.split[finger]
         idx = self.finger_q_index[finger]
         if split is None:
             return np.zeros((0, len(idx)))
@@ -383,7 +378,7 @@ class Hand:
         """Where ``finger``'s fingertip centre can be (built on first use; see :mod:`.reach`)."""
         voxels = self._reach[finger]
         if voxels is None:
-            idx, chain = self.finger_q_index[finger], self._chains[finger]
+            idx, chain = self.finger_q_index[finger], self._ik.chains[finger]
             voxels = self._reach[finger] = (
                 ReachVoxels.from_tips(self._reach_tips(finger))
                 if chain is None
@@ -407,22 +402,22 @@ class Hand:
         count (``dexplan.model.hand.ik.SplitFingerIK``; docs/hands.md, "IK and redundancy").
         """
         return (
-            self._analytic_ik[finger] is not None
-            or self._split_ik[finger] is not None
-            or self._offset_ik[finger] is not None
+            self._ik.analytic[finger] is not None
+            or self._ik.split[finger] is not None
+            or self._ik.offset[finger] is not None
         )
 
     def planar_ik(self, finger: int) -> PlanarFingerIK | None:
         """``finger``'s closed-form 3-joint solver, or None (see :mod:`dexplan.model.hand.ik`)."""
-        return self._analytic_ik[finger]
+        return self._ik.analytic[finger]
 
     def split_ik(self, finger: int) -> SplitFingerIK | None:
         """``finger``'s closed-form solver with a free joint, or None."""
-        return self._split_ik[finger]
+        return self._ik.split[finger]
 
     def finger_chain(self, finger: int) -> FingerChain | None:
         """``finger``'s vectorised forward kinematics, or None when not all revolute."""
-        return self._chains[finger]
+        return self._ik.chains[finger]
 
     def finger_ik_candidates(
         self, finger: int, p_targets_world: FloatArray
@@ -441,14 +436,14 @@ class Hand:
             closed-form fingers one solution per target (C = 1).
         """
         targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
-        split = self._split_ik[finger]
+        split = self._ik.split[finger]
         if split is not None:
             return split.candidates(targets)
-        offset = self._offset_ik[finger]
+        offset = self._ik.offset[finger]
         if offset is not None:
             return offset.branches(targets)
-        chain = self._chains[finger]
-        if self._analytic_ik[finger] is None and chain is not None:
+        chain = self._ik.chains[finger]
+        if self._ik.analytic[finger] is None and chain is not None:
             idx = self.finger_q_index[finger]
             return branch_solutions(chain, targets, self.lower[idx], self.upper[idx])
         q, ok = self.finger_ik_batch(finger, targets)
@@ -473,18 +468,18 @@ class Hand:
             :meth:`finger_ik` per target.
         """
         targets = np.asarray(p_targets_world, dtype=float).reshape(-1, 3)
-        analytic = self._analytic_ik[finger]
+        analytic = self._ik.analytic[finger]
         if analytic is not None:
             return analytic.solve_batch(targets)
-        split = self._split_ik[finger]
+        split = self._ik.split[finger]
         if split is not None:
             return split.solve(targets)
         idx = self.finger_q_index[finger]
-        offset = self._offset_ik[finger]
+        offset = self._ik.offset[finger]
         if offset is not None:  # the branch nearest q_init's (the middle of the ranges)
             near = 0.5 * (self.lower[idx] + self.upper[idx]) if q_init is None else q_init[idx]
             return offset.nearest(targets, near)
-        chain = self._chains[finger]
+        chain = self._ik.chains[finger]
         if chain is not None:
             q0 = (self.neutral if q_init is None else q_init)[idx]
             q_b, ok_b = batch_dls(chain, targets, q0, self.lower[idx], self.upper[idx])
@@ -555,7 +550,7 @@ class Hand:
         target = as_vector(p_target_world, "p_target_world", 3)
         q = self.neutral.copy() if q_init is None else self.check_q(q_init, "q_init").copy()
         idx = self.finger_q_index[finger]
-        analytic = self._analytic_ik[finger]
+        analytic = self._ik.analytic[finger]
         if analytic is not None:
             q_f = analytic.solve(target, q[idx])
             if q_f is not None:
@@ -563,14 +558,14 @@ class Hand:
                 err = float(np.linalg.norm(self._finger_tip(finger, q)[0] - target))
                 if err < tol:
                     return IKResult(q_f, True, err, 1)
-        offset = self._offset_ik[finger]
+        offset = self._ik.offset[finger]
         if offset is not None:
             q_all, ok_all = offset.nearest(target, q[idx])
             q[idx] = q_all[0]
             err = float(np.linalg.norm(self._finger_tip(finger, q)[0] - target))
             if ok_all[0] and err < tol:
                 return IKResult(q_all[0], True, err, 1)
-        split = self._split_ik[finger]
+        split = self._ik.split[finger]
         if split is not None:
             q_f = split.solve_near(target, q[idx])
             if q_f is None:  # the free joint anywhere in its range
@@ -597,3 +592,42 @@ class Hand:
             max_iter=max_iter,
             restarts=restarts,
         )
+
+
+@dataclass(frozen=True)
+class _FingerSolvers:
+    """Per finger, its IK solvers and vectorised chain (None where it has none).
+
+    Attributes:
+        analytic: closed-form IK of a planar 3-joint finger.
+        chains: vectorised forward kinematics (revolute fingers).
+        split: closed forms of a redundant 4-joint finger (a grid for the redundancy).
+        offset: closed forms of offset 3-joint and planar 2-joint fingers.
+    """
+
+    analytic: tuple[PlanarFingerIK | None, ...]
+    chains: tuple[FingerChain | None, ...]
+    split: tuple[SplitFingerIK | None, ...]
+    offset: tuple[OffsetFingerIK | PlanarPairIK | None, ...]
+
+    @classmethod
+    def detect(cls, hand: Hand) -> _FingerSolvers:
+        """The closed forms ``hand``'s fingers allow (:meth:`Hand._init_ik`)."""
+        lo, hi, q0 = hand.lower, hand.upper, hand.neutral
+        data = hand.model.createData()  # not the hand's: a caller may be between its FK and reads
+        analytic = tuple(
+            PlanarFingerIK.detect(hand.model, data, idx, fid, lo, hi, q0)
+            for idx, fid in zip(hand.finger_q_index, hand.tip_frame_ids, strict=True)
+        )
+        chains = tuple(FingerChain.from_model(hand.model, fid) for fid in hand.tip_frame_ids)
+        split: list[SplitFingerIK | None] = []
+        # every branch in closed form: offset 3-joint (TriFinger), planar 2-joint (Dex3)
+        offset: list[OffsetFingerIK | PlanarPairIK | None] = []
+        for i, idx in enumerate(hand.finger_q_index):
+            lo_f, hi_f, chain = hand.lower[idx], hand.upper[idx], chains[i]
+            planar = analytic[i] is not None
+            split.append(None if planar else SplitFingerIK.detect(chain, lo_f, hi_f))
+            other = planar or split[i] is not None
+            found = None if other else OffsetFingerIK.detect(chain, lo_f, hi_f)
+            offset.append(found or PlanarPairIK.detect(chain, lo_f, hi_f))
+        return cls(analytic, chains, tuple(split), tuple(offset))
