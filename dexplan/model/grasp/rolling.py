@@ -207,6 +207,7 @@ class FingertipRolling:
         self.settings = settings or RollSettings()
         self.radius = float(hand.fingertip_radius)
         self._data = hand.model.createData()
+        self._grouped: dict[tuple[int, ...], list[list[int]]] = {}
 
     def tip_frame(self, finger: int, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The tip frame at ``q: (nq,)``: ``(R_tip (3, 3), c_world (3,), J6 (6, m))``.
@@ -365,10 +366,29 @@ class FingertipRolling:
             points: (len(fingers), 3) the contacts at ``pose_a``, object frame.
         """
         fs = list(fingers)
-        frame = _pose(pose_b)
-        q, slip = self._substep(fs, np.asarray(q, dtype=float), _pose(pose_a), frame, points)
-        P, normals, T = self._contacts(fs, q, frame)
-        return RollStep(q, P, normals, T, np.asarray(slip, dtype=float))
+        frame_a, frame = _pose(pose_a), _pose(pose_b)
+        q = np.asarray(q, dtype=float)
+        points = np.asarray(points, dtype=float).reshape(len(fs), 3)
+        P, normals, T = np.empty((3, len(fs), 3))
+        slip = np.empty(len(fs))
+        # the fingers are independent chains: each group of as many joints
+        # rolls in stacked arrays (its Jacobians are all 3 x m)
+        for rows in self._groups(fs):
+            group = [fs[i] for i in rows]
+            q, slip[rows] = self._substep(group, q, frame_a, frame, points[rows])
+            P[rows], normals[rows], T[rows] = self._contacts(group, q, frame)
+        return RollStep(q, P, normals, T, slip)
+
+    def _groups(self, fingers: list[int]) -> list[list[int]]:
+        """Positions in ``fingers`` of the fingers with as many joints, in order of first."""
+        key = tuple(fingers)
+        groups = self._grouped.get(key)
+        if groups is None:
+            by_size: dict[int, list[int]] = {}
+            for i, f in enumerate(fingers):
+                by_size.setdefault(len(self.hand.finger_q_index[f]), []).append(i)
+            groups = self._grouped[key] = list(by_size.values())
+        return groups
 
     def _check_touch(self, finger: int, q: FloatArray, pose: FloatArray, p_obj: FloatArray) -> None:
         """Raise unless the tip sphere at ``q`` touches the object at ``p_obj``."""
@@ -382,19 +402,20 @@ class FingertipRolling:
                 f"(gap {max(gap, abs(d)) * 1e3:.3g} mm)"
             )
 
-    def _frames(self, fingers: list[int], q: FloatArray) -> tuple[FloatArray, list[FloatArray]]:
-        """The fingers' tip frames at ``q``: ``(c_world (F, 3), [J6 (6, m)])``.
+    def _frames(self, fingers: list[int], q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Tip frames at ``q`` of fingers of ``m`` joints each: ``(c_world (F, 3), J6 (F, 6, m))``.
 
         ``J6`` as in :meth:`tip_frame`; one kinematics pass serves every finger.
         """
         model, data = self.hand.model, self._data
         pin.computeJointJacobians(model, data, q)
-        c, J = np.empty((len(fingers), 3)), []
+        m = len(self.hand.finger_q_index[fingers[0]])
+        c, J = np.empty((len(fingers), 3)), np.empty((len(fingers), 6, m))
         for i, f in enumerate(fingers):
             fid = self.hand.tip_frame_ids[f]
             c[i] = pin.updateFramePlacement(model, data, fid).translation
             J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-            J.append(J6[:, self.hand.finger_q_index[f]])
+            J[i] = J6[:, self.hand.finger_q_index[f]]
         return c, J
 
     def _placements(self, fingers: list[int], q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -426,19 +447,19 @@ class FingertipRolling:
         damping = self.settings.damping
         # the half step, at the substep's first contacts
         c, J6 = self._frames(fingers, q)
-        p_a = [x_a + R_a @ p for p in P]
-        J = [point_jacobian(J6[i], p_a[i], c[i]) for i in range(len(fingers))]
-        half = _solve_all(J, [(x_b + R_b @ P[i]) - p_a[i] for i in range(len(fingers))], damping)
+        p_a = x_a + _rotated(R_a, P)
+        J = _point_jacobians(J6, p_a, c)
+        half = _solve_stacked(J, (x_b + _rotated(R_b, P)) - p_a, damping)
         q_mid = q.copy()
         for ix, dq_i in zip(idx, half, strict=True):
             q_mid[ix] += 0.5 * dq_i
         # the middle: the contacts there, their material points' motion over the substep
         R_m, x_m = _mid_rotation(R_a, R_b), 0.5 * (x_a + x_b)
         c_m, J6_m = self._frames(fingers, q_mid)
-        p_m = self.obj.closest_point(np.array([R_m.T @ (cm - x_m) for cm in c_m]))[0]
-        move = [(x_b + R_b @ p) - (x_a + R_a @ p) for p in p_m]
-        J_m = [point_jacobian(J6_m[i], x_m + R_m @ p_m[i], c_m[i]) for i in range(len(fingers))]
-        dq = _solve_all(J_m, move, damping)
+        p_m = np.asarray(self.obj.closest_point(_rotated(R_m.T, c_m - x_m))[0], dtype=float)
+        move = (x_b + _rotated(R_b, p_m)) - (x_a + _rotated(R_a, p_m))
+        J_m = _point_jacobians(J6_m, x_m + _rotated(R_m, p_m), c_m)
+        dq = _solve_stacked(J_m, move, damping)
         if self.settings.limit_gain > 0.0:
             motion = length(pin.log3(R_b @ R_a.T)) + 10.0 * length(x_b - x_a)
             for i, ix in enumerate(idx):
@@ -447,7 +468,7 @@ class FingertipRolling:
         q = q.copy()
         for ix, dq_i in zip(idx, dq, strict=True):
             q[ix] += dq_i
-        slip = [length(J_m[i] @ dq[i] - move[i]) for i in range(len(fingers))]
+        slip = [length(r) for r in _rotated(J_m, dq) - move]
         for _ in range(self.settings.normal_iterations):
             q = self._onto_surface(fingers, q, frame_b)
         return q, slip
@@ -475,9 +496,9 @@ class FingertipRolling:
         """Move each tip's centre along the object's normal until its sphere is tangent."""
         c, J6 = self._frames(fingers, q)
         R, x = frame
-        d, grad = self.obj.signed_distance_and_gradient(np.array([R.T @ (ci - x) for ci in c]))
-        steps = [(self.radius - float(d[i])) * (R @ grad[i]) for i in range(len(fingers))]
-        dq = _solve_all([J[:3] for J in J6], steps, self.settings.damping)
+        d, grad = self.obj.signed_distance_and_gradient(_rotated(R.T, c - x))
+        steps = (self.radius - np.asarray(d, dtype=float))[:, None] * _rotated(R, grad)
+        dq = _solve_stacked(J6[:, :3], steps, self.settings.damping)
         q = q.copy()
         for f, dq_i in zip(fingers, dq, strict=True):
             q[self.hand.finger_q_index[f]] += dq_i
@@ -492,9 +513,9 @@ class FingertipRolling:
         """
         R_t, c = self._placements(fingers, q)
         R, x = frame
-        p, n = self.obj.closest_point(np.array([R.T @ (ci - x) for ci in c]))
+        p, n = self.obj.closest_point(_rotated(R.T, c - x))
         p = np.asarray(p, dtype=float)
-        tips = np.array([R_t[i].T @ (x + R @ p[i] - c[i]) for i in range(len(fingers))])
+        tips = _rotated(R_t.transpose(0, 2, 1), x + _rotated(R, p) - c)
         return p, np.asarray(n, dtype=float), tips
 
 
@@ -552,27 +573,38 @@ def _solve(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
     return np.asarray(np.linalg.solve(A, J.T @ rhs), dtype=np.float64)
 
 
-def _solve_all(
-    Js: Sequence[FloatArray], rhs: Sequence[FloatArray], damping: float
-) -> list[FloatArray]:
-    """:func:`_solve` of each ``(J, rhs)``, the square systems of full-rank shapes stacked.
+def _solve_stacked(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
+    """:func:`_solve` of each ``(J[i], rhs[i])``, ``J: (F, 3, m)``, ``rhs: (F, 3)``: ``(F, m)``.
 
-    A finger of 3 joints or more solves a 3 x 3 system: those of one shape
-    are solved in one batched call (each exactly as alone); other shapes one
-    by one.
+    Fingers of 3 joints or more solve 3 x 3 systems: all in one batched
+    call (each exactly as alone); fingers of fewer one by one.
     """
-    out: list[FloatArray | None] = [None] * len(Js)
-    shapes = {J.shape for J in Js if J.shape[0] == 3 and J.shape[1] >= 3}
-    for shape in shapes:
-        rows = [i for i, J in enumerate(Js) if J.shape == shape]
-        J = np.array([Js[i] for i in rows])
-        JT = J.transpose(0, 2, 1)
-        A = J @ JT
-        A[:, [0, 1, 2], [0, 1, 2]] += damping
-        y = np.linalg.solve(A, np.array([rhs[i] for i in rows])[:, :, None])
-        for k, x in zip(rows, (JT @ y)[:, :, 0], strict=True):
-            out[k] = x
-    for i, J in enumerate(Js):
-        if out[i] is None:
-            out[i] = _solve(J, rhs[i], damping)
-    return [o for o in out if o is not None]
+    J = np.ascontiguousarray(J)
+    if J.shape[2] < 3:
+        return np.array([_solve(J[i], rhs[i], damping) for i in range(len(J))])
+    JT = J.transpose(0, 2, 1)
+    A = J @ JT
+    A[:, [0, 1, 2], [0, 1, 2]] += damping
+    y = np.linalg.solve(A, np.ascontiguousarray(rhs)[:, :, None])
+    return np.asarray((JT @ y)[:, :, 0], dtype=np.float64)
+
+
+def _rotated(R: FloatArray, v: FloatArray) -> FloatArray:
+    """``R @ v[i]`` of each row of ``v: (F, k)``, ``R: (n, k)`` or ``(F, n, k)``: ``(F, n)``.
+
+    One stacked product; each row's is exactly ``R @ v[i]`` alone.
+    """
+    return np.ascontiguousarray(np.matmul(R, v[:, :, None])[:, :, 0])
+
+
+def _point_jacobians(J6: FloatArray, p_world: FloatArray, c_world: FloatArray) -> FloatArray:
+    """Each finger's :func:`point_jacobian`: ``(F, 3, m)``.
+
+    ``J6: (F, 6, m)`` the tip frames' Jacobians, ``p_world, c_world: (F, 3)``.
+    """
+    r = p_world - c_world
+    S = np.zeros((len(r), 3, 3))  # pin.skew of each row
+    S[:, 0, 1], S[:, 0, 2] = -r[:, 2], r[:, 1]
+    S[:, 1, 0], S[:, 1, 2] = r[:, 2], -r[:, 0]
+    S[:, 2, 0], S[:, 2, 1] = -r[:, 1], r[:, 0]
+    return np.asarray(J6[:, :3] - S @ J6[:, 3:], dtype=np.float64)
