@@ -74,6 +74,7 @@ def hand_from_plan(h: Mapping[str, Any], package_dirs: Sequence[str | Path] = ()
             collision_exclude=[tuple(p) for p in h.get("collision_exclude", [])],
             name="plan hand",
             package_dirs=package_dirs,
+            solvers=False,  # verification never solves IK; export and replay build them on use
         )
     except DexplanError as exc:
         # a mesh that did not resolve: say where meshes are searched

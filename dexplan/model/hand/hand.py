@@ -97,6 +97,8 @@ class Hand:
             wheels' share folders, see :mod:`dexplan.model.hand.packages`).
         effort_limits: joint effort limits (N m) replacing the URDF's: one for
             every joint, or a table by joint name (written into ``urdf_xml``).
+        solvers: build the fingers' IK solvers now (False: on first use; a
+            hand rebuilt from a plan file to check it never solves IK).
 
     Raises:
         ModelError: text that is not UTF-8, malformed XML, an invalid URDF (the
@@ -117,6 +119,7 @@ class Hand:
         name: str = "hand",
         package_dirs: Sequence[str | Path] = (),
         effort_limits: float | Mapping[str, float] | None = None,
+        solvers: bool = True,
     ) -> None:
         self.name = name
         self.urdf_xml = urdf_text(urdf_xml, f"URDF of hand {name!r}")
@@ -159,20 +162,21 @@ class Hand:
         #: :mod:`dexplan.model.hand.fingertips`: the URDF's, or added by dexplan)
         self.tip_geom_ids: tuple[int, ...] = tips.geom_ids
         self.neutral: FloatArray = np.clip(pin.neutral(self.model), self.lower, self.upper)
-        self._init_ik()
+        self._init_ik(solvers)
 
-    def _init_ik(self) -> None:
+    def _init_ik(self, now: bool) -> None:
         """Per-finger IK solvers: closed form where the structure allows it.
 
         :class:`~dexplan.model.hand.ik.PlanarFingerIK` for planar 3-joint fingers; else the
         closed forms of :mod:`dexplan.model.hand.ik` (4-joint fingers, a grid for the redundancy;
         offset 3-joint and planar 2-joint fingers) or batched DLS from several seeds.
 
-        Built on first use (:attr:`_ik`): detecting the closed forms costs 5 ms
-        on the paper's hand and 45 ms on the Allegro, and a hand rebuilt from
-        a plan file to verify it never solves IK.
+        Built with the hand, or on first use (:attr:`_ik`) for a hand built
+        with ``solvers=False``: detecting the closed forms costs 5 ms on the
+        paper's hand and 45 ms on the Allegro, and a hand rebuilt from a plan
+        file to verify it never solves IK.
         """
-        self._ik_solvers: _FingerSolvers | None = None
+        self._ik_solvers: _FingerSolvers | None = _FingerSolvers.detect(self) if now else None
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
 
     @property
