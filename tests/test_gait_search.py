@@ -151,3 +151,42 @@ def test_a_finger_is_never_regrasped_twice_where_the_object_has_not_moved(
     gait_search._children(trans, poses, state, stop, 2, 0.85)
     expected = set(range(n)) - {blocked} - (set() if moved else {last})
     assert set(asked) == expected
+
+
+def test_the_lazy_beam_is_the_beam_of_every_child_evaluated(monkeypatch) -> None:
+    """Children run best promise first give the beam running them all gives, in order."""
+    rng = np.random.default_rng(7)
+    end = 60
+
+    def child(i: int) -> gait_search._State:
+        cover = tuple(int(c) for c in rng.integers(5, 70, size=4))
+        weakest = float(rng.choice([0.01, 0.02, 0.05]))
+        return gait_search._State(10, np.zeros(3), None, cover, (), 1, weakest, weakest=weakest)  # type: ignore[arg-type]
+
+    def evaluate(trans, poses, states):
+        out = []
+        for s in states:  # a transfer lowers the rank: one finger's stroke ends, maybe for good
+            if hash(s.cover) % 7 == 0:
+                continue  # dropped, as a landing that blocks at once
+            cover = list(s.cover)
+            f = hash(s.cover) % 4
+            cover[f] = min(cover[f], s.idx + hash(s.cover) % 40)
+            tr = TransferResult((), cover[f], f, None, None)  # type: ignore[arg-type]
+            out.append(
+                gait_search.dataclasses.replace(
+                    s, cover=tuple(cover), viable=hash(s.cover) % 3 > 0, transfer=tr
+                )
+            )
+        return out
+
+    monkeypatch.setattr(gait_search, "_evaluate", evaluate)
+    for _ in range(200):
+        states = [child(i) for i in range(int(rng.integers(1, 9)))]
+        width = int(rng.integers(1, 4))
+        eager = sorted(evaluate(None, None, states), key=lambda s: s.rank(end), reverse=True)
+        layer, spare = gait_search._beam(None, None, states, width, end)  # type: ignore[arg-type]
+        assert [s.cover for s in layer] == [s.cover for s in eager[:width]]
+        assert all(s.transfer is not None for s in layer)
+        # the rest are kept, evaluated or not, and evaluate to the eager rest
+        rest = gait_search._evaluated(None, None, spare)  # type: ignore[arg-type]
+        assert sorted(s.cover for s in rest) == sorted(s.cover for s in eager[width:])

@@ -348,3 +348,23 @@ def test_a_path_whose_object_trajectory_collides_is_explored_again() -> None:
     assert any("object_collision" in m for m in messages[:again])
     doc = build_plan_document(scenario, build_hand(scenario), res)
     assert verify_plan(doc).ok
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_start_candidates_left_untracked_could_not_be_near_the_best(seed: int) -> None:
+    """The start grasp's near set, tracking only the grasps whose IK-only bound
+    can reach the share of the best tracked one, is the set tracking them all gives."""
+    from dexplan.planning.local.grasps import finger_follows, grasp_from_state
+    from dexplan.planning.local.transitions import densify_poses
+    from dexplan.planning.start import START_FOLLOW_SHARE, _near, _stroke_sum
+
+    scenario = load_scenario(builtin_scenario_path("paper_sphere"))
+    _, ref, _, _, pool = _start_candidates(scenario, seed)
+    tr = ref.transitions
+    pose, goal = scenario.start.object_pose_xyzquat, scenario.goal.object_pose_xyzquat
+    future = densify_poses(np.array([pose, goal]), tr.settings.max_step_m, tr.settings.max_step_rad)
+    grasps = [grasp_from_state(tr, pose, x[7:]) for x in pool]
+    ik = [finger_follows(tr, g, future) for g in grasps]
+    strokes = [_stroke_sum(tr, x, g, f, future) for x, g, f in zip(pool, grasps, ik, strict=True)]
+    eager = [i for i, s in enumerate(strokes) if s >= START_FOLLOW_SHARE * max(strokes)]
+    assert _near(tr, future, pool, grasps, ik) == eager
