@@ -54,8 +54,8 @@ def test_plan_failing_final_verification_is_written_for_inspection(monkeypatch, 
     """Such a plan was discarded; now it is kept as PLAN.invalid.json, exit code 1."""
     real = plan_module.verify_plan
 
-    def failing(doc, base_dir="."):
-        rep = real(doc, base_dir)
+    def failing(doc, base_dir=".", package_dirs=()):
+        rep = real(doc, base_dir, package_dirs)
         bad = plan_module.Violation(0, 1, "collision", "link_1 touches object (injected)")
         return plan_module.VerifyReport((bad,), rep.waypoints, rep.segments)
 

@@ -10,7 +10,8 @@ import pytest
 
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import quat_to_matrix
-from dexplan.model.grasp.rolling import FingertipRolling, RollSettings, point_jacobian
+from dexplan.model.grasp.contact_jacobians import point_jacobian
+from dexplan.model.grasp.rolling import FingertipRolling, RollSettings
 from dexplan.model.scenario.scenario import load_scenario
 from dexplan.planning.context import build_context
 from dexplan.planning.gsn.space import POSE_DIM
@@ -185,3 +186,33 @@ def test_a_redundant_finger_keeps_away_from_its_joint_limits_while_it_rolls() ->
         assert worst[0] <= worst[1] + 1e-9
         gained.append(worst[1] - worst[0])
     assert max(gained) > 0.01
+
+
+def test_stacked_contact_jacobians_are_each_fingers_own_bit_for_bit() -> None:
+    """Stacked point Jacobians, rotations and damped steps: each row as computed alone."""
+    from dexplan.model.grasp.contact_jacobians import (
+        damped_step,
+        damped_steps,
+        point_jacobian,
+        point_jacobians,
+        rotate_rows,
+    )
+
+    rng = np.random.default_rng(11)
+    for m in (2, 3, 4):
+        J6 = rng.normal(size=(4, 6, m))
+        p, c = rng.normal(size=(4, 3)), rng.normal(size=(4, 3))
+        J = point_jacobians(J6, p, c)
+        for i in range(4):
+            assert np.array_equal(J[i], point_jacobian(J6[i], p[i], c[i]))
+        rhs = rng.normal(size=(4, 3))
+        steps = damped_steps(J, rhs, 1e-9)
+        for i in range(4):
+            assert np.array_equal(steps[i], damped_step(J[i], rhs[i], 1e-9))
+            # the step solves the point's motion (least squares for fewer than 3 joints)
+            if m >= 3:
+                np.testing.assert_allclose(J[i] @ steps[i], rhs[i], atol=1e-6)
+    R, v = rng.normal(size=(3, 3)), rng.normal(size=(5, 3))
+    assert np.array_equal(rotate_rows(R, v), np.array([R @ x for x in v]))
+    Rs = rng.normal(size=(5, 3, 3))
+    assert np.array_equal(rotate_rows(Rs, v), np.array([Rs[i] @ v[i] for i in range(5)]))

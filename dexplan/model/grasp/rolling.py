@@ -61,6 +61,7 @@ import pinocchio as pin
 from dexplan.core.errors import InvalidInputError
 from dexplan.core.pose import interpolate_pose, length, quat_angle, quat_to_matrix
 from dexplan.core.typing import FloatArray
+from dexplan.model.grasp.contact_jacobians import damped_steps, point_jacobians, rotate_rows
 
 __all__ = [
     "CONTACT_MOTIONS",
@@ -69,7 +70,6 @@ __all__ = [
     "RollSettings",
     "RollStep",
     "RolledContact",
-    "point_jacobian",
     "tip_side_contacts",
 ]
 
@@ -175,21 +175,6 @@ class RollStep:
     normals_obj: FloatArray
     p_tip: FloatArray
     slip: FloatArray
-
-
-def point_jacobian(J6: FloatArray, p_world: FloatArray, c_world: FloatArray) -> FloatArray:
-    """Jacobian ``(3, m)`` of a point fixed on a link, from the link frame's.
-
-    Args:
-        J6: (6, m) the frame's Jacobian, ``LOCAL_WORLD_ALIGNED`` (linear
-            velocity of its origin, then angular velocity, world axes).
-        p_world: (3,) the point, world frame.
-        c_world: (3,) the frame's origin, world frame.
-
-    Returns:
-        ``J_p = J_v - [p - c]x J_w``: ``v_p = v_c + w x (p - c)``.
-    """
-    return J6[:3] - pin.skew(p_world - c_world) @ J6[3:]
 
 
 class FingertipRolling:
@@ -447,19 +432,19 @@ class FingertipRolling:
         damping = self.settings.damping
         # the half step, at the substep's first contacts
         c, J6 = self._frames(fingers, q)
-        p_a = x_a + _rotated(R_a, P)
-        J = _point_jacobians(J6, p_a, c)
-        half = _solve_stacked(J, (x_b + _rotated(R_b, P)) - p_a, damping)
+        p_a = x_a + rotate_rows(R_a, P)
+        J = point_jacobians(J6, p_a, c)
+        half = damped_steps(J, (x_b + rotate_rows(R_b, P)) - p_a, damping)
         q_mid = q.copy()
         for ix, dq_i in zip(idx, half, strict=True):
             q_mid[ix] += 0.5 * dq_i
         # the middle: the contacts there, their material points' motion over the substep
         R_m, x_m = _mid_rotation(R_a, R_b), 0.5 * (x_a + x_b)
         c_m, J6_m = self._frames(fingers, q_mid)
-        p_m = np.asarray(self.obj.closest_point(_rotated(R_m.T, c_m - x_m))[0], dtype=float)
-        move = (x_b + _rotated(R_b, p_m)) - (x_a + _rotated(R_a, p_m))
-        J_m = _point_jacobians(J6_m, x_m + _rotated(R_m, p_m), c_m)
-        dq = _solve_stacked(J_m, move, damping)
+        p_m = np.asarray(self.obj.closest_point(rotate_rows(R_m.T, c_m - x_m))[0], dtype=float)
+        move = (x_b + rotate_rows(R_b, p_m)) - (x_a + rotate_rows(R_a, p_m))
+        J_m = point_jacobians(J6_m, x_m + rotate_rows(R_m, p_m), c_m)
+        dq = damped_steps(J_m, move, damping)
         if self.settings.limit_gain > 0.0:
             motion = length(pin.log3(R_b @ R_a.T)) + 10.0 * length(x_b - x_a)
             for i, ix in enumerate(idx):
@@ -468,7 +453,7 @@ class FingertipRolling:
         q = q.copy()
         for ix, dq_i in zip(idx, dq, strict=True):
             q[ix] += dq_i
-        slip = [length(r) for r in _rotated(J_m, dq) - move]
+        slip = [length(r) for r in rotate_rows(J_m, dq) - move]
         for _ in range(self.settings.normal_iterations):
             q = self._onto_surface(fingers, q, frame_b)
         return q, slip
@@ -496,9 +481,9 @@ class FingertipRolling:
         """Move each tip's centre along the object's normal until its sphere is tangent."""
         c, J6 = self._frames(fingers, q)
         R, x = frame
-        d, grad = self.obj.signed_distance_and_gradient(_rotated(R.T, c - x))
-        steps = (self.radius - np.asarray(d, dtype=float))[:, None] * _rotated(R, grad)
-        dq = _solve_stacked(J6[:, :3], steps, self.settings.damping)
+        d, grad = self.obj.signed_distance_and_gradient(rotate_rows(R.T, c - x))
+        steps = (self.radius - np.asarray(d, dtype=float))[:, None] * rotate_rows(R, grad)
+        dq = damped_steps(J6[:, :3], steps, self.settings.damping)
         q = q.copy()
         for f, dq_i in zip(fingers, dq, strict=True):
             q[self.hand.finger_q_index[f]] += dq_i
@@ -513,9 +498,9 @@ class FingertipRolling:
         """
         R_t, c = self._placements(fingers, q)
         R, x = frame
-        p, n = self.obj.closest_point(_rotated(R.T, c - x))
+        p, n = self.obj.closest_point(rotate_rows(R.T, c - x))
         p = np.asarray(p, dtype=float)
-        tips = _rotated(R_t.transpose(0, 2, 1), x + _rotated(R, p) - c)
+        tips = rotate_rows(R_t.transpose(0, 2, 1), x + rotate_rows(R, p) - c)
         return p, np.asarray(n, dtype=float), tips
 
 
@@ -560,51 +545,3 @@ def _pose(pose: FloatArray) -> tuple[FloatArray, FloatArray]:
 def _mid_rotation(R_a: FloatArray, R_b: FloatArray) -> FloatArray:
     """The rotation halfway (geodesically) from ``R_a`` to ``R_b``, (3, 3)."""
     return np.asarray(pin.exp3(0.5 * pin.log3(R_b @ R_a.T)) @ R_a, dtype=np.float64)
-
-
-def _solve(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
-    """Least-norm (damped) solution of ``J x = rhs`` for any shape of ``J``."""
-    if J.shape[0] <= J.shape[1]:
-        A = J @ J.T
-        A.flat[:: A.shape[0] + 1] += damping
-        return np.asarray(J.T @ np.linalg.solve(A, rhs), dtype=np.float64)
-    A = J.T @ J
-    A.flat[:: A.shape[0] + 1] += damping
-    return np.asarray(np.linalg.solve(A, J.T @ rhs), dtype=np.float64)
-
-
-def _solve_stacked(J: FloatArray, rhs: FloatArray, damping: float) -> FloatArray:
-    """:func:`_solve` of each ``(J[i], rhs[i])``, ``J: (F, 3, m)``, ``rhs: (F, 3)``: ``(F, m)``.
-
-    Fingers of 3 joints or more solve 3 x 3 systems: all in one batched
-    call (each exactly as alone); fingers of fewer one by one.
-    """
-    J = np.ascontiguousarray(J)
-    if J.shape[2] < 3:
-        return np.array([_solve(J[i], rhs[i], damping) for i in range(len(J))])
-    JT = J.transpose(0, 2, 1)
-    A = J @ JT
-    A[:, [0, 1, 2], [0, 1, 2]] += damping
-    y = np.linalg.solve(A, np.ascontiguousarray(rhs)[:, :, None])
-    return np.asarray((JT @ y)[:, :, 0], dtype=np.float64)
-
-
-def _rotated(R: FloatArray, v: FloatArray) -> FloatArray:
-    """``R @ v[i]`` of each row of ``v: (F, k)``, ``R: (n, k)`` or ``(F, n, k)``: ``(F, n)``.
-
-    One stacked product; each row's is exactly ``R @ v[i]`` alone.
-    """
-    return np.ascontiguousarray(np.matmul(R, v[:, :, None])[:, :, 0])
-
-
-def _point_jacobians(J6: FloatArray, p_world: FloatArray, c_world: FloatArray) -> FloatArray:
-    """Each finger's :func:`point_jacobian`: ``(F, 3, m)``.
-
-    ``J6: (F, 6, m)`` the tip frames' Jacobians, ``p_world, c_world: (F, 3)``.
-    """
-    r = p_world - c_world
-    S = np.zeros((len(r), 3, 3))  # pin.skew of each row
-    S[:, 0, 1], S[:, 0, 2] = -r[:, 2], r[:, 1]
-    S[:, 1, 0], S[:, 1, 2] = r[:, 2], -r[:, 0]
-    S[:, 2, 0], S[:, 2, 1] = -r[:, 1], r[:, 0]
-    return np.asarray(J6[:, :3] - S @ J6[:, 3:], dtype=np.float64)

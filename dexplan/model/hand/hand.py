@@ -14,7 +14,6 @@ order as Pinocchio reads it). ``finger_q_index[i]`` gives the entries of
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +33,9 @@ from dexplan.model.hand.frames import (
 )
 from dexplan.model.hand.ik import (
     FingerChain,
+    FingerSolvers,
     IKResult,
-    OffsetFingerIK,
     PlanarFingerIK,
-    PlanarPairIK,
     SplitFingerIK,
     batch_dls,
     branch_solutions,
@@ -176,14 +174,17 @@ class Hand:
         paper's hand and 45 ms on the Allegro, and a hand rebuilt from a plan
         file to verify it never solves IK.
         """
-        self._ik_solvers: _FingerSolvers | None = _FingerSolvers.detect(self) if now else None
         self._reach: list[ReachVoxels | None] = [None] * self.n_fingers
+        self._ik_solvers: FingerSolvers | None = None
+        if now:
+            self._ik_solvers = self._ik
 
     @property
-    def _ik(self) -> _FingerSolvers:
+    def _ik(self) -> FingerSolvers:
         """The fingers' IK solvers and vectorised chains (built on first use)."""
         if self._ik_solvers is None:
-            self._ik_solvers = _FingerSolvers.detect(self)
+            args = (self.finger_q_index, self.tip_frame_ids, self.lower, self.upper, self.neutral)
+            self._ik_solvers = FingerSolvers.detect(self.model, *args)
         return self._ik_solvers
 
     # ------------------------------------------------------------------ loading
@@ -596,42 +597,3 @@ class Hand:
             max_iter=max_iter,
             restarts=restarts,
         )
-
-
-@dataclass(frozen=True)
-class _FingerSolvers:
-    """Per finger, its IK solvers and vectorised chain (None where it has none).
-
-    Attributes:
-        analytic: closed-form IK of a planar 3-joint finger.
-        chains: vectorised forward kinematics (revolute fingers).
-        split: closed forms of a redundant 4-joint finger (a grid for the redundancy).
-        offset: closed forms of offset 3-joint and planar 2-joint fingers.
-    """
-
-    analytic: tuple[PlanarFingerIK | None, ...]
-    chains: tuple[FingerChain | None, ...]
-    split: tuple[SplitFingerIK | None, ...]
-    offset: tuple[OffsetFingerIK | PlanarPairIK | None, ...]
-
-    @classmethod
-    def detect(cls, hand: Hand) -> _FingerSolvers:
-        """The closed forms ``hand``'s fingers allow (:meth:`Hand._init_ik`)."""
-        lo, hi, q0 = hand.lower, hand.upper, hand.neutral
-        data = hand.model.createData()  # not the hand's: a caller may be between its FK and reads
-        analytic = tuple(
-            PlanarFingerIK.detect(hand.model, data, idx, fid, lo, hi, q0)
-            for idx, fid in zip(hand.finger_q_index, hand.tip_frame_ids, strict=True)
-        )
-        chains = tuple(FingerChain.from_model(hand.model, fid) for fid in hand.tip_frame_ids)
-        split: list[SplitFingerIK | None] = []
-        # every branch in closed form: offset 3-joint (TriFinger), planar 2-joint (Dex3)
-        offset: list[OffsetFingerIK | PlanarPairIK | None] = []
-        for i, idx in enumerate(hand.finger_q_index):
-            lo_f, hi_f, chain = hand.lower[idx], hand.upper[idx], chains[i]
-            planar = analytic[i] is not None
-            split.append(None if planar else SplitFingerIK.detect(chain, lo_f, hi_f))
-            other = planar or split[i] is not None
-            found = None if other else OffsetFingerIK.detect(chain, lo_f, hi_f)
-            offset.append(found or PlanarPairIK.detect(chain, lo_f, hi_f))
-        return cls(analytic, chains, tuple(split), tuple(offset))

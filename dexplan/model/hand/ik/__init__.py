@@ -11,6 +11,8 @@
   squares for any revolute chain, batched or one target with restarts.
 - :mod:`.chain` (:class:`FingerChain`): vectorised forward kinematics and
   position Jacobian of a revolute finger.
+- :mod:`.solvers` (:class:`FingerSolvers`): which of these each finger of a
+  hand gets.
 
 Frames: everything is in the world (= palm) frame. ``q`` arrays hold one
 finger's joints in chain order (root to tip), which is also the order of
@@ -23,6 +25,7 @@ from dexplan.model.hand.ik.numeric import IKResult, batch_dls, finger_dls
 from dexplan.model.hand.ik.offset import OffsetFingerIK
 from dexplan.model.hand.ik.planar import PlanarFingerIK, nearest_branch, planar_branches
 from dexplan.model.hand.ik.planar_pair import PlanarPairIK
+from dexplan.model.hand.ik.solvers import FingerSolvers
 from dexplan.model.hand.ik.split import (
     SAMPLE_GRID,
     TRACK_DELTAS,
@@ -38,6 +41,7 @@ __all__ = [
     "TRACK_MAX_STEP",
     "TRACK_RESOLUTION",
     "FingerChain",
+    "FingerSolvers",
     "IKResult",
     "OffsetFingerIK",
     "PlanarFingerIK",
