@@ -69,9 +69,9 @@ def current_follow(
     tip = grasp.points[finger] + r * grasp.normals_out[finger]
     if bound is None:
         bound = int(trans.follow_scores(finger, tip[None], future)[0])
-    if trans.tracked_count(finger) <= 0 or bound <= 0:
+    limit = follow_bound(trans, finger, bound)
+    if limit == bound:  # not tracked, or nothing to track
         return bound
-    limit = bound + max(1, trans.settings.follow_stride)
     return trans.track_score(finger, q, tip, grasp.normals_out[finger], future, limit)[0]
 
 
