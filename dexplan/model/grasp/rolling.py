@@ -300,7 +300,6 @@ class FingertipRolling:
         prev = _pose(pose_a)
         R_t, c = self._placements(fs, q)
         T = np.array([R_t[i].T @ (prev[1] + prev[0] @ P[i] - c[i]) for i in range(len(fs))])
-        normals = self.obj.closest_point(P)[1]
         arc_obj, arc_tip, slip = [0.0] * len(fs), [0.0] * len(fs), [0.0] * len(fs)
         for a, b in itertools.pairwise(poses):
             out = self.step(fs, q, a, b, P)
